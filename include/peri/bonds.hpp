@@ -1,0 +1,68 @@
+// Bonds: reference families within the horizon, as full (both-direction) CSR lists built in O(N)
+// with a cell list. Structure of arrays: offsets, neighbour index (32-bit), a flag byte per bond
+// (broken), and an optional float quadrature weight per bond (partial areas).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "peri/discretization.hpp"
+
+namespace peri {
+
+/// Uniform cell list over all nodes (natural ids), cell size >= the largest reach of any body.
+class CellList {
+ public:
+  CellList(const Nodes& nodes, double reach);
+  /// Visit every node id in the cells around point x (3x3x3 block), in cell order.
+  template <class F>
+  void for_each_candidate(const double* x, F&& visit) const {
+    const auto c = cell_of(x);
+    for (std::int64_t k = std::max<std::int64_t>(c[2] - 1, 0); k <= std::min(c[2] + 1, dims_[2] - 1); ++k)
+      for (std::int64_t j = std::max<std::int64_t>(c[1] - 1, 0); j <= std::min(c[1] + 1, dims_[1] - 1); ++j)
+        for (std::int64_t i = std::max<std::int64_t>(c[0] - 1, 0); i <= std::min(c[0] + 1, dims_[0] - 1); ++i) {
+          const std::int64_t cell = (k * dims_[1] + j) * dims_[0] + i;
+          for (std::int64_t p = start_[cell]; p < start_[cell + 1]; ++p) visit(sorted_[p]);
+        }
+  }
+
+ private:
+  std::array<std::int64_t, 3> cell_of(const double* x) const;
+  std::array<double, 3> lo_{};
+  double size_ = 1.0;
+  std::array<std::int64_t, 3> dims_{1, 1, 1};
+  std::vector<std::int64_t> start_;   // ncells + 1
+  std::vector<std::int64_t> sorted_;  // node ids grouped by cell, natural order inside a cell
+};
+
+/// Quadrature weight of neighbour j (reference offset xi from i) in body geometry g: the fraction
+/// of j's cell inside the horizon disc/ball of i (1 for Quadrature::Full inside, 0 outside).
+/// Symmetric: weight(xi) == weight(-xi) bit for bit.
+double quadrature_weight(const BodyGeometry& g, const double xi[3]);
+
+/// Exact area of the intersection of the disc |p| <= r with the rectangle [x0,x1] x [y0,y1].
+double disc_rectangle_area(double r, double x0, double x1, double y0, double y1);
+
+/// Neighbours (natural ids, ascending) of node i within its body's horizon, with their weights.
+void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
+                   std::vector<std::int64_t>& ids, std::vector<double>& weights);
+
+/// Largest distance at which a body may have a bond (horizon + cell half-diagonal).
+double reach(const BodyGeometry& g);
+
+/// True when the reference segment a-b crosses the crack segment (xy projection; membranes).
+/// Canonical in (a, b): the caller passes the lower natural id first so both ends agree.
+bool crosses(const double* a, const double* b, const Crack& crack);
+
+/// Bond families of a set of rows in CSR form. Neighbour indices are whatever the builder maps
+/// natural ids to (local indices on a rank).
+struct BondFamilies {
+  std::vector<std::int64_t> offsets{0};  ///< rows + 1
+  std::vector<std::int32_t> neighbor;    ///< one per ordered bond
+  std::vector<std::uint8_t> broken;      ///< 1 = broken (irreversible)
+  std::vector<float> weight;             ///< quadrature weight per bond; empty = all 1
+  std::int64_t rows() const { return static_cast<std::int64_t>(offsets.size()) - 1; }
+  std::int64_t size() const { return static_cast<std::int64_t>(neighbor.size()); }
+  double bytes_per_bond() const;
+};
+
+}  // namespace peri

@@ -1,0 +1,7 @@
+// Build provenance, written beside every output (STYLE: provenance).
+#pragma once
+
+namespace peri {
+const char* git_revision();  ///< `git describe --always --dirty` at configure time
+const char* version();       ///< project version
+}  // namespace peri

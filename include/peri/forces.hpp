@@ -1,0 +1,54 @@
+// Forces: the loop layer. Walks the CSR families of a list of owned rows, applies one BondLaw per
+// body, writes force densities into a flat array, and updates the broken flags. No MPI, no PETSc:
+// the caller passes local arrays (owned nodes first, ghosts after).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "peri/domain.hpp"
+#include "peri/model.hpp"
+
+namespace peri {
+
+/// Read/write view of what the bond loop needs (all local arrays).
+struct BondView {
+  const double* X = nullptr;        ///< 3 * local reference positions
+  const double* u = nullptr;        ///< 3 * local displacements
+  const double* volume = nullptr;   ///< local measures
+  const std::int64_t* offsets = nullptr;
+  const std::int32_t* neighbor = nullptr;
+  std::uint8_t* broken = nullptr;
+  const float* weight = nullptr;    ///< nullptr: all weights 1
+};
+
+/// Sums a bond loop produces (this rank's owned rows).
+struct BondTally {
+  double strain_energy = 0;   ///< sum_i V_i * 1/2 sum_j w_ij V_j  [J] (eq. 5), intact bonds
+  double dissipated = 0;      ///< energy of bonds broken during this call, at breaking [J]
+  std::int64_t newly_broken = 0;  ///< ordered bonds broken during this call
+  BondTally& operator+=(const BondTally& o) {
+    strain_energy += o.strain_energy;
+    dissipated += o.dissipated;
+    newly_broken += o.newly_broken;
+    return *this;
+  }
+};
+
+/// Force densities (N/m^3) on `rows`, written to force[3*row..]; bonds reaching the failure test
+/// are broken (irreversibly) first. With `with_energy`, strain energy is summed too.
+void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* rows,
+                 std::size_t nrows, double* force, bool with_energy, BondTally& tally);
+
+/// Same loop that only sums the strain energy of intact bonds (no forces, no breaking).
+double bond_energy(const BondLaw& law, const BondView& view, const std::int32_t* rows,
+                   std::size_t nrows);
+
+/// Damage of each row: broken fraction of its family, weighted by w_ij V_j (0 intact, 1 free).
+void node_damage(const BondView& view, const std::int32_t* rows, std::size_t nrows, double* damage);
+
+/// Stable explicit time step bound over `rows` (Silling & Askari 2005):
+/// dt_i = sqrt(2 rho / sum_j w_ij V_j C_ij), C_ij = d f_hat/dy at the reference state.
+double stable_time_step(const BondLaw& law, double density, const BondView& view,
+                        const std::int32_t* rows, std::size_t nrows);
+
+}  // namespace peri

@@ -1,0 +1,191 @@
+// Scene: the validated, SI-unit description of one run (bodies, materials, pre-cracks,
+// boundary regions, initial conditions, stages, output). Read from YAML; every key is checked.
+// Nothing downstream reads YAML: the rest of the program sees only these structs.
+#pragma once
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "peri/error.hpp"
+
+namespace peri {
+
+using Vec3 = std::array<double, 3>;
+
+/// Force law of a material's bonds.
+enum class ModelKind {
+  Membrane,  ///< rubbery membrane micropotential, eqs. (13), (15); optional hardening (16)
+  PMB,       ///< prototype microelastic brittle bond: force c*s*g, s = lambda - 1
+};
+
+/// Influence function g(|xi|) of eq. (13).
+enum class Influence {
+  Constant,  ///< g = 1
+  Conical,   ///< g = 1 - |xi|/delta
+};
+
+/// How a neighbour's measure is weighted inside the horizon (the quadrature of eq. (12)).
+enum class Quadrature {
+  Full,         ///< weight 1 for |xi| <= delta, 0 beyond
+  PartialArea,  ///< exact fraction of the neighbour's cell (square of side dx) inside the disc
+};
+
+enum class BodyKind {
+  Membrane,  ///< flat rectangle of nodes, measure = cell area * thickness
+  Solid,     ///< box of simple-cubic points, measure = dx^3
+};
+
+enum class Grid { Square, Hexagonal };
+
+/// Power-law hardening of eq. (16): the bond energy gains c' (lambda^n - n lambda + n - 1) g, i.e.
+/// (16) with the affine terms that keep the reference state stress-free.
+struct Hardening {
+  double coefficient = 0.0;  ///< c' [same unit as the micromodulus c]
+  double exponent = 2.0;     ///< n > 1
+};
+
+struct Material {
+  std::string name;
+  SourceLoc where;
+  ModelKind model = ModelKind::Membrane;
+  double density = 0.0;  ///< rho [kg/m^3], > 0
+  // Stiffness: exactly one of the four is given in the scene; the others stay empty.
+  std::optional<double> wave_speed;      ///< small-strain longitudinal wave speed c_l [m/s]
+  std::optional<double> bulk_modulus;    ///< K [Pa]: in-plane K = lambda+mu for membranes, 3D for solids
+  std::optional<double> youngs_modulus;  ///< E [Pa]
+  std::optional<double> micromodulus;    ///< c itself [SI unit of the model's c]
+  Influence influence = Influence::Constant;
+  /// Critical stretch for bond failure. Membrane model: lambda_0 > 1 (eq. 22).
+  /// PMB: critical bond strain s_0 > 0 (the papers' "critical stretch" 0.1, 0.03, 0.3).
+  /// Empty: bonds never break.
+  std::optional<double> critical_stretch;
+  /// Optional Lambda_delta of eq. (29): the critical value at |xi| = delta (then critical_stretch
+  /// is Lambda_0, the value at |xi| = 0). Same meaning (stretch or strain) as critical_stretch.
+  std::optional<double> critical_stretch_at_horizon;
+  std::optional<Hardening> hardening;  ///< membrane model only
+};
+
+struct Body {
+  std::string name;
+  SourceLoc where;
+  BodyKind kind = BodyKind::Membrane;
+  std::string material;       ///< name of an entry of Scene::materials
+  Vec3 origin{0, 0, 0};       ///< lower corner [m]
+  Vec3 size{0, 0, 0};         ///< extent [m]; membranes use x, y (z must be 0)
+  double thickness = 0.0;     ///< h [m], membranes only (> 0)
+  double spacing = 0.0;       ///< dx [m] (> 0)
+  Grid grid = Grid::Square;
+  double horizon_factor = 3.0;          ///< m in delta = m*dx (>= 1); ignored when horizon set
+  std::optional<double> horizon;        ///< delta [m] (>= spacing)
+  Quadrature quadrature = Quadrature::PartialArea;
+  double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
+};
+
+/// Axis-aligned box [min, max] (inclusive) selecting nodes by reference position.
+struct Region {
+  SourceLoc where;
+  Vec3 min{0, 0, 0};
+  Vec3 max{0, 0, 0};
+  std::string body;  ///< restrict to one body; empty = all bodies
+  bool contains(const Vec3& x) const {
+    for (int d = 0; d < 3; ++d)
+      if (x[d] < min[d] || x[d] > max[d]) return false;
+    return true;
+  }
+};
+
+/// Pre-crack: every bond whose reference segment crosses the segment [from, to] is broken at
+/// the start (Silling & Bobaru 7.1: "breaking all the peridynamic bonds that intersect the slit").
+struct Crack {
+  std::string name;
+  SourceLoc where;
+  Vec3 from{0, 0, 0};
+  Vec3 to{0, 0, 0};
+};
+
+/// Prescribed-velocity (or clamped: velocity 0) region.
+struct Boundary {
+  std::string name;
+  SourceLoc where;
+  Region region;
+  Vec3 velocity{0, 0, 0};                       ///< [m/s]
+  std::array<bool, 3> components{true, true, true};  ///< which components are prescribed
+  double ramp_time = 0.0;  ///< [s] velocity rises linearly from 0 over this time (0: at once)
+};
+
+/// Initial conditions, applied before the first stage.
+struct Initial {
+  /// u = displacement_gradient * (X - center): e.g. a homogeneous preload. 3x3 row-major.
+  std::array<double, 9> displacement_gradient{};
+  /// v = velocity_gradient * (X - center). 3x3 row-major [1/s].
+  std::array<double, 9> velocity_gradient{};
+  Vec3 center{0, 0, 0};  ///< [m]
+  /// Out-of-plane seed of example 7.1: u_z += A sin(2 pi x/Lx) sin(2 pi y/Ly) (a wavelength of 0
+  /// drops its factor). amplitude 0 = no seed.
+  double seed_amplitude = 0.0;  ///< A [m]
+  double seed_wavelength_x = 0.0;  ///< Lx [m]
+  double seed_wavelength_y = 0.0;  ///< Ly [m]
+};
+
+enum class StageKind { Dynamic };
+
+struct Stage {
+  std::string name;
+  SourceLoc where;
+  StageKind kind = StageKind::Dynamic;
+  double duration = 0.0;               ///< simulated time [s] (> 0) unless steps is set
+  std::optional<long> steps;           ///< number of steps; overrides duration
+  std::optional<double> dt;            ///< time step [s]; default safety_factor * stable bound
+  double safety_factor = 0.7;          ///< (0, 1]
+  bool allow_unstable_dt = false;      ///< accept a dt above the stable bound
+};
+
+struct Output {
+  int frames = 20;             ///< HDF5 frames over the whole run (>= 1; first and last included)
+  int series_every = 10;       ///< CSV energy row every N steps (>= 1)
+  bool write_velocity = true;  ///< velocity field in HDF5 frames
+  double progress_seconds = 2.0;  ///< wall seconds between progress lines (0: every check)
+};
+
+struct Scene {
+  std::string file;         ///< path it was read from ("<default>" for the embedded scene)
+  std::string name;         ///< short identifier
+  std::string description;  ///< free text
+  std::vector<Material> materials;
+  std::vector<Body> bodies;
+  std::vector<Crack> cracks;
+  std::vector<Boundary> boundaries;
+  Initial initial;
+  std::vector<Stage> stages;
+  Output output;
+
+  const Material& material(const std::string& name) const;
+  int material_index(const std::string& name) const;
+};
+
+/// Command-line override "path.to.key=value"; value is parsed as YAML (scalars, [a, b], {k: v}).
+/// List entries are addressed by index (stages.0.duration) or by their name key
+/// (bodies.sheet.spacing).
+struct Override {
+  std::string path;
+  std::string value;
+};
+
+/// Read, override and validate a scene. `text` is the YAML document, `file` its name for
+/// messages. Throws InputError with "file:line: key 'a.b.c': expected ..., got ..." on the first
+/// problem found. Identical on every rank.
+Scene parse_scene(const std::string& text, const std::string& file,
+                  const std::vector<Override>& overrides = {});
+
+/// Read a scene file (InputError if it cannot be read).
+Scene load_scene(const std::string& path, const std::vector<Override>& overrides = {});
+
+/// The embedded default scene (example 7.1 at demo resolution), as YAML text.
+const std::string& default_scene_text();
+
+/// Fully resolved scene as YAML (every key, defaults filled in). parse_scene(emit_scene(s))
+/// emits the same text again (round trip). `derived` lines are appended as YAML comments.
+std::string emit_scene(const Scene& s, const std::vector<std::string>& derived = {});
+
+}  // namespace peri

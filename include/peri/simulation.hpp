@@ -1,0 +1,121 @@
+// Simulation: one run, built along DESIGN.md's data flow (scene -> nodes -> bonds -> partition
+// -> state -> model -> stages -> diagnostics -> output). run() reads like the algorithm:
+// initial conditions, then each stage's explicit velocity-Verlet loop.
+#pragma once
+#include <mpi.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "peri/forces.hpp"
+#include "peri/output.hpp"
+#include "peri/state.hpp"
+
+namespace peri {
+
+struct RunOptions {
+  std::string out_dir;   ///< empty: write no files (tests)
+  bool quiet = false;    ///< no progress lines
+};
+
+/// Figures of a finished (or running) simulation, as written to summary.json.
+struct RunSummary {
+  std::int64_t nodes = 0, ordered_bonds = 0, steps = 0, precrack_bonds = 0;
+  int ranks = 1, frames = 0;
+  double dt = 0, dt_stable = 0, simulated_time = 0;
+  double setup_seconds = 0, step_seconds = 0, output_seconds = 0, wall_seconds = 0;
+  double bytes_per_bond = 0;
+  double partition_seconds = 0;
+  std::int64_t edge_cut = 0;
+  EnergyRow final_energy;
+  double initial_total_energy = 0;
+  double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
+  std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
+  std::string to_json() const;
+};
+
+class Simulation {
+ public:
+  /// Builds everything and validates what needs the discretization (regions, time steps).
+  /// Throws InputError before any file is written.
+  Simulation(const Scene& scene, MPI_Comm comm, RunOptions options = {});
+  ~Simulation();
+
+  /// Apply initial conditions and run every stage: begin(), advance(all), finish(). Collective.
+  void run();
+  /// Initial conditions, first forces, frame 0 and series row 0.
+  void begin();
+  /// Advance up to n steps through the stages (fewer at the end). Returns steps taken.
+  std::int64_t advance(std::int64_t n);
+  /// Timings, energy balance, summary.json.
+  void finish();
+  std::int64_t total_steps() const { return total_steps_; }
+  std::int64_t current_step() const { return step_; }
+  double current_time() const { return time_; }
+
+  const RunSummary& summary() const { return summary_; }
+  const Domain& domain() const { return domain_; }
+  /// Resolved scene YAML with derived constants as comments.
+  const std::string& resolved_scene() const { return resolved_; }
+  /// Derived constants as "key = value" lines.
+  std::vector<std::string> derived_lines() const;
+
+  /// Owned per-node field gathered in natural order onto every rank (tests; small runs).
+  std::vector<double> gather_natural(const double* owned, int bs);
+  std::vector<double> natural_positions();   ///< X + u, 3N
+  std::vector<double> natural_velocities();  ///< 3N
+  std::vector<double> natural_damage();      ///< N
+  /// Broken bonds as (natural i < natural j) pairs, sorted, on every rank.
+  std::vector<std::pair<std::int64_t, std::int64_t>> broken_bonds();
+  /// Current energies (collective).
+  EnergyRow energies();
+  /// Total linear and angular momentum about the origin (collective).
+  std::array<double, 6> momentum();
+
+ private:
+  struct Plan;  // stage step counts and dt
+  void apply_initial_conditions();
+  void compute_forces(bool with_energy);
+  void step(bool with_energy);
+  void check_health(std::int64_t step, double time);
+  void write_frame();
+  void write_series_row();
+  double kinetic_energy();
+
+  Scene scene_;
+  MPI_Comm comm_;
+  RunOptions options_;
+  int rank_ = 0, ranks_ = 1;
+  Nodes nodes_;
+  Partition partition_;
+  Domain domain_;
+  std::unique_ptr<State> state_;
+  std::vector<BondLaw> laws_;           // per body
+  std::vector<double> density_;         // per body
+  std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
+  std::vector<double> inv_density_, mass_;  // per owned node
+  std::vector<double> force_, prev_force_;  // force densities, 3 * owned
+  std::vector<int> bc_;                     // per owned node: boundary index or -1
+  std::vector<double> damage_;
+  std::vector<std::int64_t> stage_steps_;
+  std::vector<double> stage_dt_;
+  std::int64_t total_steps_ = 0, step_ = 0;
+  double time_ = 0, dt_ = 0;
+  BondTally tally_;            // this rank's cumulative dissipation / breaks; strain of last call
+  double external_work_ = 0;   // this rank's share
+  std::vector<std::int64_t> frame_steps_;
+  std::size_t next_frame_ = 0;
+  std::size_t stage_ = 0;           // current stage
+  std::int64_t stage_step_ = 0;     // steps taken in it
+  std::chrono::steady_clock::time_point loop_start_;
+  std::unique_ptr<FrameWriter> frames_;
+  std::unique_ptr<SeriesWriter> series_;
+  std::string resolved_;
+  RunSummary summary_;
+  std::chrono::steady_clock::time_point start_, last_progress_;
+};
+
+}  // namespace peri

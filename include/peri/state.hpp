@@ -1,0 +1,90 @@
+// State: the PETSc objects of a run, owned in one place. Ghosted block Vecs (bs = 3) for
+// displacement and velocity (owned entries first, ghosts after, in the Domain's local order),
+// the halo exchange of displacement, and scatters to the natural (rank-independent) order used
+// by output and checkpoints.
+#pragma once
+#include <petscvec.h>
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "peri/domain.hpp"
+
+namespace peri {
+
+/// RAII owner of a PETSc Vec.
+class OwnedVec {
+ public:
+  OwnedVec() = default;
+  explicit OwnedVec(Vec v) : v_(v) {}
+  OwnedVec(const OwnedVec&) = delete;
+  OwnedVec& operator=(const OwnedVec&) = delete;
+  OwnedVec(OwnedVec&& o) noexcept : v_(o.v_) { o.v_ = nullptr; }
+  OwnedVec& operator=(OwnedVec&& o) noexcept {
+    std::swap(v_, o.v_);
+    return *this;
+  }
+  ~OwnedVec() { if (v_) VecDestroy(&v_); }
+  Vec get() const { return v_; }
+ private:
+  Vec v_ = nullptr;
+};
+
+/// RAII owner of a VecScatter.
+class OwnedScatter {
+ public:
+  OwnedScatter() = default;
+  explicit OwnedScatter(VecScatter s) : s_(s) {}
+  OwnedScatter(const OwnedScatter&) = delete;
+  OwnedScatter& operator=(const OwnedScatter&) = delete;
+  OwnedScatter& operator=(OwnedScatter&& o) noexcept {
+    std::swap(s_, o.s_);
+    return *this;
+  }
+  ~OwnedScatter() { if (s_) VecScatterDestroy(&s_); }
+  VecScatter get() const { return s_; }
+ private:
+  VecScatter s_ = nullptr;
+};
+
+/// Raw access to the local (owned + ghost) array of a ghosted Vec for the lifetime of the guard.
+class LocalArray {
+ public:
+  explicit LocalArray(Vec ghosted);
+  ~LocalArray();
+  LocalArray(const LocalArray&) = delete;
+  LocalArray& operator=(const LocalArray&) = delete;
+  double* data() { return a_; }
+ private:
+  Vec g_ = nullptr, l_ = nullptr;
+  double* a_ = nullptr;
+};
+
+class State {
+ public:
+  State(const Domain& domain, MPI_Comm comm);
+  Vec displacement() const { return u_.get(); }
+  Vec velocity() const { return v_.get(); }
+  /// Halo exchange of displacement (owner values -> ghost copies), split so that interior bonds
+  /// can be computed while messages are in flight.
+  void halo_begin();
+  void halo_end();
+  /// Gather owned per-node values (bs = 1 or 3) into the natural order. Returns this rank's
+  /// contiguous slice; natural_begin()/natural_count() say which natural ids it holds.
+  const double* to_natural(const double* owned_values, int bs);
+  std::int64_t natural_begin() const { return nat_begin_; }
+  std::int64_t natural_count() const { return nat_count_; }
+  MPI_Comm comm() const { return comm_; }
+
+ private:
+  MPI_Comm comm_;
+  OwnedVec u_, v_;
+  OwnedVec owned1_, owned3_, nat1_, nat3_;  // solver-order and natural-order work vectors
+  OwnedScatter to_nat1_, to_nat3_;
+  std::int64_t nat_begin_ = 0, nat_count_ = 0;
+  std::int32_t owned_ = 0;
+  std::vector<double> slice_;
+};
+
+}  // namespace peri

@@ -1,0 +1,161 @@
+#include "peri/bonds.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace peri {
+
+double reach(const BodyGeometry& g) {
+  if (g.quadrature == Quadrature::Full) return g.horizon;
+  return g.horizon + g.spacing * (g.kind == BodyKind::Solid ? 0.8660254037844387 : 0.7071067811865476);
+}
+
+CellList::CellList(const Nodes& nodes, double reach_) {
+  const std::int64_t n = nodes.size();
+  std::array<double, 3> hi{};
+  lo_ = {0, 0, 0};
+  if (n > 0) {
+    for (int d = 0; d < 3; ++d) lo_[d] = hi[d] = nodes.X[d];
+    for (std::int64_t i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d) {
+        lo_[d] = std::min(lo_[d], nodes.X[3 * i + d]);
+        hi[d] = std::max(hi[d], nodes.X[3 * i + d]);
+      }
+  }
+  size_ = reach_ * (1.0 + 1e-9);
+  // Keep the number of cells O(N) even for sparse scenes (grow the cell if needed).
+  for (;;) {
+    double total = 1;
+    for (int d = 0; d < 3; ++d) {
+      dims_[d] = static_cast<std::int64_t>(std::floor((hi[d] - lo_[d]) / size_)) + 1;
+      total *= static_cast<double>(dims_[d]);
+    }
+    if (total <= 4.0 * static_cast<double>(n) + 64) break;
+    size_ *= 1.5;
+  }
+  const std::int64_t ncells = dims_[0] * dims_[1] * dims_[2];
+  start_.assign(ncells + 1, 0);
+  std::vector<std::int64_t> cell(n);
+  for (std::int64_t i = 0; i < n; ++i) {
+    const auto c = cell_of(&nodes.X[3 * i]);
+    cell[i] = (c[2] * dims_[1] + c[1]) * dims_[0] + c[0];
+    ++start_[cell[i] + 1];
+  }
+  std::partial_sum(start_.begin(), start_.end(), start_.begin());
+  sorted_.resize(n);
+  std::vector<std::int64_t> fill(start_.begin(), start_.end() - 1);
+  for (std::int64_t i = 0; i < n; ++i) sorted_[fill[cell[i]]++] = i;
+}
+
+std::array<std::int64_t, 3> CellList::cell_of(const double* x) const {
+  std::array<std::int64_t, 3> c{};
+  for (int d = 0; d < 3; ++d)
+    c[d] = std::clamp<std::int64_t>(static_cast<std::int64_t>((x[d] - lo_[d]) / size_), 0, dims_[d] - 1);
+  return c;
+}
+
+namespace {
+
+// Area of {p : |p| <= r, 0 <= p_x <= x, 0 <= p_y <= y} for x, y >= 0.
+double quadrant_area(double r, double x, double y) {
+  x = std::min(x, r);
+  y = std::min(y, r);
+  if (x * x + y * y <= r * r) return x * y;
+  auto primitive = [r](double t) {  // integral of sqrt(r^2 - t^2) dt
+    const double s = std::sqrt(std::max(r * r - t * t, 0.0));
+    return 0.5 * (t * s + r * r * std::asin(std::clamp(t / r, -1.0, 1.0)));
+  };
+  const double xs = std::sqrt(std::max(r * r - y * y, 0.0));  // where the chord height equals y
+  return y * xs + primitive(x) - primitive(xs);
+}
+
+// Signed extension of quadrant_area to all four quadrants (odd in x and in y).
+double signed_area(double r, double x, double y) {
+  const double a = quadrant_area(r, std::fabs(x), std::fabs(y));
+  return ((x < 0) != (y < 0)) ? -a : a;
+}
+
+}  // namespace
+
+double disc_rectangle_area(double r, double x0, double x1, double y0, double y1) {
+  return signed_area(r, x1, y1) - signed_area(r, x0, y1) - signed_area(r, x1, y0) +
+         signed_area(r, x0, y0);
+}
+
+double quadrature_weight(const BodyGeometry& g, const double xi[3]) {
+  const double d = g.horizon;
+  // Work with |xi| components so that xi and -xi give identical results.
+  const double ax = std::fabs(xi[0]), ay = std::fabs(xi[1]), az = std::fabs(xi[2]);
+  const double r2 = ax * ax + ay * ay + az * az;
+  if (g.quadrature == Quadrature::Full) return r2 <= d * d * (1.0 + 1e-10) ? 1.0 : 0.0;
+  const double hx = 0.5 * g.spacing;
+  if (g.kind == BodyKind::Membrane) {
+    // Cell of the neighbour: dx by (cell_area/dx) rectangle (square grid: dx by dx).
+    const double hy = 0.5 * g.cell_area / g.spacing;
+    const double area = disc_rectangle_area(d, ax - hx, ax + hx, ay - hy, ay + hy);
+    const double w = area / g.cell_area;
+    return w < 1e-12 ? 0.0 : std::min(w, 1.0);
+  }
+  // Solid: fraction of the cube inside the ball; columns in (x, y) at Gauss-like midpoints, the
+  // z-extent of each column inside the ball exactly.
+  const double far = std::sqrt(std::pow(ax + hx, 2) + std::pow(ay + hx, 2) + std::pow(az + hx, 2));
+  if (far <= d) return 1.0;
+  const double nx = std::max(ax - hx, 0.0), ny = std::max(ay - hx, 0.0), nz = std::max(az - hx, 0.0);
+  if (nx * nx + ny * ny + nz * nz >= d * d) return 0.0;
+  constexpr int n = 8;
+  double sum = 0;
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) {
+      const double x = ax - hx + (a + 0.5) * g.spacing / n, y = ay - hx + (b + 0.5) * g.spacing / n;
+      const double h2 = d * d - x * x - y * y;
+      if (h2 <= 0) continue;
+      const double h = std::sqrt(h2);
+      sum += std::max(0.0, std::min(az + hx, h) - std::max(az - hx, -h));
+    }
+  const double w = sum / (n * n * g.spacing);
+  return w < 1e-12 ? 0.0 : std::min(w, 1.0);
+}
+
+void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
+                   std::vector<std::int64_t>& ids, std::vector<double>& weights) {
+  ids.clear();
+  weights.clear();
+  const int body = nodes.body[i];
+  const BodyGeometry& g = nodes.bodies[body];
+  const double* xi = &nodes.X[3 * i];
+  thread_local std::vector<std::pair<std::int64_t, double>> found;
+  found.clear();
+  cells.for_each_candidate(xi, [&](std::int64_t j) {
+    if (j == i || nodes.body[j] != body) return;
+    const double d[3] = {nodes.X[3 * j] - xi[0], nodes.X[3 * j + 1] - xi[1], nodes.X[3 * j + 2] - xi[2]};
+    const double w = quadrature_weight(g, d);
+    if (w > 0) found.emplace_back(j, w);
+  });
+  std::sort(found.begin(), found.end());
+  for (const auto& [j, w] : found) {
+    ids.push_back(j);
+    weights.push_back(w);
+  }
+}
+
+bool crosses(const double* a, const double* b, const Crack& crack) {
+  auto orient = [](const double* p, const double* q, const double* r) {
+    return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+  };
+  const double* c = crack.from.data();
+  const double* d = crack.to.data();
+  const double o1 = orient(a, b, c), o2 = orient(a, b, d);
+  const double o3 = orient(c, d, a), o4 = orient(c, d, b);
+  if (o1 == 0 && o2 == 0) return false;  // collinear: the bond runs along the crack line
+  return o1 * o2 <= 0 && o3 * o4 <= 0;
+}
+
+double BondFamilies::bytes_per_bond() const {
+  if (neighbor.empty()) return 0;
+  const double bytes = offsets.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) +
+                       broken.size() + weight.size() * sizeof(float);
+  return bytes / static_cast<double>(neighbor.size());
+}
+
+}  // namespace peri

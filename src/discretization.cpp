@@ -1,0 +1,129 @@
+#include "peri/discretization.hpp"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace peri {
+namespace {
+
+std::int64_t count_along(double length, double dx) {
+  return std::max<std::int64_t>(1, std::llround(length / dx));
+}
+
+// Number of neighbours inside a horizon of m spacings (continuum estimate + boundary cells).
+double neighbours_estimate(const Body& b) {
+  const double m = b.horizon_value() / b.spacing + 0.71;
+  return b.kind == BodyKind::Solid ? 4.18879 * m * m * m : 3.14159 * m * m;
+}
+
+}  // namespace
+
+SizeEstimate estimate_size(const Scene& scene) {
+  SizeEstimate e;
+  for (const Body& b : scene.bodies) {
+    double n = 1;
+    const int dims = b.kind == BodyKind::Solid ? 3 : 2;
+    for (int d = 0; d < dims; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
+    if (b.grid == Grid::Hexagonal) n *= 2.0 / std::sqrt(3.0);
+    e.nodes += n;
+    e.bonds += n * neighbours_estimate(b);
+  }
+  // 9 bytes per ordered bond (index, flag, weight) + ~200 bytes per node (state, PETSc, output).
+  e.bytes = 9.0 * e.bonds + 200.0 * e.nodes;
+  return e;
+}
+
+Nodes discretize(const Scene& scene) {
+  Nodes nodes;
+  const SizeEstimate est = estimate_size(scene);
+  if (est.nodes > 2.0e9 || est.bonds > 2.0e11) {
+    std::ostringstream msg;
+    msg << scene.file << ": the scene asks for about " << est.nodes << " nodes and " << est.bonds
+        << " bonds (" << est.bytes / 1e9 << " GB); peridrive indexes nodes with 32 bits per rank "
+        << "and cannot run it: increase the spacing";
+    throw InputError(msg.str());
+  }
+  nodes.X.reserve(static_cast<std::size_t>(3 * est.nodes));
+  for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
+    const Body& b = scene.bodies[bi];
+    BodyGeometry g;
+    g.material = scene.material_index(b.material);
+    g.kind = b.kind;
+    g.grid = b.grid;
+    g.spacing = b.spacing;
+    g.horizon = b.horizon_value();
+    g.quadrature = b.quadrature;
+    g.first = nodes.size();
+    const double dx = b.spacing;
+    auto push = [&](double x, double y, double z, double vol) {
+      nodes.X.insert(nodes.X.end(), {x, y, z});
+      nodes.volume.push_back(vol);
+      nodes.body.push_back(static_cast<int>(bi));
+    };
+    if (b.kind == BodyKind::Membrane) {
+      g.thickness = b.thickness;
+      if (b.grid == Grid::Square) {
+        // Cell-centred square grid: node (i, j) sits at the centre of its dx-by-dx cell.
+        const std::int64_t nx = count_along(b.size[0], dx), ny = count_along(b.size[1], dx);
+        g.cells = {nx, ny, 1};
+        g.cell_area = dx * dx;
+        for (std::int64_t j = 0; j < ny; ++j)
+          for (std::int64_t i = 0; i < nx; ++i)
+            push(b.origin[0] + (i + 0.5) * dx, b.origin[1] + (j + 0.5) * dx, b.origin[2],
+                 g.cell_area * b.thickness);
+      } else {
+        // Hexagonal (triangular-lattice) grid: rows dy = dx*sqrt(3)/2 apart, odd rows shifted by
+        // dx/2; each node owns a hexagonal cell of area dx*dy.
+        const double dy = dx * std::sqrt(3.0) / 2.0;
+        const std::int64_t nx = count_along(b.size[0], dx), ny = count_along(b.size[1], dy);
+        g.cells = {nx, ny, 1};
+        g.cell_area = dx * dy;
+        for (std::int64_t j = 0; j < ny; ++j) {
+          const double shift = (j % 2) ? 0.75 : 0.25;
+          for (std::int64_t i = 0; i < nx; ++i)
+            push(b.origin[0] + (i + shift) * dx, b.origin[1] + (j + 0.5) * dy, b.origin[2],
+                 g.cell_area * b.thickness);
+        }
+      }
+    } else {
+      const std::int64_t nx = count_along(b.size[0], dx), ny = count_along(b.size[1], dx),
+                         nz = count_along(b.size[2], dx);
+      g.cells = {nx, ny, nz};
+      for (std::int64_t k = 0; k < nz; ++k)
+        for (std::int64_t j = 0; j < ny; ++j)
+          for (std::int64_t i = 0; i < nx; ++i)
+            push(b.origin[0] + (i + 0.5) * dx, b.origin[1] + (j + 0.5) * dx,
+                 b.origin[2] + (k + 0.5) * dx, dx * dx * dx);
+    }
+    g.count = nodes.size() - g.first;
+    nodes.bodies.push_back(g);
+  }
+  return nodes;
+}
+
+std::vector<std::int64_t> select_nodes(const Nodes& nodes, const Scene& scene,
+                                       const Region& region, const std::string& what) {
+  int only_body = -1;
+  if (!region.body.empty())
+    for (std::size_t b = 0; b < scene.bodies.size(); ++b)
+      if (scene.bodies[b].name == region.body) only_body = static_cast<int>(b);
+  std::vector<std::int64_t> ids;
+  for (std::int64_t i = 0; i < nodes.size(); ++i) {
+    if (only_body >= 0 && nodes.body[i] != only_body) continue;
+    if (region.contains({nodes.X[3 * i], nodes.X[3 * i + 1], nodes.X[3 * i + 2]})) ids.push_back(i);
+  }
+  if (ids.empty()) {
+    std::ostringstream msg;
+    msg.precision(6);
+    msg << region.where.str() << ": " << what << ": the region [" << region.min[0] << ", "
+        << region.min[1] << ", " << region.min[2] << "] .. [" << region.max[0] << ", "
+        << region.max[1] << ", " << region.max[2] << "] selects no node"
+        << (region.body.empty() ? "" : " of body '" + region.body + "'")
+        << "; expected a box containing at least one node";
+    throw InputError(msg.str());
+  }
+  return ids;
+}
+
+}  // namespace peri
