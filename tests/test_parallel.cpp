@@ -1,0 +1,193 @@
+// Whole-simulation tests, run under MPI (registered at 1 and 2 ranks).
+#include <gtest/gtest.h>
+#include <petscsys.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "peri/simulation.hpp"
+
+namespace peri {
+namespace {
+
+int world_rank() {
+  int r;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
+  return r;
+}
+
+// A small slit membrane that fractures within a few hundred steps.
+const char* kFractureScene = R"(
+name: small-slit
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 1.6}
+bodies:
+  sheet: {material: rubber, origin: [-0.01, -0.01, 0], size: [0.02, 0.02], thickness: 0.0005, spacing: 0.0005}
+cracks:
+  - {name: slit, from: [-0.003, 0, 0], to: [0.003, 0, 0]}
+boundaries:
+  - {name: top, region: {min: [-1, 0.0088, -1], max: [1, 1, 1]}, velocity: [0, 20, 0]}
+  - {name: bottom, region: {min: [-1, -1, -1], max: [1, -0.0088, 1]}, velocity: [0, -20, 0]}
+initial:
+  displacement_gradient: [[0, 0, 0], [0, 0.1, 0], [0, 0, 0]]
+  velocity_gradient: [[0, 0, 0], [0, 2000, 0], [0, 0, 0]]
+  seed: {amplitude: 1.0e-6, wavelength: [0.004, 0.004]}
+stages:
+  - {name: pull, duration: 6.0e-5}
+output: {frames: 1, series_every: 10}
+)";
+
+TEST(Decomposition, SameResultOnOneAndManyRanks) {
+  const Scene scene = parse_scene(kFractureScene, "small-slit");
+  RunOptions quiet;
+  quiet.quiet = true;
+  Simulation many(scene, PETSC_COMM_WORLD, quiet);
+  many.run();
+  Simulation one(scene, PETSC_COMM_SELF, quiet);
+  one.run();
+  const std::vector<double> xa = many.natural_positions(), xb = one.natural_positions();
+  ASSERT_EQ(xa.size(), xb.size());
+  double diff = 0, scale = 0;
+  for (std::size_t k = 0; k < xa.size(); ++k) {
+    diff = std::max(diff, std::fabs(xa[k] - xb[k]));
+    scale = std::max(scale, std::fabs(xb[k]));
+  }
+  const auto ba = many.broken_bonds(), bb = one.broken_bonds();
+  if (world_rank() == 0)
+    std::printf("decomposition: %d ranks vs 1: max position difference %.3e (relative %.3e), broken bonds %zu vs %zu\n",
+                many.summary().ranks, diff, diff / scale, ba.size(), bb.size());
+  EXPECT_LE(diff / scale, 1e-12);
+  EXPECT_EQ(ba, bb);
+  // The run must actually fracture: the crack breaks hundreds of bonds beyond the slit's.
+  EXPECT_GT(one.summary().final_energy.broken_bonds, 500);
+  EXPECT_EQ(static_cast<std::int64_t>(bb.size()),
+            one.summary().precrack_bonds + one.summary().final_energy.broken_bonds);
+}
+
+TEST(FreeFlight, ConservesMomentumAndEnergy) {
+  // A spinning, gently stretching, slightly wrinkled membrane: no boundary, no damage.
+  const char* text = R"(
+name: free-flight
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000}
+bodies:
+  sheet: {material: rubber, origin: [-0.006, -0.006, 0], size: [0.012, 0.012], thickness: 0.0005, spacing: 0.0005}
+initial:
+  velocity_gradient: [[200, -1000, 0], [1000, 100, 0], [0, 0, 0]]
+  seed: {amplitude: 2.0e-6, wavelength: [0.006, 0.006]}
+stages:
+  - {name: fly, steps: 10000}
+output: {frames: 1, series_every: 1000000}
+)";
+  const Scene scene = parse_scene(text, "free-flight");
+  RunOptions quiet;
+  quiet.quiet = true;
+  Simulation sim(scene, PETSC_COMM_WORLD, quiet);
+  sim.begin();
+  const auto p0 = sim.momentum();
+  const EnergyRow e0 = sim.energies();
+  const double E0 = e0.kinetic + e0.strain;
+  double pscale = 0;  // sum of m |v|
+  for (double c : sim.natural_velocities()) pscale += std::fabs(c);
+  pscale *= 1200 * 0.0005 * 0.0005 * 0.0005;
+  double drift = 0, max_strain = 0;
+  while (sim.advance(500) > 0) {
+    const EnergyRow e = sim.energies();
+    drift = std::max(drift, std::fabs(e.kinetic + e.strain - E0) / E0);
+    max_strain = std::max(max_strain, e.strain);
+  }
+  const auto p1 = sim.momentum();
+  double dp = 0, dl = 0;
+  for (int c = 0; c < 3; ++c) dp = std::max(dp, std::fabs(p1[c] - p0[c]));
+  for (int c = 3; c < 6; ++c) dl = std::max(dl, std::fabs(p1[c] - p0[c]));
+  const double lscale = pscale * 0.012;  // sum m |v| |x|
+  if (world_rank() == 0)
+    std::printf("free flight, %lld steps: max energy deviation %.3e (strain energy up to %.1f%% of E), "
+                "linear momentum change %.3e (rel %.3e), angular %.3e (rel %.3e)\n",
+                static_cast<long long>(sim.current_step()), drift, 100 * max_strain / E0, dp, dp / pscale, dl,
+                dl / lscale);
+  EXPECT_EQ(sim.current_step(), 10000);
+  EXPECT_LT(drift, 1e-4);
+  EXPECT_LT(dp / pscale, 1e-12);
+  EXPECT_LT(dl / lscale, 1e-11);
+  EXPECT_GT(max_strain, 0.01 * E0);  // the run exchanges kinetic and strain energy
+}
+
+// Time at which the probe's x-velocity first crosses half the driving velocity.
+double half_crossing(const std::vector<double>& t, const std::vector<double>& v, double half) {
+  for (std::size_t k = 1; k < v.size(); ++k)
+    if (v[k - 1] < half && v[k] >= half) return t[k - 1] + (t[k] - t[k - 1]) * (half - v[k - 1]) / (v[k] - v[k - 1]);
+  return NAN;
+}
+
+// Calibration: a plane longitudinal front, driven smoothly from one edge of a wide plate, runs at
+// c_l. Measured between two probes on the centre line before edge waves can reach them.
+double measured_wave_speed(double dx) {
+  const double c_l = 1000, delta = 3 * dx, ramp = 10 * delta / c_l, v0 = 0.1;
+  const double length = 0.045, width = 0.07, x1 = 0.02, x2 = 0.035;
+  char text[2048];
+  std::snprintf(text, sizeof text, R"(
+name: wave
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: %g}
+bodies:
+  plate: {material: rubber, origin: [0, %.17g, 0], size: [%.17g, %.17g], thickness: 0.0005, spacing: %.17g}
+boundaries:
+  - {name: driver, region: {min: [-1, -1, -1], max: [%.17g, 1, 1]}, velocity: [%g, 0, 0], components: [x], ramp_time: %.17g}
+stages:
+  - {name: run, duration: %.17g}
+output: {frames: 1, series_every: 100000}
+)", c_l, -width / 2, length, width, dx, delta, v0, ramp, (x2 + 2 * ramp * c_l) / c_l);
+  const Scene scene = parse_scene(text, "wave");
+  RunOptions quiet;
+  quiet.quiet = true;
+  Simulation sim(scene, PETSC_COMM_WORLD, quiet);
+  sim.begin();
+  // Probes: nodes nearest (x1 + delta, 0) and (x2 + delta, 0), measured from the driven band.
+  const auto X = sim.natural_positions();
+  auto nearest = [&](double x) {
+    std::size_t best = 0;
+    double d = 1e9;
+    for (std::size_t i = 0; i < X.size() / 3; ++i) {
+      const double e = std::hypot(X[3 * i] - x, X[3 * i + 1]);
+      if (e < d) d = e, best = i;
+    }
+    return best;
+  };
+  const std::size_t p1 = nearest(x1 + delta), p2 = nearest(x2 + delta);
+  const double s = X[3 * p2] - X[3 * p1];
+  std::vector<double> t, v1, v2;
+  while (sim.advance(1) == 1) {
+    const auto v = sim.natural_velocities();
+    t.push_back(sim.current_time());
+    v1.push_back(v[3 * p1]);
+    v2.push_back(v[3 * p2]);
+  }
+  return s / (half_crossing(t, v2, v0 / 2) - half_crossing(t, v1, v0 / 2));
+}
+
+TEST(Calibration, LongitudinalWaveSpeedInAPlate) {
+  const double coarse = measured_wave_speed(0.5e-3), fine = measured_wave_speed(0.25e-3);
+  if (world_rank() == 0)
+    std::printf("longitudinal wave speed (c_l = 1000 m/s): dx = 0.5 mm: %.2f m/s (%.2f%%), dx = 0.25 mm: %.2f m/s (%.2f%%)\n",
+                coarse, (coarse / 1000 - 1) * 100, fine, (fine / 1000 - 1) * 100);
+  EXPECT_NEAR(fine / 1000, 1.0, 0.02);
+}
+
+}  // namespace
+}  // namespace peri
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  if (PetscInitialize(&argc, &argv, nullptr, nullptr)) return 1;
+  if (peri::world_rank() != 0) {
+    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
+    delete listeners.Release(listeners.default_result_printer());
+  }
+  const int result = RUN_ALL_TESTS();
+  int global = 0;
+  MPI_Allreduce(&result, &global, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+  PetscFinalize();
+  return global;
+}
