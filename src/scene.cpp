@@ -40,11 +40,24 @@ namespace {
 // ------------------------------------------------------------------------------------------------
 // Small text helpers
 
-/// Shortest decimal text that reads back to the same double.
+/// Shortest decimal text that reads back to the same double: the shortest fixed and scientific
+/// forms (exponent without '+' and leading zeros), fixed unless it is more than 2 characters
+/// longer. So 0.00025 and 1200 stay as they are, 1e-07 reads 1e-7.
 std::string format_number(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
+  char buf[400];
+  auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed);
+  const std::string fixed(buf, r.ptr);
+  r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::scientific);
+  std::string sci(buf, r.ptr);
+  const std::size_t e = sci.find('e');
+  if (e != std::string::npos) {
+    std::string exponent = sci.substr(e + 1);
+    const bool negative = exponent[0] == '-';
+    if (exponent[0] == '-' || exponent[0] == '+') exponent.erase(0, 1);
+    exponent.erase(0, std::min(exponent.find_first_not_of('0'), exponent.size() - 1));
+    sci = sci.substr(0, e + 1) + (negative ? "-" : "") + exponent;
+  }
+  return fixed.size() <= sci.size() + 2 ? fixed : sci;
 }
 
 std::string join(const std::vector<std::string>& parts, std::string_view sep = ", ") {
@@ -103,8 +116,7 @@ class Context {
   bool overridden(const std::string& path) const {
     for (const std::string& o : overridden_) {
       if (path == o) return true;
-      if (o.empty() || (path.size() > o.size() && path.compare(0, o.size(), o) == 0 &&
-                        path[o.size()] == '.'))
+      if (o.empty() || (path.size() > o.size() && path.compare(0, o.size(), o) == 0 && path[o.size()] == '.'))
         return true;
     }
     return false;
@@ -115,8 +127,7 @@ class Context {
     return SourceLoc{file_, mark.line >= 0 ? mark.line + 1 : 0};
   }
 
-  [[noreturn]] void fail(const SourceLoc& where, const std::string& path,
-                         const std::string& what) const {
+  [[noreturn]] void fail(const SourceLoc& where, const std::string& path, const std::string& what) const {
     throw InputError(where.str() + ": " + (path.empty() ? "top level" : path) + ": " + what);
   }
 
@@ -134,13 +145,10 @@ struct Key {
 };
 using Keys = std::vector<Key>;
 
-class Map;
-
 /// A YAML value at a known key path; converts it to the expected type or throws.
 class Value {
  public:
-  Value(const Context& ctx, YAML::Node node, std::string path,
-        YAML::Mark key_mark = YAML::Mark::null_mark())
+  Value(const Context& ctx, YAML::Node node, std::string path, YAML::Mark key_mark = YAML::Mark::null_mark())
       : ctx_(&ctx), node_(std::move(node)), path_(std::move(path)), key_mark_(key_mark) {}
 
   const Context& context() const { return *ctx_; }
@@ -167,8 +175,7 @@ class Value {
 
   /// A non-empty scalar, as text.
   std::string name() const {
-    if (!node_.IsScalar() || node_.Scalar().empty())
-      fail("expected a non-empty string, got " + got());
+    if (!node_.IsScalar() || node_.Scalar().empty()) fail("expected a non-empty string, got " + got());
     return node_.Scalar();
   }
 
@@ -220,8 +227,7 @@ class Value {
     }
     if (v < lo || v > hi) {
       fail("expected " + expected +
-           (hi < std::numeric_limits<long>::max() ? " and <= " + std::to_string(hi) : "") +
-           ", got " + got());
+           (hi < std::numeric_limits<long>::max() ? " and <= " + std::to_string(hi) : "") + ", got " + got());
     }
     return v;
   }
@@ -306,7 +312,7 @@ class Map {
       : ctx_(&v.context()), path_(v.path()), where_(v.where()) {
     if (!v.node().IsMap()) v.fail("expected " + expected + ", got " + v.got());
     for (auto it = v.node().begin(); it != v.node().end(); ++it) {
-      const YAML::Node& k = it->first;
+      const YAML::Node k = it->first;  // a copy: `it->` yields a temporary
       if (!k.IsScalar() || k.Scalar().empty()) {
         Value kv(*ctx_, k, path_);
         kv.fail("expected a name as map key, got " + kv.got());
@@ -316,16 +322,14 @@ class Map {
       for (const Entry& e : entries_) {
         if (e.name == name) {
           ctx_->fail(ctx_->loc(k.Mark(), path), path,
-                     "duplicate key (first given at line " + std::to_string(e.key_mark.line + 1) +
-                         ")");
+                     "duplicate key (first given at line " + std::to_string(e.key_mark.line + 1) + ")");
         }
       }
       if (keys != nullptr &&
           std::none_of(keys->begin(), keys->end(), [&](const Key& key) { return name == key.name; })) {
         std::vector<std::string> allowed;
         for (const Key& key : *keys) allowed.emplace_back(key.name);
-        ctx_->fail(ctx_->loc(k.Mark(), path), path,
-                   "unknown key; expected one of: " + join(allowed));
+        ctx_->fail(ctx_->loc(k.Mark(), path), path, "unknown key; expected one of: " + join(allowed));
       }
       entries_.push_back(Entry{name, k.Mark(), it->second});
     }
@@ -364,8 +368,7 @@ class Map {
 
   /// An error about the map as a whole. It reads "--set" if the map or one of the `involved`
   /// keys was set by an override.
-  [[noreturn]] void fail(const std::string& what,
-                         std::initializer_list<const char*> involved = {}) const {
+  [[noreturn]] void fail(const std::string& what, std::initializer_list<const char*> involved = {}) const {
     SourceLoc where = where_;
     for (const char* key : involved)
       if (find(key) != nullptr && ctx_->overridden(child_path(path_, key))) where = {"--set", 0};
@@ -389,9 +392,7 @@ class Map {
     return nullptr;
   }
 
-  Value value(const Entry& e) const {
-    return Value(*ctx_, e.value, child_path(path_, e.name), e.key_mark);
-  }
+  Value value(const Entry& e) const { return Value(*ctx_, e.value, child_path(path_, e.name), e.key_mark); }
 
   const Context* ctx_;
   std::string path_;
@@ -478,13 +479,8 @@ const Keys kSeedKeys = {
 };
 
 const Keys kStageKeys = {
-    {"name", false, ""},
-    {"kind", false, ""},
-    {"duration", false, ""},
-    {"steps", false, ""},
-    {"dt", false, ""},
-    {"safety_factor", false, ""},
-    {"allow_unstable_dt", false, ""},
+    {"name", false, ""}, {"kind", false, ""},          {"duration", false, ""},          {"steps", false, ""},
+    {"dt", false, ""},   {"safety_factor", false, ""}, {"allow_unstable_dt", false, ""},
 };
 
 const Keys kOutputKeys = {
@@ -494,8 +490,7 @@ const Keys kOutputKeys = {
     {"progress_seconds", false, ""},
 };
 
-const char* const kStiffnessKeys[] = {"wave_speed", "bulk_modulus", "youngs_modulus",
-                                      "micromodulus"};
+const char* const kStiffnessKeys[] = {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus"};
 
 /// Prefix of the default names of a list's unnamed entries ("crack0", "stage1"); empty when the
 /// entries have no default name.
@@ -520,8 +515,7 @@ class UniqueNames {
       first_.emplace(name, entry.path());
       return;
     }
-    const std::string msg =
-        "duplicate " + what_ + " name '" + name + "' (also used by " + it->second + ")";
+    const std::string msg = "duplicate " + what_ + " name '" + name + "' (also used by " + it->second + ")";
     if (name_value) name_value->fail(msg);
     entry.fail(msg + "; give this entry a name");
   }
@@ -533,8 +527,7 @@ class UniqueNames {
 
 /// Name of a list entry: its `name` key, or "<prefix><index>" when the entry has none (an empty
 /// prefix: the name is required).
-std::string entry_name(const Map& m, const std::string& prefix, std::size_t index,
-                       UniqueNames& names) {
+std::string entry_name(const Map& m, const std::string& prefix, std::size_t index, UniqueNames& names) {
   const std::optional<Value> v = prefix.empty() ? std::optional<Value>(m.at("name")) : m.get("name");
   const std::string name = v ? v->name() : prefix + std::to_string(index);
   names.add(name, v, m);
@@ -542,8 +535,7 @@ std::string entry_name(const Map& m, const std::string& prefix, std::size_t inde
 }
 
 /// Entries of an optional list section (absent or empty value: no entries).
-std::vector<Value> optional_list(const Map& top, const std::string& key,
-                                 const std::string& expected) {
+std::vector<Value> optional_list(const Map& top, const std::string& key, const std::string& expected) {
   const std::optional<Value> v = top.get(key);
   return v ? v->list(expected) : std::vector<Value>{};
 }
@@ -562,15 +554,14 @@ Material read_material(const std::string& name, const Value& v) {
   Material mat;
   mat.name = name;
   mat.where = m.where();
-  mat.model = m.at("model").choice<ModelKind>({{"membrane", ModelKind::Membrane},
-                                               {"pmb", ModelKind::PMB}});
+  mat.model = m.at("model").choice<ModelKind>({{"membrane", ModelKind::Membrane}, {"pmb", ModelKind::PMB}});
   mat.density = m.at("density").positive("kg/m^3");
 
   int stiffness_given = 0;
   for (const char* key : kStiffnessKeys) stiffness_given += m.given(key) ? 1 : 0;
   if (stiffness_given != 1) {
-    m.fail("give exactly one of " + join({kStiffnessKeys[0], kStiffnessKeys[1], kStiffnessKeys[2],
-                                          kStiffnessKeys[3]}) +
+    m.fail("give exactly one of " +
+               join({kStiffnessKeys[0], kStiffnessKeys[1], kStiffnessKeys[2], kStiffnessKeys[3]}) +
                " (found " + std::to_string(stiffness_given) + ")",
            {kStiffnessKeys[0], kStiffnessKeys[1], kStiffnessKeys[2], kStiffnessKeys[3]});
   }
@@ -580,12 +571,11 @@ Material read_material(const std::string& name, const Value& v) {
   if (auto x = m.get("micromodulus")) mat.micromodulus = x->positive("");
 
   if (auto x = m.get("influence"))
-    mat.influence = x->choice<Influence>({{"constant", Influence::Constant},
-                                          {"conical", Influence::Conical}});
+    mat.influence =
+        x->choice<Influence>({{"constant", Influence::Constant}, {"conical", Influence::Conical}});
   if (auto x = m.get("critical_stretch")) mat.critical_stretch = critical_value(*x, mat.model);
   if (auto x = m.get("critical_stretch_at_horizon")) {
-    if (!mat.critical_stretch)
-      x->fail("requires critical_stretch (the critical value at |xi| = 0)");
+    if (!mat.critical_stretch) x->fail("requires critical_stretch (the critical value at |xi| = 0)");
     mat.critical_stretch_at_horizon = critical_value(*x, mat.model);
   }
   if (auto x = m.get("hardening")) {
@@ -622,8 +612,7 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
 
   const Value size = m.at("size");
   if (membrane) {
-    const std::string expected =
-        "a membrane size [Lx, Ly] (or [Lx, Ly, 0]) with Lx, Ly > 0 [m]";
+    const std::string expected = "a membrane size [Lx, Ly] (or [Lx, Ly, 0]) with Lx, Ly > 0 [m]";
     const auto xs = size.numbers(2, 3, expected, "m");
     if (!(xs[0] > 0 && xs[1] > 0) || (xs.size() == 3 && xs[2] != 0))
       size.fail("expected " + expected + ", got [" + join({format_number(xs[0]), format_number(xs[1])}) +
@@ -651,8 +640,8 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
   for (double l : b.size)
     if (l > 0) smallest = std::min(smallest, l);
   if (b.spacing > smallest)
-    spacing.fail("spacing must not exceed the smallest extent of size (" +
-                 format_number(smallest) + " m), got " + spacing.got());
+    spacing.fail("spacing must not exceed the smallest extent of size (" + format_number(smallest) +
+                 " m), got " + spacing.got());
 
   if (auto x = m.get("grid")) {
     b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
@@ -666,18 +655,17 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
       x->fail("horizon must be at least one spacing (expected >= 1), got " + x->got());
   }
   if (auto x = m.get("horizon")) {
-    if (m.given("horizon_factor"))
-      x->fail("give either horizon [m] or horizon_factor, not both");
+    if (m.given("horizon_factor")) x->fail("give either horizon [m] or horizon_factor, not both");
     const double h = x->number("a number [m]");
     if (!(h >= b.spacing))
-      x->fail("horizon must be at least one spacing (expected >= " + format_number(b.spacing) +
-              " m), got " + x->got());
+      x->fail("horizon must be at least one spacing (expected >= " + format_number(b.spacing) + " m), got " +
+              x->got());
     b.horizon = h;
   }
 
   if (auto x = m.get("quadrature"))
-    b.quadrature = x->choice<Quadrature>({{"full", Quadrature::Full},
-                                          {"partial_area", Quadrature::PartialArea}});
+    b.quadrature =
+        x->choice<Quadrature>({{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}});
   return b;
 }
 
@@ -702,14 +690,13 @@ Region read_region(const Value& v, const std::vector<Body>& bodies) {
   r.max = max.vec3("m");
   for (int d = 0; d < 3; ++d) {
     if (r.min[d] > r.max[d]) {
-      max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] +
-               ": min " + format_number(r.min[d]) + " > max " + format_number(r.max[d]));
+      max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+               format_number(r.min[d]) + " > max " + format_number(r.max[d]));
     }
   }
   if (auto x = m.get("body")) {
     r.body = x->name();
-    if (std::none_of(bodies.begin(), bodies.end(),
-                     [&](const Body& b) { return b.name == r.body; })) {
+    if (std::none_of(bodies.begin(), bodies.end(), [&](const Body& b) { return b.name == r.body; })) {
       std::vector<std::string> defined;
       for (const Body& b : bodies) defined.push_back(b.name);
       x->fail("no body named '" + r.body + "'; defined: " + join(defined));
@@ -725,8 +712,7 @@ std::array<bool, 3> read_components(const Value& v) {
   std::array<bool, 3> on{false, false, false};
   for (const Value& item : items) {
     const int d = item.choice<int>({{"x", 0}, {"y", 1}, {"z", 2}});
-    if (on[d])
-      item.fail("component '" + item.node().Scalar() + "' is given twice; expected " + expected);
+    if (on[d]) item.fail("component '" + item.node().Scalar() + "' is given twice; expected " + expected);
     on[d] = true;
   }
   return on;
@@ -813,8 +799,7 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
 
   UniqueNames crack_names("crack");
   const auto cracks = optional_list(top, "cracks", "a list of cracks");
-  for (std::size_t i = 0; i < cracks.size(); ++i)
-    s.cracks.push_back(read_crack(cracks[i], i, crack_names));
+  for (std::size_t i = 0; i < cracks.size(); ++i) s.cracks.push_back(read_crack(cracks[i], i, crack_names));
 
   UniqueNames boundary_names("boundary");
   for (const Value& v : optional_list(top, "boundaries", "a list of boundaries"))
@@ -826,8 +811,7 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   const auto stages = stages_value.list("a list of stages");
   if (stages.empty()) stages_value.fail("expected at least one stage, got an empty list");
   UniqueNames stage_names("stage");
-  for (std::size_t i = 0; i < stages.size(); ++i)
-    s.stages.push_back(read_stage(stages[i], i, stage_names));
+  for (std::size_t i = 0; i < stages.size(); ++i) s.stages.push_back(read_stage(stages[i], i, stage_names));
 
   if (auto x = top.get("output")) s.output = read_output(*x);
   return s;
@@ -855,8 +839,7 @@ YAML::Node load_document(const std::string& text, const std::string& file) {
                      ": expected a single YAML document, found " + std::to_string(docs.size()));
   }
   if (docs.empty() || docs[0].IsNull()) {
-    throw InputError(file + ":1: the scene is empty; expected a YAML map with the keys: " +
-                     top_level_keys());
+    throw InputError(file + ":1: the scene is empty; expected a YAML map with the keys: " + top_level_keys());
   }
   if (!docs[0].IsMap()) {
     throw InputError(file + ":1: expected a YAML map at the top level (keys: " + top_level_keys() +
@@ -867,16 +850,16 @@ YAML::Node load_document(const std::string& text, const std::string& file) {
 
 /// Index of the entry of list `list` (at key path `list_path`) that `segment` addresses: a
 /// 0-based index, or the value of the entries' `name` key (or their default name).
-std::size_t find_entry(const YAML::Node& list, const std::string& segment,
-                       const std::string& list_path, const std::function<void(const std::string&)>& fail) {
-  const bool digits = std::all_of(segment.begin(), segment.end(),
-                                  [](char c) { return c >= '0' && c <= '9'; });
+std::size_t find_entry(const YAML::Node& list, const std::string& segment, const std::string& list_path,
+                       const std::function<void(const std::string&)>& fail) {
+  const bool digits =
+      std::all_of(segment.begin(), segment.end(), [](char c) { return c >= '0' && c <= '9'; });
   if (digits) {
     std::size_t index = 0;
     const auto r = std::from_chars(segment.data(), segment.data() + segment.size(), index);
     if (r.ec != std::errc() || index >= list.size()) {
-      fail("index " + segment + " is out of range: " + list_path + " has " +
-           std::to_string(list.size()) + " entries");
+      fail("index " + segment + " is out of range: " + list_path + " has " + std::to_string(list.size()) +
+           " entries");
     }
     return index;
   }
@@ -961,10 +944,10 @@ void apply_override(YAML::Node& root, const Override& o, Context& ctx) {
 
 /// A string as a YAML scalar: plain when that reads back as the same string, else double-quoted.
 std::string yaml_string(const std::string& s) {
-  static const char* const reserved[] = {"true", "false", "yes", "no", "on", "off", "y", "n",
-                                         "null", "nan", "inf", "infinity"};
-  bool plain = !s.empty() && (std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_') &&
-               s.back() != ' ';
+  static const char* const reserved[] = {"true", "false", "yes",  "no",  "on",  "off",
+                                         "y",    "n",     "null", "nan", "inf", "infinity"};
+  bool plain =
+      !s.empty() && (std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_') && s.back() != ' ';
   for (char c : s) {
     const unsigned char u = static_cast<unsigned char>(c);
     if (!(std::isalnum(u) || c == '_' || c == '-' || c == '.' || c == '/' || c == ' ')) plain = false;
@@ -980,11 +963,21 @@ std::string yaml_string(const std::string& s) {
   for (char c : s) {
     const unsigned char u = static_cast<unsigned char>(c);
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
       default:
         if (u < 0x20 || u == 0x7f) {
           static const char hex[] = "0123456789abcdef";
@@ -1008,8 +1001,8 @@ std::string flow(std::initializer_list<double> xs) {
 std::string flow(const Vec3& v) { return flow({v[0], v[1], v[2]}); }
 
 std::string flow(const std::array<double, 9>& m) {
-  return "[" + flow({m[0], m[1], m[2]}) + ", " + flow({m[3], m[4], m[5]}) + ", " +
-         flow({m[6], m[7], m[8]}) + "]";
+  return "[" + flow({m[0], m[1], m[2]}) + ", " + flow({m[3], m[4], m[5]}) + ", " + flow({m[6], m[7], m[8]}) +
+         "]";
 }
 
 const char* to_text(ModelKind k) { return k == ModelKind::Membrane ? "membrane" : "pmb"; }
@@ -1031,9 +1024,7 @@ class Writer {
   void key(int indent, const std::string& name, const std::string& value) {
     line(indent, name + ":" + (value.empty() ? "" : " " + value));
   }
-  void key(int indent, const std::string& name, double value) {
-    key(indent, name, format_number(value));
-  }
+  void key(int indent, const std::string& name, double value) { key(indent, name, format_number(value)); }
   void optional(int indent, const std::string& name, const std::optional<double>& value) {
     if (value) key(indent, name, *value);
   }
@@ -1108,25 +1099,24 @@ void emit_stage(Writer& w, const Stage& s) {
 // ------------------------------------------------------------------------------------------------
 // Public functions
 
-const Material& Scene::material(const std::string& name) const {
-  const int i = material_index(name);
+const Material& Scene::material(const std::string& material_name) const {
+  const int i = material_index(material_name);
   if (i < 0) {
     std::vector<std::string> defined;
     for (const Material& m : materials) defined.push_back(m.name);
-    throw InputError("no material named '" + name + "'; defined: " + join(defined));
+    throw InputError("no material named '" + material_name + "'; defined: " + join(defined));
   }
   return materials[static_cast<std::size_t>(i)];
 }
 
 /// Position of the material in `materials`, or -1 if there is none of that name.
-int Scene::material_index(const std::string& name) const {
+int Scene::material_index(const std::string& material_name) const {
   for (std::size_t i = 0; i < materials.size(); ++i)
-    if (materials[i].name == name) return static_cast<int>(i);
+    if (materials[i].name == material_name) return static_cast<int>(i);
   return -1;
 }
 
-Scene parse_scene(const std::string& text, const std::string& file,
-                  const std::vector<Override>& overrides) {
+Scene parse_scene(const std::string& text, const std::string& file, const std::vector<Override>& overrides) {
   Context ctx(file);
   YAML::Node root = load_document(text, file);
   for (const Override& o : overrides) apply_override(root, o, ctx);
@@ -1175,8 +1165,9 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
   w.key(2, "displacement_gradient", flow(init.displacement_gradient));
   w.key(2, "velocity_gradient", flow(init.velocity_gradient));
   w.key(2, "center", flow(init.center));
-  w.key(2, "seed", "{amplitude: " + format_number(init.seed_amplitude) + ", wavelength: " +
-                       flow({init.seed_wavelength_x, init.seed_wavelength_y}) + "}");
+  w.key(2, "seed",
+        "{amplitude: " + format_number(init.seed_amplitude) +
+            ", wavelength: " + flow({init.seed_wavelength_x, init.seed_wavelength_y}) + "}");
   w.key(0, "stages", "");
   for (const Stage& st : s.stages) emit_stage(w, st);
   w.key(0, "output", "");

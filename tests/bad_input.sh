@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Hostile input at the driver level, on 2 ranks: each case must exit with status 2, print one
+# message naming file:line, key and what was expected, and leave no output directory behind.
+# usage: bad_input.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
+set -u
+peridrive=$1 src=$2 mpiexec=$3
+shift 3
+mpi=("$mpiexec" -n 2 "$@")
+scene=$src/drivers/scenes/slit_membrane.yaml
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+pass=0 fail=0
+
+# expect NAME EXPECTED_SUBSTRING -- peridrive arguments...
+expect() {
+  local name=$1 want=$2
+  shift 3
+  local out="$work/out-$name"
+  "${mpi[@]}" "$peridrive" "$@" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+  local rc=$?
+  local msg
+  msg=$(grep -c "peridrive: error:" "$work/stderr")
+  if [ "$rc" -ne 2 ]; then
+    echo "FAIL $name: exit status $rc, expected 2"; cat "$work/stderr"; fail=$((fail + 1))
+  elif ! grep -qF -- "$want" "$work/stderr"; then
+    echo "FAIL $name: message lacks '$want':"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ "$msg" -ne 1 ]; then
+    echo "FAIL $name: expected exactly one error line, got $msg"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ -e "$out" ]; then
+    echo "FAIL $name: output directory $out was created"; fail=$((fail + 1))
+  else
+    echo "ok   $name: $(grep "peridrive: error:" "$work/stderr")"; pass=$((pass + 1))
+  fi
+}
+
+# variant NAME SED_EXPRESSION: a copy of the default scene with one edit; prints its path.
+variant() {
+  sed "$2" "$scene" > "$work/$1.yaml"
+  echo "$work/$1.yaml"
+}
+line_of() { grep -n -m1 -- "$2" "$1" | cut -d: -f1; }
+
+f=$(variant unknown_key 's/density: 1200/densty: 1200/')
+expect unknown_key "$f:$(line_of "$f" densty): materials.rubber.densty: unknown key; expected one of: model, density" -- "$f"
+f=$(variant negative_density 's/density: 1200/density: -1200/')
+expect negative_density "$f:$(line_of "$f" 'density: -'): materials.rubber.density: expected a positive number [kg/m^3], got -1200" -- "$f"
+f=$(variant zero_thickness 's/thickness: 0.0005/thickness: 0/')
+expect zero_thickness "$f:$(line_of "$f" 'thickness: 0$'): bodies.sheet.thickness: expected a positive number [m], got 0" -- "$f"
+f=$(variant negative_spacing 's/spacing: 0.00025/spacing: -0.00025/')
+expect negative_spacing "$f:$(line_of "$f" 'spacing: -'): bodies.sheet.spacing: expected a positive number [m], got -0.00025" -- "$f"
+f=$(variant wrong_type 's/spacing: 0.00025/spacing: fine/')
+expect wrong_type "$f:$(line_of "$f" 'spacing: fine'): bodies.sheet.spacing: expected a positive number [m], got fine" -- "$f"
+f=$(variant small_horizon 's/horizon_factor: 3/horizon_factor: 0.5/')
+expect small_horizon "$f:$(line_of "$f" 'horizon_factor'): bodies.sheet.horizon_factor: horizon must be at least one spacing (expected >= 1), got 0.5" -- "$f"
+f=$(variant low_critical_stretch 's/critical_stretch: 2.0/critical_stretch: 0.9/')
+expect low_critical_stretch "$f:$(line_of "$f" 'critical_stretch'): materials.rubber.critical_stretch: the membrane model needs a critical stretch lambda_0 > 1, got 0.9" -- "$f"
+f=$(variant missing_key '/    material: rubber/d')
+expect missing_key "$f:$(line_of "$f" 'kind: membrane'): bodies.sheet: missing required key 'material'" -- "$f"
+f=$(variant empty_region 's/min: \[-1, 0.0242, -1\]/min: [-1, 0.9, -1]/')
+expect empty_region "$f:$(line_of "$f" 'min: \[-1, 0.9'): boundaries.top.region: the region [-1, 0.9, -1] .. [1, 1, 1] selects no node" -- "$f"
+f=$(variant nan_value 's/wave_speed: 1000/wave_speed: .nan/')
+expect nan_value "materials.rubber.wave_speed" -- "$f"
+printf 'name: broken\nmaterials: [unclosed\n' > "$work/syntax.yaml"
+expect yaml_syntax "$work/syntax.yaml:3: YAML syntax error" -- "$work/syntax.yaml"
+expect missing_file "cannot read scene file '$work/none.yaml': No such file or directory" -- "$work/none.yaml"
+expect bad_override "--set: bodies.sheet.spacing: expected a positive number [m], got -1" -- --set bodies.sheet.spacing=-1
+expect unknown_option "unknown option --bogus; see --help" -- --bogus
+expect unstable_dt "stages.0.dt: time step 1e-05 s exceeds the stable bound" -- --set stages.0.dt=1e-5
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
