@@ -59,18 +59,18 @@ void loop(const BondLaw& law_in, const BondView& v, const std::int32_t* rows, st
     force[3 * i + 2] = f2;
     if constexpr (Energy) tally.strain_energy += 0.5 * V[i] * w;
     if (newly) {
-      // Book the energy each newly broken bond held at breaking (half per end, eq. 5).
+      // Book w_0 = w(lambda_0), the energy a bond holds when it breaks (eqs. 26-27), half per
+      // end. A bond is detected at the first step past lambda_0; booking w at that step's larger
+      // stretch would gain energy systematically (first order in dt), w_0 is unbiased.
       double diss = 0;
       for (std::int64_t b = b0; b < b1; ++b) {
         if (!(flag[b] & kJustBroken)) continue;
         flag[b] = kBroken;
         const std::int32_t j = nbr[b];
         const double e0 = X[3 * j] - Xi0, e1 = X[3 * j + 1] - Xi1, e2 = X[3 * j + 2] - Xi2;
-        const double d0 = X[3 * j] + u[3 * j] - xi0, d1 = X[3 * j + 1] + u[3 * j + 1] - xi1,
-                     d2 = X[3 * j + 2] + u[3 * j + 2] - xi2c;
         const double s2 = e0 * e0 + e1 * e1 + e2 * e2;
-        const double y2 = std::max(d0 * d0 + d1 * d1 + d2 * d2, 1e-12 * s2);
-        diss += L.energy(s2, y2) * V[j] * (Weighted ? static_cast<double>(wgt[b]) : 1.0);
+        const double lc = L.critical_stretch(std::sqrt(s2));
+        diss += L.energy(s2, lc * lc * s2) * V[j] * (Weighted ? static_cast<double>(wgt[b]) : 1.0);
       }
       tally.dissipated += 0.5 * V[i] * diss;
       tally.newly_broken += newly;

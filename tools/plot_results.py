@@ -60,9 +60,10 @@ def main():
     d = np.sqrt(np.sum((ref[1:] - ref[:-1]) ** 2, axis=1))
     spacing = float(np.median(d[d > 0])) if len(d) else 1.0
 
+    # Damage on the reference configuration (as peridynamic damage maps are usually shown).
     fig, ax = plt.subplots(figsize=(7, 6))
-    scatter(ax, fr["position"], fr["damage"], spacing, "inferno", "damage (broken fraction)", 0.0, 1.0)
-    ax.set_title(f"damage at t = {fr['time'] * 1e6:.1f} us (step {fr['step']})")
+    scatter(ax, ref, fr["damage"], spacing, "inferno", "damage (broken fraction)", 0.0, 1.0)
+    ax.set_title(f"damage at t = {fr['time'] * 1e6:.1f} us (step {fr['step']}), reference configuration")
     fig.savefig(os.path.join(a.outdir, "damage.png"), dpi=130, bbox_inches="tight")
     plt.close(fig)
 
@@ -70,6 +71,12 @@ def main():
     uz = fr["displacement"][:, 2] * 1e6
     lim = max(float(np.max(np.abs(uz))), 1e-12)
     scatter(ax, fr["position"], uz, spacing, "coolwarm", "out-of-plane displacement [um]", -lim, lim)
+    # Frame the sheet, not the odd fragment that flies away after separation.
+    lo = np.percentile(fr["position"][:, :2], 0.5, axis=0) * 1e3
+    hi = np.percentile(fr["position"][:, :2], 99.5, axis=0) * 1e3
+    pad = 0.05 * (hi - lo)
+    ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+    ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
     ax.set_title(f"deformed membrane at t = {fr['time'] * 1e6:.1f} us")
     fig.savefig(os.path.join(a.outdir, "deformed.png"), dpi=130, bbox_inches="tight")
     plt.close(fig)

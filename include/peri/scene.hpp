@@ -134,7 +134,7 @@ struct Stage {
   std::string name;
   SourceLoc where;
   StageKind kind = StageKind::Dynamic;
-  double duration = 0.0;               ///< simulated time [s] (> 0) unless steps is set
+  double duration = 0.0;               ///< simulated time [s] (> 0); 0 when only steps is given
   std::optional<long> steps;           ///< number of steps; overrides duration
   std::optional<double> dt;            ///< time step [s]; default safety_factor * stable bound
   double safety_factor = 0.7;          ///< (0, 1]
@@ -149,7 +149,7 @@ struct Output {
 };
 
 struct Scene {
-  std::string file;         ///< path it was read from ("<default>" for the embedded scene)
+  std::string file;         ///< path it was read from ("<default scene>" for the embedded one)
   std::string name;         ///< short identifier
   std::string description;  ///< free text
   std::vector<Material> materials;
@@ -160,21 +160,21 @@ struct Scene {
   std::vector<Stage> stages;
   Output output;
 
-  const Material& material(const std::string& name) const;
-  int material_index(const std::string& name) const;
+  const Material& material(const std::string& name) const;  ///< InputError if unknown
+  int material_index(const std::string& name) const;        ///< -1 if unknown
 };
 
 /// Command-line override "path.to.key=value"; value is parsed as YAML (scalars, [a, b], {k: v}).
-/// List entries are addressed by index (stages.0.duration) or by their name key
-/// (bodies.sheet.spacing).
+/// Map entries by key (bodies.sheet.spacing); list entries by index (stages.0.duration) or by
+/// their name (boundaries.top.velocity).
 struct Override {
   std::string path;
   std::string value;
 };
 
 /// Read, override and validate a scene. `text` is the YAML document, `file` its name for
-/// messages. Throws InputError with "file:line: key 'a.b.c': expected ..., got ..." on the first
-/// problem found. Identical on every rank.
+/// messages. Throws InputError with "file:line: a.b.c: expected ..., got ..." on the first
+/// problem found ("--set: a.b.c: ..." for overridden values). Identical on every rank.
 Scene parse_scene(const std::string& text, const std::string& file,
                   const std::vector<Override>& overrides = {});
 
