@@ -46,9 +46,9 @@ f=$(variant negative_density 's/density: 1200/density: -1200/')
 expect negative_density "$f:$(line_of "$f" 'density: -'): materials.rubber.density: expected a positive number [kg/m^3], got -1200" -- "$f"
 f=$(variant zero_thickness 's/thickness: 0.0005/thickness: 0/')
 expect zero_thickness "$f:$(line_of "$f" 'thickness: 0$'): bodies.sheet.thickness: expected a positive number [m], got 0" -- "$f"
-f=$(variant negative_spacing 's/spacing: 0.00025/spacing: -0.00025/')
+f=$(variant negative_spacing 's/spacing: [0-9.e-]*$/spacing: -0.00025/')
 expect negative_spacing "$f:$(line_of "$f" 'spacing: -'): bodies.sheet.spacing: expected a positive number [m], got -0.00025" -- "$f"
-f=$(variant wrong_type 's/spacing: 0.00025/spacing: fine/')
+f=$(variant wrong_type 's/spacing: [0-9.e-]*$/spacing: fine/')
 expect wrong_type "$f:$(line_of "$f" 'spacing: fine'): bodies.sheet.spacing: expected a positive number [m], got fine" -- "$f"
 f=$(variant small_horizon 's/horizon_factor: 3/horizon_factor: 0.5/')
 expect small_horizon "$f:$(line_of "$f" 'horizon_factor'): bodies.sheet.horizon_factor: horizon must be at least one spacing (expected >= 1), got 0.5" -- "$f"
