@@ -146,9 +146,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
 
   // Stable time step (collective) and each stage's step.
-  BondView view{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
-                domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
+  BondView view = bond_view();
   double dt_local = std::numeric_limits<double>::infinity();
   for (std::size_t b = 0; b < nb; ++b) {
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
@@ -226,6 +224,12 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
 
 Simulation::~Simulation() = default;
 
+BondView Simulation::bond_view() {
+  return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
+                  domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
+                  domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
+}
+
 std::vector<std::string> Simulation::derived_lines() const {
   std::vector<std::string> lines;
   lines.push_back(std::string("derived by peridrive ") + version() + " (" + git_revision() + "):");
@@ -273,9 +277,7 @@ void Simulation::apply_initial_conditions() {
 
 void Simulation::compute_forces(bool with_energy) {
   PetscLogEventBegin(events().forces, 0, 0, 0, 0);
-  BondView view{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
-                domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
+  BondView view = bond_view();
   BondTally t;
   state_->halo_begin();  // interior rows need no ghost: overlap them with the exchange
   {
@@ -366,18 +368,21 @@ double Simulation::kinetic_energy() {
 
 EnergyRow Simulation::energies() {
   // Strain energy of the current state from a separate (non-breaking) pass.
-  BondView view{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
-                domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
-  double local[4] = {0, tally_.dissipated, external_work_, double(tally_.newly_broken)};
+  BondView view = bond_view();
+  double strain = 0;
   {
     LocalArray u(state_->displacement());
     view.u = u.data();
     for (std::size_t b = 0; b < laws_.size(); ++b) {
-      local[0] += bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size());
-      local[0] += bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size());
+      strain += bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size());
+      strain += bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size());
     }
   }
+  return reduce_energies(strain);
+}
+
+EnergyRow Simulation::reduce_energies(double local_strain) {
+  double local[4] = {local_strain, tally_.dissipated, external_work_, double(tally_.newly_broken)};
   double global[4];
   MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, comm_);
   EnergyRow row;
@@ -387,22 +392,12 @@ EnergyRow Simulation::energies() {
   row.strain = global[0];
   row.dissipated = global[1];
   row.external_work = global[2];
-  row.broken_bonds = std::llround(global[3]) / 2;
+  row.broken_bonds = std::llround(global[3]) / 2;  // ordered bonds -> bonds
   return row;
 }
 
 void Simulation::write_series_row() {
-  double local[4] = {tally_.strain_energy, tally_.dissipated, external_work_, double(tally_.newly_broken)};
-  double global[4];
-  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, comm_);
-  EnergyRow row;
-  row.step = step_;
-  row.time = time_;
-  row.kinetic = kinetic_energy();
-  row.strain = global[0];
-  row.dissipated = global[1];
-  row.external_work = global[2];
-  row.broken_bonds = std::llround(global[3]) / 2;
+  const EnergyRow row = reduce_energies(tally_.strain_energy);
   if (series_) series_->write(row);
   summary_.final_energy = row;
 }
@@ -410,9 +405,7 @@ void Simulation::write_series_row() {
 void Simulation::write_frame() {
   PetscLogEventBegin(events().output, 0, 0, 0, 0);
   const auto t0 = std::chrono::steady_clock::now();
-  BondView view{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
-                domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
+  BondView view = bond_view();
   for (const auto& rows : {domain_.interior_rows, domain_.boundary_rows})
     node_damage(view, rows.data(), rows.size(), damage_.data());
   const double* u;
@@ -567,9 +560,7 @@ std::vector<double> Simulation::natural_velocities() {
 }
 
 std::vector<double> Simulation::natural_damage() {
-  BondView view{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
-                domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
+  BondView view = bond_view();
   for (const auto& rows : {domain_.interior_rows, domain_.boundary_rows})
     node_damage(view, rows.data(), rows.size(), damage_.data());
   return gather_natural(damage_.data(), 1);

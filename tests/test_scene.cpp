@@ -232,10 +232,10 @@ TEST(SceneFile, DefaultSceneParses) {
   EXPECT_EQ(sheet.origin, (peri::Vec3{-0.025, -0.025, 0}));
   EXPECT_EQ(sheet.size, (peri::Vec3{0.05, 0.05, 0}));
   EXPECT_EQ(sheet.thickness, 5.0e-4);
-  EXPECT_EQ(sheet.spacing, 2.5e-4);
+  EXPECT_EQ(sheet.spacing, 1.5625e-4);  // demo resolution: 320 x 320 nodes
   EXPECT_EQ(sheet.horizon_factor, 3.0);
   EXPECT_FALSE(sheet.horizon);
-  EXPECT_DOUBLE_EQ(sheet.horizon_value(), 7.5e-4);
+  EXPECT_DOUBLE_EQ(sheet.horizon_value(), 3 * 1.5625e-4);
   EXPECT_EQ(sheet.quadrature, peri::Quadrature::PartialArea);
 
   ASSERT_EQ(s.cracks.size(), 1u);

@@ -84,6 +84,8 @@ class Simulation {
   void write_frame();
   void write_series_row();
   double kinetic_energy();
+  BondView bond_view();                          // bond arrays of this rank (u filled by caller)
+  EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
 
   Scene scene_;
   MPI_Comm comm_;
