@@ -214,7 +214,13 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // Output last: nothing is written unless every check above passed.
   if (!options_.out_dir.empty()) {
     make_output_dir(options_.out_dir, comm_);
-    if (rank_ == 0) write_text_file(options_.out_dir + "/scene.resolved.yaml", resolved_);
+    if (rank_ == 0) {
+      // A previous run's completion marker must not vouch for this one until it finishes.
+      std::remove((options_.out_dir + "/summary.json").c_str());
+      std::remove((options_.out_dir + "/FAILED").c_str());
+      write_text_file(options_.out_dir + "/scene.resolved.yaml", resolved_);
+    }
+    MPI_Barrier(comm_);
     frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
                                             scene_.output.write_velocity);
     series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0);
