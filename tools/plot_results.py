@@ -69,7 +69,8 @@ def main():
 
     fig, ax = plt.subplots(figsize=(7, 6))
     uz = fr["displacement"][:, 2] * 1e6
-    lim = max(float(np.max(np.abs(uz))), 1e-12)
+    # Colour range from the sheet's 99th percentile, not from a fragment flying off.
+    lim = max(float(np.percentile(np.abs(uz), 99.0)), 1e-12)
     scatter(ax, fr["position"], uz, spacing, "coolwarm", "out-of-plane displacement [um]", -lim, lim)
     # Frame the sheet, not the odd fragment that flies away after separation.
     lo = np.percentile(fr["position"][:, :2], 0.5, axis=0) * 1e3
