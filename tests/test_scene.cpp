@@ -263,7 +263,7 @@ TEST(SceneFile, DefaultSceneParses) {
   EXPECT_EQ(s.stages[0].name, "pull");
   EXPECT_GT(s.stages[0].duration, 0.0);
   EXPECT_FALSE(s.stages[0].steps);
-  EXPECT_EQ(s.stages[0].safety_factor, 0.7);
+  EXPECT_EQ(s.stages[0].safety_factor, 0.35);
   EXPECT_GE(s.output.frames, 1);
   EXPECT_TRUE(s.output.write_velocity);
 }
