@@ -138,6 +138,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   prev_force_ = force_;
   damage_.assign(domain_.owned, 0.0);
   bc_.assign(domain_.owned, -1);
+  du_bc_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
+  v_old_bc_ = du_bc_;
   {
     std::vector<int> bc_natural(nodes_.size(), -1);  // later regions win where they overlap
     for (std::size_t b = 0; b < bc_nodes.size(); ++b)
@@ -316,9 +318,8 @@ void Simulation::step(bool with_energy) {
   double* v;
   PERI_PETSC(VecGetArray(state_->displacement(), &u));
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  thread_local std::vector<double> du_bc, v_old_bc;
-  du_bc.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
-  v_old_bc.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
+  std::vector<double>& du_bc = du_bc_;  // read only where written below (prescribed components)
+  std::vector<double>& v_old_bc = v_old_bc_;
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const Boundary* b = bc_[i] >= 0 ? &scene_.boundaries[bc_[i]] : nullptr;

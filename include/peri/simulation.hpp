@@ -76,7 +76,6 @@ class Simulation {
   std::array<double, 6> momentum();
 
  private:
-  struct Plan;  // stage step counts and dt
   void apply_initial_conditions();
   void compute_forces(bool with_energy);
   void step(bool with_energy);
@@ -101,6 +100,7 @@ class Simulation {
   std::vector<double> inv_density_, mass_;  // per owned node
   std::vector<double> force_, prev_force_;  // force densities, 3 * owned
   std::vector<int> bc_;                     // per owned node: boundary index or -1
+  std::vector<double> du_bc_, v_old_bc_;    // prescribed components: step increment, old velocity
   std::vector<double> damage_;
   std::vector<std::int64_t> stage_steps_;
   std::vector<double> stage_dt_;
