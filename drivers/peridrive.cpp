@@ -20,7 +20,7 @@ namespace {
 const char* kUsage = R"(usage: mpirun -n N peridrive [scene.yaml] [options] [PETSc options]
 
 Runs a peridynamic fracture scene. Without a scene file, runs the embedded default scene
-(Silling & Bobaru example 7.1: a slit membrane pulled apart, about a minute on 2 cores).
+(Silling & Bobaru example 7.1: a slit membrane pulled apart, under a minute on 2 cores).
 
 options:
   --out DIR          output directory (default: out/<scene name>)
