@@ -412,9 +412,7 @@ void Simulation::write_series_row() {
 void Simulation::write_frame() {
   PetscLogEventBegin(events().output, 0, 0, 0, 0);
   const auto t0 = std::chrono::steady_clock::now();
-  BondView view = bond_view();
-  for (const auto& rows : {domain_.interior_rows, domain_.boundary_rows})
-    node_damage(view, rows.data(), rows.size(), damage_.data());
+  update_damage();
   const double* u;
   const double* v;
   PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
@@ -566,10 +564,14 @@ std::vector<double> Simulation::natural_velocities() {
   return gather_natural(copy.data(), 3);
 }
 
+void Simulation::update_damage() {
+  const BondView view = bond_view();
+  for (const std::vector<std::int32_t>* rows : {&domain_.interior_rows, &domain_.boundary_rows})
+    node_damage(view, rows->data(), rows->size(), damage_.data());
+}
+
 std::vector<double> Simulation::natural_damage() {
-  BondView view = bond_view();
-  for (const auto& rows : {domain_.interior_rows, domain_.boundary_rows})
-    node_damage(view, rows.data(), rows.size(), damage_.data());
+  update_damage();
   return gather_natural(damage_.data(), 1);
 }
 

@@ -83,6 +83,7 @@ class Simulation {
   void write_frame();
   void write_series_row();
   double kinetic_energy();
+  void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
 
