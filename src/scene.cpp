@@ -483,7 +483,7 @@ const Keys kStageKeys = {
     {"name", false, ""},          {"kind", false, ""},           {"duration", false, ""},
     {"steps", false, ""},         {"dt", false, ""},             {"safety_factor", false, ""},
     {"allow_unstable_dt", false, ""}, {"damping", false, ""},    {"boundary_velocity", false, ""},
-    {"displacements", false, ""}, {"load_steps", false, ""},     {"max_load_steps", false, ""},
+    {"displacements", false, ""}, {"displacement_gradient", false, ""}, {"load_steps", false, ""},     {"max_load_steps", false, ""},
     {"in_plane", false, ""},      {"jacobian", false, ""},       {"jacobian_shift", false, ""},
     {"max_break_passes", false, ""}, {"cracks", false, ""},
 };
@@ -496,6 +496,7 @@ const std::map<std::string, StageKind> kStageKeyKind = {
     {"dt", StageKind::Dynamic},               {"safety_factor", StageKind::Dynamic},
     {"allow_unstable_dt", StageKind::Dynamic}, {"damping", StageKind::Dynamic},
     {"boundary_velocity", StageKind::Dynamic}, {"displacements", StageKind::QuasiStatic},
+    {"displacement_gradient", StageKind::QuasiStatic},
     {"load_steps", StageKind::QuasiStatic},   {"max_load_steps", StageKind::QuasiStatic},
     {"in_plane", StageKind::QuasiStatic},     {"jacobian", StageKind::QuasiStatic},
     {"jacobian_shift", StageKind::QuasiStatic}, {"max_break_passes", StageKind::QuasiStatic},
@@ -810,6 +811,7 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
         x->fail(std::string("this key belongs to ") + to_text(kind) + " stages; this stage is " + to_text(s.kind));
   if (s.kind == StageKind::QuasiStatic) {
     if (auto x = m.get("displacements")) s.displacements = read_boundary_values(*x, boundaries, "m");
+    if (auto x = m.get("displacement_gradient")) s.displacement_gradient = x->matrix3("");
     if (auto x = m.get("load_steps")) s.load_steps = x->integer(1, 1000000);
     if (auto x = m.get("max_load_steps")) s.max_load_steps = x->integer(1, 100000000);
     if (s.max_load_steps < s.load_steps)
@@ -1198,6 +1200,7 @@ void emit_stage(Writer& w, const Stage& s) {
   w.key(4, "kind", to_text(s.kind));
   if (s.kind == StageKind::QuasiStatic) {
     w.key(4, "displacements", flow_values(s.displacements));
+    w.key(4, "displacement_gradient", flow(s.displacement_gradient));
     w.key(4, "load_steps", std::to_string(s.load_steps));
     w.key(4, "max_load_steps", std::to_string(s.max_load_steps));
     w.key(4, "in_plane", to_text(s.in_plane));

@@ -186,8 +186,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
           << ", or allow_unstable_dt: true to run anyway";
       throw InputError(msg.str());
     }
-    const std::int64_t n = st.steps ? *st.steps : static_cast<std::int64_t>(std::ceil(st.duration / dt - 1e-9));
-    stage_dt_.push_back(dt);
+    // A duration is covered exactly: n steps of duration / n (at most the requested step).
+    const std::int64_t n = st.steps ? *st.steps : std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(st.duration / dt - 1e-9)));
+    stage_dt_.push_back(st.steps ? dt : st.duration / static_cast<double>(n));
     stage_steps_.push_back(std::max<std::int64_t>(n, 1));
     total_steps_ += stage_steps_.back();
   }
@@ -335,6 +336,12 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
 }
 
+bool Simulation::has_intact_bond(std::int32_t row) const {
+  for (std::int64_t b = domain_.bonds.offsets[row]; b < domain_.bonds.offsets[row + 1]; ++b)
+    if (!domain_.bonds.broken[b]) return true;
+  return false;
+}
+
 void Simulation::step(bool with_energy) {
   const double dt = dt_, t0 = time_, t1 = time_ + dt;
   // Mass-proportional damping alpha (force -rho alpha v), integrated semi-implicitly:
@@ -369,7 +376,8 @@ void Simulation::step(bool with_energy) {
       }
     }
     // Instability detector: no stable explicit step moves a node by a sizeable part of the spacing.
-    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0) {
+    // (A node without intact bonds flies ballistically: exact at any speed, never unstable.)
+    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0 && has_intact_bond(i)) {
       unstable_node_ = domain_.natural[i];
       unstable_motion_ = std::sqrt(moved2);
     }
@@ -509,9 +517,16 @@ void Simulation::check_health(std::int64_t step, double time) {
     msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
         << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
         << ") moved " << fmt(moved_max) << " m in one step, more than stability.motion_per_step = "
-        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: time step " << fmt(dt_)
-        << " s above the stable bound " << fmt(summary_.dt_stable) << " s, or a boundary velocity too violent "
-        << "for the resolution. Positions and velocities are still finite; nothing non-finite was written";
+        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
+    if (dt_ > summary_.dt_stable)
+      msg << "the time step " << fmt(dt_) << " s is above the stable bound " << fmt(summary_.dt_stable)
+          << " s (accepted because of allow_unstable_dt)";
+    else
+      msg << "the time step " << fmt(dt_) << " s is too large for the current state (stable bound "
+          << fmt(summary_.dt_stable) << " s at the reference state; the membrane law stiffens in compression by "
+          << "1 + 3/lambda^4, so snapping-back fragments need a smaller safety_factor, e.g. 0.35), or a boundary "
+          << "velocity too violent for the resolution";
+    msg << ". Positions and velocities are still finite; nothing non-finite was written";
     throw RuntimeFailure(msg.str());
   }
   if (bad_global != none) {
@@ -712,6 +727,8 @@ void Simulation::run_quasistatic(const Stage& stage) {
         constrained[k] = 1;
         for (const BoundaryValue& bv : stage.displacements)
           if (bv.boundary == scene_.boundaries[bi].name) increment[k] = bv.value[c];
+        for (int d = 0; d < 3; ++d)
+          increment[k] += stage.displacement_gradient[3 * c + d] * (domain_.X[3 * i + d] - scene_.initial.center[d]);
       }
       // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
       if (c == 2 && stage.in_plane && scene_.bodies[domain_.body[i]].kind == BodyKind::Membrane) constrained[k] = 1;

@@ -158,6 +158,9 @@ struct Stage {
   /// Displacement of named boundaries reached at the end of the stage, added to where they are
   /// at its start (prescribed components only) [m]. Boundaries not named keep their position.
   std::vector<BoundaryValue> displacements;
+  /// Affine part of the same: constrained components also move by H (X - initial.center) over the
+  /// stage (3x3 row-major, dimensionless; e.g. a homogeneous stretch of boundary bands).
+  std::array<double, 9> displacement_gradient{};
   long load_steps = 10;         ///< initial number of load increments (adaptive afterwards)
   long max_load_steps = 1000;   ///< increments, cut-backs included, before giving up
   bool in_plane = true;         ///< membranes: out-of-plane components held where they are

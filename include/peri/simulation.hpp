@@ -96,6 +96,7 @@ class Simulation : public EquilibriumModel {
   void run_quasistatic(const Stage& stage);
   void run_release(const Stage& stage);
   void step(bool with_energy);
+  bool has_intact_bond(std::int32_t row) const;
   void check_health(std::int64_t step, double time);
   void write_frame();
   void write_series_row();
