@@ -36,7 +36,14 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
   if (stage_.matrix_free) {
     PERI_PETSC(SNESSetUseMatrixFree(snes_, PETSC_TRUE, PETSC_FALSE));
   } else {
-    PERI_PETSC(MatCreateBAIJ(comm_, 3, n, n, PETSC_DETERMINE, PETSC_DETERMINE, 0, d_nnz.data(), 0, o_nnz.data(), &J_));
+    // Block sparse (bs = 3) by default; -qs_mat_type aij for preconditioners that need AIJ (gamg).
+    PERI_PETSC(MatCreate(comm_, &J_));
+    PERI_PETSC(MatSetSizes(J_, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
+    PERI_PETSC(MatSetBlockSize(J_, 3));
+    PERI_PETSC(MatSetType(J_, MATBAIJ));
+    PERI_PETSC(MatSetOptionsPrefix(J_, "qs_"));
+    PERI_PETSC(MatSetFromOptions(J_));
+    PERI_PETSC(MatXAIJSetPreallocation(J_, 3, d_nnz.data(), o_nnz.data(), nullptr, nullptr));
     PERI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
     PERI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PERI_PETSC(SNESSetJacobian(snes_, J_, J_, &QuasiStaticLoader::form_jacobian, this));

@@ -48,6 +48,23 @@ std::string fmt(double v) {
   return s.str();
 }
 
+std::string json_string(const std::string& text) {
+  std::string out = "\"";
+  for (const char ch : text) {
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (static_cast<unsigned char>(ch) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned char>(ch));
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
+}
+
 std::string json_number(double v) {
   if (!std::isfinite(v)) return "null";
   std::ostringstream s;
@@ -91,6 +108,17 @@ std::string RunSummary::to_json() const {
     << ", \"total_energy\": " << json_number(final_energy.total()) << "},\n"
     << "  \"initial_total_energy\": " << json_number(initial_total_energy) << ",\n"
     << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n"
+    << "  \"quasistatic\": [";
+  for (std::size_t k = 0; k < quasistatic.size(); ++k) {
+    const QuasiStaticStats& q = quasistatic[k].second;
+    j << (k ? ", " : "") << "{\"stage\": " << json_string(quasistatic[k].first) << ", \"increments\": " << q.increments.size()
+      << ", \"cutbacks\": " << q.cutbacks << ", \"newton_iterations\": " << q.newton_iterations
+      << ", \"linear_iterations\": " << q.linear_iterations << ", \"broken_bonds\": " << q.broken
+      << ", \"seconds\": " << json_number(q.seconds) << ", \"support_work\": " << json_number(q.external_work)
+      << ", \"work_error\": " << json_number(k < quasistatic_work_error.size() ? quasistatic_work_error[k] : NAN)
+      << "}";
+  }
+  j << "],\n"
     << "  \"derived\": {";
   for (std::size_t k = 0; k < derived.size(); ++k)
     j << (k ? ", " : "") << "\"" << derived[k].first << "\": " << json_number(derived[k].second);
