@@ -488,6 +488,8 @@ const Keys kOutputKeys = {
     {"series_every", false, ""},
     {"velocity", false, ""},
     {"progress_seconds", false, ""},
+    {"checkpoint_every_steps", false, ""},
+    {"checkpoint_every_seconds", false, ""},
 };
 
 const char* const kStiffnessKeys[] = {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus"};
@@ -772,13 +774,17 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names) {
 }
 
 Output read_output(const Value& v) {
-  const Map m(v, &kOutputKeys, "a map {frames, series_every, velocity, progress_seconds}");
+  const Map m(v, &kOutputKeys,
+              "a map {frames, series_every, velocity, progress_seconds, checkpoint_every_steps, "
+              "checkpoint_every_seconds}");
   Output out;
   constexpr long int_max = std::numeric_limits<int>::max();
   if (auto x = m.get("frames")) out.frames = static_cast<int>(x->integer(1, int_max));
   if (auto x = m.get("series_every")) out.series_every = static_cast<int>(x->integer(1, int_max));
   if (auto x = m.get("velocity")) out.write_velocity = x->boolean();
   if (auto x = m.get("progress_seconds")) out.progress_seconds = x->non_negative("s");
+  if (auto x = m.get("checkpoint_every_steps")) out.checkpoint_every_steps = x->integer(0);
+  if (auto x = m.get("checkpoint_every_seconds")) out.checkpoint_every_seconds = x->non_negative("s");
   return out;
 }
 
@@ -1175,6 +1181,8 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
   w.key(2, "series_every", std::to_string(s.output.series_every));
   w.key(2, "velocity", to_text(s.output.write_velocity));
   w.key(2, "progress_seconds", s.output.progress_seconds);
+  w.key(2, "checkpoint_every_steps", std::to_string(s.output.checkpoint_every_steps));
+  w.key(2, "checkpoint_every_seconds", s.output.checkpoint_every_seconds);
   for (const std::string& text : derived) {
     // One comment line per line of text, so that the result stays valid YAML.
     std::size_t start = 0;
