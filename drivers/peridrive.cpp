@@ -149,9 +149,12 @@ int main(int argc, char** argv) {
         if (rank == 0) std::fputs(peri::emit_scene(scene).c_str(), stdout);
       } else if (args.dry_run) {
         const peri::SizeEstimate e = peri::estimate_size(scene);
-        peri::Simulation sim(scene, PETSC_COMM_WORLD, {});
         if (rank == 0) {
           std::printf("estimate: %.4g nodes, %.4g bonds, %.4g GB\n", e.nodes, e.bonds / 2, e.bytes / 1e9);
+          std::fflush(stdout);
+        }
+        peri::Simulation sim(scene, PETSC_COMM_WORLD, {});
+        if (rank == 0) {
           for (const std::string& line : sim.derived_lines()) std::printf("%s\n", line.c_str());
         }
       } else {

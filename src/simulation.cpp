@@ -12,6 +12,7 @@
 
 #include "peri/build_info.hpp"
 #include "peri/checkpoint.hpp"
+#include "peri/resources.hpp"
 #include "peri/restart.hpp"
 
 namespace peri {
@@ -107,6 +108,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   MPI_Comm_size(comm_, &ranks_);
 
   // Nodes, and every check that needs them, before anything is allocated per rank.
+  check_fits(scene_, comm_);
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
   for (const Boundary& b : scene_.boundaries)
