@@ -21,7 +21,8 @@ extern "C" void on_stop_signal(int sig) {
   g_stop_signal = sig;
 }
 
-/// Broadcast rank 0's message; true when it is non-empty.
+/// One verdict for all ranks: empty when no rank has a message, else the message of the lowest
+/// failing rank (naming that rank when it is not rank 0). Collective.
 std::string agree_on_message(const std::string& mine, MPI_Comm comm) {
   int rank = 0;
   MPI_Comm_rank(comm, &rank);

@@ -181,6 +181,37 @@ TEST(Restart, RefusesAnotherScene) {
   EXPECT_NE(message.find("density: 1300"), std::string::npos) << message;
 }
 
+TEST(Restart, CheckpointCadence) {
+  // By steps: the last checkpoint is at the last multiple of 7. By wall time (1 ns): at every
+  // collective check (each 20 steps and the last step).
+  for (const char* mode : {"steps", "seconds"}) {
+    const bool by_steps = std::string(mode) == "steps";
+    const Scene scene = parse_scene(kScene, "small-slit",
+                                    {{"output.checkpoint_every_steps", by_steps ? "7" : "0"},
+                                     {"output.checkpoint_every_seconds", by_steps ? "0" : "1e-9"}});
+    RunOptions o = quiet();
+    o.out_dir = shared_path(std::string("restart-cadence-") + mode);
+    std::int64_t total = 0;
+    {
+      Simulation sim(scene, PETSC_COMM_WORLD, o);
+      sim.run();
+      total = sim.total_steps();
+    }
+    const Checkpoint last = read_checkpoint(o.out_dir + "/checkpoint.h5");
+    const Checkpoint prev = read_checkpoint(o.out_dir + "/checkpoint.prev.h5");
+    MPI_Barrier(PETSC_COMM_WORLD);
+    if (world_rank() == 0) std::filesystem::remove_all(o.out_dir);
+    if (by_steps) {
+      EXPECT_EQ(last.step, total / 7 * 7);
+      EXPECT_EQ(prev.step, total / 7 * 7 - 7);
+    } else {
+      EXPECT_EQ(last.step, total);
+      EXPECT_EQ(prev.step, (total - 1) / 20 * 20);
+    }
+    EXPECT_FALSE(std::filesystem::exists(o.out_dir + "/checkpoint.h5.tmp"));
+  }
+}
+
 // ------------------------------------------------------------------------------------------------
 // Damaged files: every rank works on its own copy (read_checkpoint is serial).
 
