@@ -14,6 +14,7 @@
 
 #include "peri/checkpoint.hpp"
 #include "peri/error.hpp"
+#include "peri/resources.hpp"
 #include "peri/restart.hpp"
 #include "peri/simulation.hpp"
 
@@ -349,6 +350,29 @@ TEST(CheckpointFile, EveryRankRefusesTogether) {
     message = e.what();
   }
   EXPECT_NE(message.find("checksum mismatch"), std::string::npos) << message;
+}
+
+TEST(Resources, MemoryModelAndRefusal) {
+  SizeEstimate e;
+  e.nodes = 1e6;
+  e.bonds = 4e7;
+  e.bytes = 9 * e.bonds + 200 * e.nodes;
+  const MemoryNeed one = memory_need(e, 1), two = memory_need(e, 2);
+  EXPECT_DOUBLE_EQ(one.per_rank, e.bytes + 64 * e.nodes);
+  EXPECT_DOUBLE_EQ(one.rank0, one.per_rank);  // no partitioner graph on one rank
+  EXPECT_DOUBLE_EQ(two.per_rank, e.bytes / 2 + 64 * e.nodes);
+  EXPECT_DOUBLE_EQ(two.rank0, two.per_rank + 24 * e.bonds);
+  EXPECT_GT(available_memory(), 1e8);  // /proc/meminfo is readable here
+
+  EXPECT_NO_THROW(check_fits(parse_scene(kScene, "small-slit"), PETSC_COMM_WORLD));
+  std::string message;
+  try {
+    check_fits(parse_scene(kScene, "small-slit", {{"bodies.sheet.spacing", "1e-7"}}), PETSC_COMM_WORLD);
+  } catch (const InputError& err) {
+    message = err.what();
+  }
+  EXPECT_NE(message.find("small-slit: the scene cannot fit in memory: about 4e+10 nodes"), std::string::npos)
+      << message;
 }
 
 }  // namespace
