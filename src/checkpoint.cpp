@@ -249,6 +249,7 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     {
       H5Id g = w.group(f, "/tallies");
       w.dataset(g.get(), "dissipated", H5T_NATIVE_DOUBLE, c.dissipated, 1);
+      w.dataset(g.get(), "damping_work", H5T_NATIVE_DOUBLE, c.damping_work, 1);
       w.dataset(g.get(), "external_work", H5T_NATIVE_DOUBLE, c.external_work, 1);
       w.dataset(g.get(), "newly_broken", H5T_NATIVE_INT64, c.newly_broken, 1);
       w.dataset(g.get(), "owner_hash", H5T_NATIVE_UINT64, c.owner_hash, 1);
@@ -385,14 +386,16 @@ Checkpoint read_checkpoint(const std::string& path) {
   }
 
   c.dissipated = r.dataset<double>(f, "/tallies/dissipated", H5T_NATIVE_DOUBLE, H5T_FLOAT, 1);
+  c.damping_work = r.dataset<double>(f, "/tallies/damping_work", H5T_NATIVE_DOUBLE, H5T_FLOAT, 1);
   c.external_work = r.dataset<double>(f, "/tallies/external_work", H5T_NATIVE_DOUBLE, H5T_FLOAT, 1);
   c.newly_broken = r.dataset<std::int64_t>(f, "/tallies/newly_broken", H5T_NATIVE_INT64, H5T_INTEGER, 1);
   c.owner_hash = r.dataset<std::uint64_t>(f, "/tallies/owner_hash", H5T_NATIVE_UINT64, H5T_INTEGER, 1);
   const auto ranks = static_cast<std::size_t>(c.ranks);
-  if (c.dissipated.size() != ranks || c.external_work.size() != ranks || c.newly_broken.size() != ranks ||
-      c.owner_hash.size() != ranks)
+  if (c.dissipated.size() != ranks || c.damping_work.size() != ranks || c.external_work.size() != ranks ||
+      c.newly_broken.size() != ranks || c.owner_hash.size() != ranks)
     r.fail("tallies do not hold " + std::to_string(c.ranks) + " ranks");
-  if (!all_finite(c.dissipated) || !all_finite(c.external_work)) r.fail("non-finite energy tallies");
+  if (!all_finite(c.dissipated) || !all_finite(c.damping_work) || !all_finite(c.external_work))
+    r.fail("non-finite energy tallies");
   std::int64_t newly = 0;
   for (std::int64_t x : c.newly_broken) {
     if (x < 0 || x > c.ordered_bonds - newly) r.fail("broken-bond tallies out of range");

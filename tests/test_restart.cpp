@@ -231,6 +231,7 @@ Checkpoint small_checkpoint() {
   c.initial_total_energy = 1.0;
   c.ranks = 2;
   c.dissipated = {0.5, 0.25};
+  c.damping_work = {0.125, 0.0};
   c.external_work = {1.0, 2.0};
   c.newly_broken = {2, 2};
   c.owner_hash = {1, 2};
@@ -277,6 +278,7 @@ TEST(CheckpointFile, RoundTripKeepsEveryField) {
   EXPECT_EQ(r.stage_step, c.stage_step);
   EXPECT_EQ(r.ranks, c.ranks);
   EXPECT_EQ(r.dissipated, c.dissipated);
+  EXPECT_EQ(r.damping_work, c.damping_work);
   EXPECT_EQ(r.external_work, c.external_work);
   EXPECT_EQ(r.newly_broken, c.newly_broken);
   EXPECT_EQ(r.owner_hash, c.owner_hash);

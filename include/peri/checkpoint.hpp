@@ -11,7 +11,7 @@
 //               initial_total_energy, ranks
 //   /state      displacement [N,3], velocity [N,3] (natural node order: rank-independent)
 //   /bonds      broken [B,2]: every broken bond once as natural ids (i < j), sorted
-//   /tallies    per writing rank: dissipated, external_work, newly_broken, owner_hash
+//   /tallies    per writing rank: dissipated, damping_work, external_work, newly_broken, owner_hash
 //   /extras     one 1-D double dataset per registered extra array (diagnostics' history)
 // Load-ramp state needs no field: boundary velocities are functions of the simulated time.
 #pragma once
@@ -41,7 +41,7 @@ struct Checkpoint {
   double initial_total_energy = 0; ///< E(0) of the energy balance [J]
   int ranks = 1;                   ///< ranks of the run that wrote it
   // Per writing rank (size `ranks`): cumulative tallies, so that sums continue bit for bit.
-  std::vector<double> dissipated, external_work;  ///< [J]
+  std::vector<double> dissipated, damping_work, external_work;  ///< [J]
   std::vector<std::int64_t> newly_broken;         ///< ordered bonds broken so far
   std::vector<std::uint64_t> owner_hash;          ///< fnv1a64 of each rank's owned natural ids
   std::vector<double> displacement, velocity;     ///< 3N each, natural order [m], [m/s]
