@@ -125,6 +125,73 @@ TEST(Restart, ContinuedRunIsBitForBitTheUninterruptedOne) {
   EXPECT_EQ(whole.summary().energy_balance_error, second.summary().energy_balance_error);
 }
 
+// Quasi-static preload, release of a slit, a damped dynamic stage, then a pulled one.
+const char* kStagedScene = R"(
+name: staged
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 2}
+bodies:
+  sheet: {material: rubber, origin: [-0.01, -0.01, 0], size: [0.02, 0.02], thickness: 0.0005, spacing: 0.0005}
+cracks:
+  - {name: slit, from: [-0.002, 0, 0], to: [0.002, 0, 0]}
+boundaries:
+  - {name: top, region: {min: [-1, 0.0088, -1], max: [1, 1, 1]}}
+  - {name: bottom, region: {min: [-1, -1, -1], max: [1, -0.0088, 1]}}
+initial:
+  seed: {amplitude: 1.0e-6, wavelength: [0.005, 0.005]}
+stages:
+  - {name: preload, kind: quasistatic, displacements: {top: [0, 0.005, 0], bottom: [0, -0.005, 0]}, load_steps: 3}
+  - {name: cut, kind: release, cracks: [slit]}
+  - {name: settle, steps: 40, damping: 2.0e4, safety_factor: 0.35}
+  - {name: pull, duration: 2.0e-5, safety_factor: 0.35, boundary_velocity: {top: [0, 5, 0], bottom: [0, -5, 0]}}
+output: {frames: 1, series_every: 5}
+)";
+
+TEST(Restart, AfterQuasiStaticReleaseAndDampedStages) {
+  const Scene scene = parse_scene(kStagedScene, "staged");
+  Simulation whole(scene, PETSC_COMM_WORLD, quiet());
+  whole.run();
+  const std::string path = shared_path("restart-staged");
+  {
+    Simulation first(scene, PETSC_COMM_WORLD, quiet());
+    first.begin();
+    first.advance(25);  // inside the damped stage
+    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
+  }
+  RunOptions o = quiet();
+  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
+  EXPECT_EQ(o.restart->stage, 2);
+  EXPECT_EQ(o.restart->stage_step, 25);
+  Simulation second(scene, PETSC_COMM_WORLD, o);
+  second.run();
+  if (world_rank() == 0) {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+  }
+  const auto xa = whole.natural_positions(), xb = second.natural_positions();
+  std::size_t differing = 0;
+  for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k];
+  const RunSummary &a = whole.summary(), &b = second.summary();
+  if (world_rank() == 0)
+    std::printf("staged restart: %zu of %zu positions differ; precrack+released bonds %lld vs %lld; "
+                "quasi-static increments %zu vs %zu; dissipated (with damping) %.17g vs %.17g\n",
+                differing, xa.size(), static_cast<long long>(a.precrack_bonds),
+                static_cast<long long>(b.precrack_bonds), a.quasistatic.at(0).second.increments.size(),
+                b.quasistatic.empty() ? 0 : b.quasistatic[0].second.increments.size(), a.final_energy.dissipated,
+                b.final_energy.dissipated);
+  EXPECT_EQ(differing, 0u);
+  EXPECT_EQ(whole.broken_bonds(), second.broken_bonds());
+  EXPECT_EQ(a.final_energy.dissipated, b.final_energy.dissipated);
+  EXPECT_EQ(a.final_energy.external_work, b.final_energy.external_work);
+  EXPECT_EQ(a.energy_balance_error, b.energy_balance_error);
+  EXPECT_EQ(a.precrack_bonds, b.precrack_bonds);
+  ASSERT_EQ(b.quasistatic.size(), 1u);
+  EXPECT_EQ(b.quasistatic[0].first, "preload");
+  EXPECT_EQ(b.quasistatic[0].second.increments.size(), a.quasistatic[0].second.increments.size());
+  EXPECT_EQ(b.quasistatic[0].second.newton_iterations, a.quasistatic[0].second.newton_iterations);
+  EXPECT_EQ(b.quasistatic_work_error, a.quasistatic_work_error);
+}
+
 TEST(Restart, ExtraArraysRoundTrip) {
   const Scene scene = parse_scene(kScene, "small-slit");
   const std::string path = shared_path("restart-extras");
