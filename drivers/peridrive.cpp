@@ -1,18 +1,22 @@
 // peridrive: dynamic fracture of peridynamic membranes (and PMB solids) on MPI + PETSc.
 //
 //   mpirun -n 2 peridrive [scene.yaml] [--out DIR] [--set key=value ...] [PETSc options]
+//   mpirun -n 2 peridrive --resume DIR            (continue a stopped or killed run)
 //
 // With no scene, runs the embedded default: example 7.1 of Silling & Bobaru (slit membrane).
 #include <petscsys.h>
 
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
 
 #include "peri/build_info.hpp"
+#include "peri/checkpoint.hpp"
 #include "peri/output.hpp"
+#include "peri/restart.hpp"
 #include "peri/simulation.hpp"
 
 namespace {
@@ -24,6 +28,11 @@ Runs a peridynamic fracture scene. Without a scene file, runs the embedded defau
 
 options:
   --out DIR          output directory (default: out/<scene name>)
+  --resume PATH      continue a run from its last checkpoint: PATH is the run's output
+                     directory (its checkpoint.h5, or checkpoint.prev.h5 if that is missing) or
+                     a checkpoint file. The scene is the checkpoint's (a scene file given too must
+                     resolve to the same physics); outputs continue in PATH (or --out), dropping
+                     frames and series rows after the checkpoint's step
   --set KEY=VALUE    override a scene value, e.g. --set bodies.sheet.spacing=5e-4,
                      --set stages.0.duration=1e-5, --set boundaries.top.velocity=[0,20,0];
                      repeatable; VALUE is YAML
@@ -35,13 +44,17 @@ options:
 PETSc options (single dash, e.g. -log_view) pass through to PETSc.
 
 outputs (in DIR): frames.h5 + frames.xdmf (open in ParaView), series.csv (energies),
-scene.resolved.yaml, summary.json (written last: its presence marks a complete run).
-exit status: 0 success, 2 invalid input, 3 numerical failure, other values internal errors.
+scene.resolved.yaml, summary.json (written last: its presence marks a complete run),
+checkpoint.h5 (+ checkpoint.prev.h5) every output.checkpoint_every_steps / _seconds.
+SIGTERM or SIGINT: all ranks write a final checkpoint and stop (a second signal ends at once).
+exit status: 0 success, 2 invalid input, 3 numerical failure, 5 stopped by SIGTERM/SIGINT after
+a final checkpoint (continue with --resume DIR), other values internal errors.
 )";
 
 struct Args {
   std::string scene;
   std::string out;
+  std::string resume;
   std::vector<peri::Override> overrides;
   bool print_scene = false, dry_run = false, quiet = false, help = false, version = false;
   std::vector<char*> petsc;  // argv for PetscInitialize
@@ -67,6 +80,8 @@ Args parse_args(int argc, char** argv) {
     else if (s == "--dry-run") a.dry_run = true;
     else if (s == "--out") a.out = value(k, s);
     else if (s.rfind("--out=", 0) == 0) a.out = s.substr(6);
+    else if (s == "--resume") a.resume = value(k, s);
+    else if (s.rfind("--resume=", 0) == 0) a.resume = s.substr(9);
     else if (s == "--set" || s.rfind("--set=", 0) == 0) {
       const std::string kv = s == "--set" ? value(k, s) : s.substr(6);
       const auto eq = kv.find('=');
@@ -105,6 +120,7 @@ int main(int argc, char** argv) {
   args.petsc.push_back(nullptr);
   char** pargv = args.petsc.data();
   if (PetscInitialize(&pargc, &pargv, nullptr, nullptr) != 0) return 4;
+  peri::install_stop_handlers();  // after PETSc's own handlers, which would abort on SIGTERM
   const int rank = rank_of_world();
   int status = 0;
   try {
@@ -115,23 +131,37 @@ int main(int argc, char** argv) {
         else std::printf("peridrive %s (%s)\n", peri::version(), peri::git_revision());
       }
     } else {
+      std::shared_ptr<const peri::Checkpoint> checkpoint;
+      std::string checkpoint_file;
+      if (!args.resume.empty()) {
+        checkpoint_file = peri::resolve_resume_path(args.resume);
+        checkpoint = peri::load_checkpoint(checkpoint_file, PETSC_COMM_WORLD);
+        if (args.out.empty()) {
+          const std::string dir = std::filesystem::path(checkpoint_file).parent_path().string();
+          args.out = dir.empty() ? "." : dir;
+        }
+      }
       const peri::Scene scene =
-          args.scene.empty()
-              ? peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides)
-              : peri::load_scene(args.scene, args.overrides);
+          !args.scene.empty() ? peri::load_scene(args.scene, args.overrides)
+          : checkpoint        ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides)
+                              : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides);
       if (args.print_scene) {
         if (rank == 0) std::fputs(peri::emit_scene(scene).c_str(), stdout);
       } else if (args.dry_run) {
         const peri::SizeEstimate e = peri::estimate_size(scene);
-        peri::Simulation sim(scene, PETSC_COMM_WORLD, {});
         if (rank == 0) {
           std::printf("estimate: %.4g nodes, %.4g bonds, %.4g GB\n", e.nodes, e.bonds / 2, e.bytes / 1e9);
+          std::fflush(stdout);
+        }
+        peri::Simulation sim(scene, PETSC_COMM_WORLD, {});
+        if (rank == 0) {
           for (const std::string& line : sim.derived_lines()) std::printf("%s\n", line.c_str());
         }
       } else {
         peri::RunOptions opt;
         opt.out_dir = args.out.empty() ? "out/" + scene.name : args.out;
         opt.quiet = args.quiet;
+        opt.restart = checkpoint;
         peri::Simulation sim(scene, PETSC_COMM_WORLD, opt);
         try {
           sim.run();
@@ -140,7 +170,13 @@ int main(int argc, char** argv) {
           throw;
         }
         const peri::RunSummary& s = sim.summary();
-        if (rank == 0 && !args.quiet)
+        if (sim.stopped()) {
+          if (rank == 0)
+            std::fprintf(stderr, "peridrive: stopped by signal %d at step %lld/%lld; checkpoint %s; continue with: "
+                         "peridrive --resume %s\n", peri::stop_signal(), static_cast<long long>(sim.current_step()),
+                         static_cast<long long>(sim.total_steps()), sim.checkpoint_path().c_str(), opt.out_dir.c_str());
+          status = peri::kExitStopped;
+        } else if (rank == 0 && !args.quiet)
           std::printf("[peridrive] done: %lld steps in %.3g s (%.3g bond updates/s), %lld bonds broken; "
                       "energy balance error %.2e; results in %s/\n",
                       static_cast<long long>(s.steps), s.wall_seconds,

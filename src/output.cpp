@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <cstdlib>
 #include <iomanip>
+#include <iterator>
 #include <sstream>
 
 #include "peri/build_info.hpp"
@@ -76,12 +78,23 @@ void write_text_file(const std::string& path, const std::string& text) {
 }
 
 FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain,
-                         State& state, const std::string& resolved_scene, bool write_velocity)
+                         State& state, const std::string& resolved_scene, bool write_velocity,
+                         std::int64_t resume_step)
     : dir_(dir), stem_(stem), domain_(domain), state_(state), write_velocity_(write_velocity) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported by our checks
   hid_t fapl = check_id(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate");
   check_h5(H5Pset_fapl_mpio(fapl, state.comm(), MPI_INFO_NULL), "H5Pset_fapl_mpio");
   const std::string path = dir + "/" + stem + ".h5";
+  if (resume_step >= 0) {
+    if (reopen(path, fapl, resume_step)) {
+      H5Pclose(fapl);
+      if (domain_.rank == 0) write_xdmf();
+      return;
+    }
+    if (domain_.rank == 0)
+      std::fprintf(stderr, "peridrive: note: '%s' cannot be continued; starting it afresh at step %lld\n",
+                   path.c_str(), static_cast<long long>(resume_step));
+  }
   file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
   H5Pclose(fapl);
   if (file_ < 0) throw Error("cannot create HDF5 file '" + path + "'");
@@ -100,6 +113,49 @@ FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const 
   hid_t frames = check_id(H5Gcreate2(file_, "/frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/frames");
   H5Gclose(frames);
   check_h5(H5Fflush(file_, H5F_SCOPE_GLOBAL), "H5Fflush");
+}
+
+bool FrameWriter::reopen(const std::string& path, hid_t fapl, std::int64_t resume_step) {
+  // Collective: every rank makes the same metadata calls and reaches the same verdict.
+  std::error_code ec;
+  int exists = domain_.rank == 0 && std::filesystem::is_regular_file(path, ec);
+  MPI_Bcast(&exists, 1, MPI_INT, 0, state_.comm());
+  if (!exists) return false;
+  file_ = H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl);
+  if (file_ < 0) return false;
+  bool ok = H5Lexists(file_, "/mesh", H5P_DEFAULT) > 0 && H5Lexists(file_, "/frames", H5P_DEFAULT) > 0;
+  hid_t frames = ok ? H5Gopen2(file_, "/frames", H5P_DEFAULT) : -1;
+  H5G_info_t info;
+  ok = ok && frames >= 0 && H5Gget_info(frames, &info) >= 0;
+  for (hsize_t k = 0; ok && k < info.nlinks; ++k) {
+    const std::string name = frame_name(static_cast<int>(k));
+    hid_t g = H5Lexists(file_, name.c_str(), H5P_DEFAULT) > 0 ? H5Gopen2(file_, name.c_str(), H5P_DEFAULT) : -1;
+    long long step = -1;
+    double time = 0;
+    ok = g >= 0;
+    if (ok) {
+      hid_t a = H5Aopen(g, "step", H5P_DEFAULT), b = H5Aopen(g, "time", H5P_DEFAULT);
+      ok = a >= 0 && b >= 0 && H5Aread(a, H5T_NATIVE_LLONG, &step) >= 0 && H5Aread(b, H5T_NATIVE_DOUBLE, &time) >= 0;
+      if (a >= 0) H5Aclose(a);
+      if (b >= 0) H5Aclose(b);
+      H5Gclose(g);
+    }
+    if (ok && step <= resume_step) {
+      times_.push_back(time);
+      steps_.push_back(step);
+    } else {
+      ok = H5Ldelete(file_, name.c_str(), H5P_DEFAULT) >= 0;  // a frame after the checkpoint, or partial
+    }
+  }
+  if (frames >= 0) H5Gclose(frames);
+  ok = ok && H5Fflush(file_, H5F_SCOPE_GLOBAL) >= 0;
+  if (!ok) {
+    H5Fclose(file_);
+    file_ = -1;
+    times_.clear();
+    steps_.clear();
+  }
+  return ok;
 }
 
 FrameWriter::~FrameWriter() {
@@ -177,11 +233,28 @@ void FrameWriter::write_xdmf() const {
   write_text_file(dir_ + "/" + stem_ + ".xdmf", x.str());
 }
 
-SeriesWriter::SeriesWriter(const std::string& path, bool active) : active_(active) {
+SeriesWriter::SeriesWriter(const std::string& path, bool active, std::int64_t resume_step) : active_(active) {
   if (!active_) return;
-  out_.open(path, std::ios::trunc);
+  const std::string header =
+      "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds\n";
+  if (resume_step >= 0) {
+    // Keep the header and the complete rows up to resume_step; a partial last line is dropped.
+    std::ifstream in(path, std::ios::binary);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::string kept = header;
+    std::size_t start = text.compare(0, header.size(), header) == 0 ? header.size() : text.size();
+    for (std::size_t nl; (nl = text.find('\n', start)) != std::string::npos; start = nl + 1) {
+      const long long step = std::strtoll(text.c_str() + start, nullptr, 10);
+      if (step > resume_step) break;
+      kept.append(text, start, nl + 1 - start);
+    }
+    write_text_file(path, kept);
+    out_.open(path, std::ios::app);
+  } else {
+    out_.open(path, std::ios::trunc);
+    out_ << header;
+  }
   if (!out_) throw Error("cannot write '" + path + "': " + std::strerror(errno));
-  out_ << "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds\n";
   out_ << std::setprecision(12);
 }
 

@@ -17,6 +17,7 @@
 //    the line of its key, any other value at its own line.
 #include "peri/scene.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -30,6 +31,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <sstream>
 #include <string_view>
 #include <utility>
 
@@ -513,6 +515,8 @@ const Keys kOutputKeys = {
     {"series_every", false, ""},
     {"velocity", false, ""},
     {"progress_seconds", false, ""},
+    {"checkpoint_every_steps", false, ""},
+    {"checkpoint_every_seconds", false, ""},
 };
 
 const char* const kStiffnessKeys[] = {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus"};
@@ -861,13 +865,17 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
 }
 
 Output read_output(const Value& v) {
-  const Map m(v, &kOutputKeys, "a map {frames, series_every, velocity, progress_seconds}");
+  const Map m(v, &kOutputKeys,
+              "a map {frames, series_every, velocity, progress_seconds, checkpoint_every_steps, "
+              "checkpoint_every_seconds}");
   Output out;
   constexpr long int_max = std::numeric_limits<int>::max();
   if (auto x = m.get("frames")) out.frames = static_cast<int>(x->integer(1, int_max));
   if (auto x = m.get("series_every")) out.series_every = static_cast<int>(x->integer(1, int_max));
   if (auto x = m.get("velocity")) out.write_velocity = x->boolean();
   if (auto x = m.get("progress_seconds")) out.progress_seconds = x->non_negative("s");
+  if (auto x = m.get("checkpoint_every_steps")) out.checkpoint_every_steps = x->integer(0);
+  if (auto x = m.get("checkpoint_every_seconds")) out.checkpoint_every_seconds = x->non_negative("s");
   return out;
 }
 
@@ -930,17 +938,59 @@ std::string top_level_keys() {
   return join(names);
 }
 
+/// Counts the documents of a YAML stream and where each starts, without building nodes.
+class DocumentCounter : public YAML::EventHandler {
+ public:
+  std::vector<YAML::Mark> starts;  ///< per document: where it starts
+  std::vector<YAML::Mark> roots;   ///< per document: where its root node starts
+  void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& m, YAML::anchor_t) override { root(m); }
+  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { root(m); }
+  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string&) override { root(m); }
+  void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    root(m);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    root(m);
+  }
+  void OnMapEnd() override {}
+
+ private:
+  void root(const YAML::Mark& m) {
+    if (roots.size() < starts.size()) roots.push_back(m);
+  }
+};
+
 YAML::Node load_document(const std::string& text, const std::string& file) {
   std::vector<YAML::Node> docs;
   try {
-    docs = YAML::LoadAll(text);
+    // Count the documents first. YAML::LoadAll is not used: on a token that starts no node (a
+    // ',' outside a flow collection) yaml-cpp returns the same empty document forever, filling
+    // memory; a document that starts where the previous one started is that token.
+    DocumentCounter counter;
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    while (parser.HandleNextDocument(counter)) {
+      const std::size_t n = counter.starts.size();
+      if (n >= 2 && counter.starts[n - 1].pos == counter.starts[n - 2].pos) {
+        const YAML::Mark& m = counter.starts[n - 1];
+        throw InputError(SourceLoc{file, m.line >= 0 ? m.line + 1 : 1}.str() +
+                         ": YAML syntax error: unexpected character '" +
+                         (m.pos >= 0 && static_cast<std::size_t>(m.pos) < text.size() ? text.substr(m.pos, 1) : "") +
+                         "' where a value should start");
+      }
+    }
+    if (counter.starts.size() > 1) {
+      const YAML::Mark& m = counter.roots.size() > 1 ? counter.roots[1] : counter.starts[1];
+      throw InputError(SourceLoc{file, m.line >= 0 ? m.line + 1 : 1}.str() +
+                       ": expected a single YAML document, found " + std::to_string(counter.starts.size()));
+    }
+    if (!counter.starts.empty()) docs.push_back(YAML::Load(text));
   } catch (const YAML::Exception& e) {
     throw InputError(SourceLoc{file, e.mark.line >= 0 ? e.mark.line + 1 : 1}.str() +
                      ": YAML syntax error: " + e.msg);
-  }
-  if (docs.size() > 1) {
-    throw InputError(SourceLoc{file, docs[1].Mark().line >= 0 ? docs[1].Mark().line + 1 : 1}.str() +
-                     ": expected a single YAML document, found " + std::to_string(docs.size()));
   }
   if (docs.empty() || docs[0].IsNull()) {
     throw InputError(file + ":1: the scene is empty; expected a YAML map with the keys: " + top_level_keys());
@@ -1316,6 +1366,8 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
   w.key(2, "series_every", std::to_string(s.output.series_every));
   w.key(2, "velocity", to_text(s.output.write_velocity));
   w.key(2, "progress_seconds", s.output.progress_seconds);
+  w.key(2, "checkpoint_every_steps", std::to_string(s.output.checkpoint_every_steps));
+  w.key(2, "checkpoint_every_seconds", s.output.checkpoint_every_seconds);
   for (const std::string& text : derived) {
     // One comment line per line of text, so that the result stays valid YAML.
     std::size_t start = 0;

@@ -11,6 +11,9 @@
 #include <sstream>
 
 #include "peri/build_info.hpp"
+#include "peri/checkpoint.hpp"
+#include "peri/resources.hpp"
+#include "peri/restart.hpp"
 #include "peri/tangent.hpp"
 
 namespace peri {
@@ -134,6 +137,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   MPI_Comm_size(comm_, &ranks_);
 
   // Nodes, and every check that needs them, before anything is allocated per rank.
+  check_fits(scene_, comm_);
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
   for (const Boundary& b : scene_.boundaries)
@@ -263,6 +267,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
   summary_.derived.push_back({"ordered_bonds", double(summary_.ordered_bonds)});
   resolved_ = emit_scene(scene_, derived_lines());
+  if (options_.restart) check_restart(*options_.restart);
   PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
   // Output last: nothing is written unless every check above passed.
@@ -275,9 +280,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       write_text_file(options_.out_dir + "/scene.resolved.yaml", resolved_);
     }
     MPI_Barrier(comm_);
+    const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
     frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
-                                            scene_.output.write_velocity);
-    series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0);
+                                            scene_.output.write_velocity, resume_step);
+    series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, resume_step);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
@@ -587,10 +593,15 @@ void Simulation::check_health(std::int64_t step, double time) {
 void Simulation::run() {
   begin();
   advance(total_steps_);
-  finish();
+  if (!stopped_) finish();
 }
 
 void Simulation::begin() {
+  last_checkpoint_ = std::chrono::steady_clock::now();
+  if (options_.restart) {
+    restore(*options_.restart);
+    return;
+  }
   apply_initial_conditions();
   // Stages that take no time and come first (preload, release) shape the initial state.
   while (stage_ < scene_.stages.size() && scene_.stages[stage_].kind != StageKind::Dynamic) {
@@ -636,7 +647,7 @@ void Simulation::start_stage() {
 
 std::int64_t Simulation::advance(std::int64_t n) {
   std::int64_t taken = 0;
-  while (stage_ < scene_.stages.size()) {
+  while (stage_ < scene_.stages.size() && !stopped_) {
     if (scene_.stages[stage_].kind != StageKind::Dynamic) {
       // A later stage that takes no time: run it, and restart the energy balance after a
       // quasi-static one (it removes kinetic energy by construction).
@@ -671,6 +682,7 @@ std::int64_t Simulation::advance(std::int64_t n) {
       write_frame();
       while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
     }
+    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
   }
   return taken;
 }
@@ -933,6 +945,236 @@ std::array<double, 6> Simulation::momentum() {
   PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
   MPI_Allreduce(p.data(), total.data(), 6, MPI_DOUBLE, MPI_SUM, comm_);
   return total;
+}
+
+}  // namespace peri
+
+// ------------------------------------------------------------------------------------------------
+// Checkpoints and restart
+
+namespace peri {
+
+void Simulation::add_checkpoint_extra(std::string name, std::function<std::vector<double>()> save,
+                                      std::function<void(const std::vector<double>*)> restore) {
+  extras_.push_back({std::move(name), std::move(save), std::move(restore)});
+}
+
+bool Simulation::checkpoint_due(bool poll) {
+  const Output& o = scene_.output;
+  bool due = o.checkpoint_every_steps > 0 && step_ % o.checkpoint_every_steps == 0;
+  if (poll) {
+    // One collective verdict: a signal on any rank stops all; rank 0's clock decides the cadence.
+    const double since = std::chrono::duration<double>(std::chrono::steady_clock::now() - last_checkpoint_).count();
+    int local[2] = {stop_signal() != 0, rank_ == 0 && o.checkpoint_every_seconds > 0 && since >= o.checkpoint_every_seconds};
+    int global[2];
+    MPI_Allreduce(local, global, 2, MPI_INT, MPI_MAX, comm_);
+    stopped_ = global[0] != 0;
+    due = due || global[0] || global[1];
+  }
+  return due && !options_.out_dir.empty() && step_ != last_checkpoint_step_;
+}
+
+Checkpoint Simulation::make_checkpoint() {
+  Checkpoint c;
+  c.peridrive_version = version();
+  c.git_revision = git_revision();
+  c.scene = emit_scene(scene_);
+  c.scene_hash = fnv1a64(c.scene.data(), c.scene.size());
+  c.nodes = domain_.global_nodes;
+  c.ordered_bonds = summary_.ordered_bonds;
+  c.step = step_;
+  c.time = time_;
+  c.stage = static_cast<std::int64_t>(stage_);
+  c.stage_step = stage_step_;
+  c.initial_total_energy = summary_.initial_total_energy;
+  c.ranks = ranks_;
+  const bool root = rank_ == 0;
+  c.dissipated.resize(root ? ranks_ : 0);
+  c.damping_work.resize(root ? ranks_ : 0);
+  c.external_work.resize(root ? ranks_ : 0);
+  c.newly_broken.resize(root ? ranks_ : 0);
+  c.owner_hash.resize(root ? ranks_ : 0);
+  const std::uint64_t own = ownership_hash(domain_);
+  MPI_Gather(&tally_.dissipated, 1, MPI_DOUBLE, c.dissipated.data(), 1, MPI_DOUBLE, 0, comm_);
+  MPI_Gather(&damping_work_, 1, MPI_DOUBLE, c.damping_work.data(), 1, MPI_DOUBLE, 0, comm_);
+  MPI_Gather(&external_work_, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm_);
+  MPI_Gather(&tally_.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm_);
+  MPI_Gather(&own, 1, MPI_UINT64_T, c.owner_hash.data(), 1, MPI_UINT64_T, 0, comm_);
+  const double* u;
+  const double* v;
+  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
+  c.displacement = gather_natural_to_root(*state_, domain_, u, 3, comm_);
+  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
+  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
+  c.velocity = gather_natural_to_root(*state_, domain_, v, 3, comm_);
+  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
+  c.broken = gather_broken_to_root(domain_, comm_);
+  for (const Extra& e : extras_) {
+    std::vector<double> values = e.save();
+    if (root) c.extras[e.name] = std::move(values);
+  }
+  // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
+  // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
+  c.extras["summary.precrack_bonds"] = {double(summary_.precrack_bonds)};
+  for (std::size_t k = 0; k < summary_.quasistatic.size(); ++k) {
+    const auto& [name, q] = summary_.quasistatic[k];
+    double stage = -1;
+    for (std::size_t s = 0; s < scene_.stages.size(); ++s)
+      if (scene_.stages[s].name == name) stage = double(s);
+    std::vector<double> v = {stage, double(q.cutbacks), double(q.newton_iterations), double(q.linear_iterations),
+                             double(q.broken), q.external_work, q.seconds, summary_.quasistatic_work_error[k]};
+    for (const LoadIncrement& inc : q.increments)
+      v.insert(v.end(), {inc.load_factor, double(inc.newton_iterations), double(inc.linear_iterations),
+                         double(inc.break_passes), double(inc.broken), inc.residual});
+    c.extras["summary.quasistatic." + std::to_string(k)] = std::move(v);
+  }
+  return c;
+}
+
+void Simulation::write_checkpoint() {
+  PetscLogEventBegin(events().output, 0, 0, 0, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  store_checkpoint(checkpoint_path(), make_checkpoint(), comm_);
+  last_checkpoint_step_ = step_;
+  last_checkpoint_ = std::chrono::steady_clock::now();
+  summary_.output_seconds += std::chrono::duration<double>(last_checkpoint_ - t0).count();
+  PetscLogEventEnd(events().output, 0, 0, 0, 0);
+}
+
+void Simulation::check_restart(const Checkpoint& c) {
+  const std::string what = "checkpoint (step " + std::to_string(c.step) + ")";
+  // The physics must be the checkpoint's: only progress and checkpoint cadence may differ.
+  Scene stored = parse_scene(c.scene, "checkpoint scene");
+  Scene mine = scene_;
+  mine.output.progress_seconds = stored.output.progress_seconds;
+  mine.output.checkpoint_every_steps = stored.output.checkpoint_every_steps;
+  mine.output.checkpoint_every_seconds = stored.output.checkpoint_every_seconds;
+  const std::string a = emit_scene(stored), b = emit_scene(mine);
+  if (a != b) {
+    std::istringstream sa(a), sb(b);
+    std::string la, lb;
+    int line = 0;
+    while (true) {
+      ++line;
+      const bool ga = static_cast<bool>(std::getline(sa, la)), gb = static_cast<bool>(std::getline(sb, lb));
+      if (!ga || !gb || la != lb) break;
+    }
+    throw InputError(what + " was written by a different scene: resolved scene line " + std::to_string(line) +
+                     " is '" + la + "' in the checkpoint and '" + lb +
+                     "' here (only output.progress_seconds and output.checkpoint_every_* may change on resume)");
+  }
+  if (c.nodes != domain_.global_nodes || c.ordered_bonds != summary_.ordered_bonds)
+    throw InputError(what + " holds " + std::to_string(c.nodes) + " nodes and " + std::to_string(c.ordered_bonds) +
+                     " ordered bonds; this scene has " + std::to_string(domain_.global_nodes) + " and " +
+                     std::to_string(summary_.ordered_bonds));
+  std::int64_t before = 0;
+  const bool stage_ok = c.stage >= 0 && static_cast<std::size_t>(c.stage) < stage_steps_.size() &&
+                        c.stage_step <= stage_steps_[c.stage];
+  if (stage_ok)
+    for (std::int64_t s = 0; s < c.stage; ++s) before += stage_steps_[s];
+  if (!stage_ok || before + c.stage_step != c.step || scene_.stages[c.stage].kind != StageKind::Dynamic)
+    throw InputError(what + ": stage " + std::to_string(c.stage) + " step " + std::to_string(c.stage_step) +
+                     " does not fit this scene's stages");
+}
+
+void Simulation::restore_summary_extras(const Checkpoint& c) {
+  // Written by make_checkpoint; absent extras leave the figures as the constructor set them.
+  if (const auto it = c.extras.find("summary.precrack_bonds"); it != c.extras.end() && it->second.size() == 1)
+    summary_.precrack_bonds = std::llround(it->second[0]);
+  for (std::size_t k = 0;; ++k) {
+    const auto it = c.extras.find("summary.quasistatic." + std::to_string(k));
+    if (it == c.extras.end()) break;
+    const std::vector<double>& v = it->second;
+    if (v.size() < 8 || (v.size() - 8) % 6 != 0 || !(v[0] >= 0 && v[0] < double(scene_.stages.size()))) break;
+    QuasiStaticStats q;
+    q.cutbacks = static_cast<int>(v[1]);
+    q.newton_iterations = static_cast<long>(v[2]);
+    q.linear_iterations = static_cast<long>(v[3]);
+    q.broken = static_cast<std::int64_t>(v[4]);
+    q.external_work = v[5];
+    q.seconds = v[6];
+    for (std::size_t p = 8; p < v.size(); p += 6) {
+      LoadIncrement inc;
+      inc.load_factor = v[p];
+      inc.newton_iterations = static_cast<int>(v[p + 1]);
+      inc.linear_iterations = static_cast<int>(v[p + 2]);
+      inc.break_passes = static_cast<int>(v[p + 3]);
+      inc.broken = static_cast<std::int64_t>(v[p + 4]);
+      inc.residual = v[p + 5];
+      q.increments.push_back(inc);
+    }
+    summary_.quasistatic.push_back({scene_.stages[static_cast<std::size_t>(v[0])].name, q});
+    summary_.quasistatic_work_error.push_back(v[7]);
+  }
+}
+
+void Simulation::restore(const Checkpoint& c) {
+  double* u;
+  double* v;
+  PERI_PETSC(VecGetArray(state_->displacement(), &u));
+  PERI_PETSC(VecGetArray(state_->velocity(), &v));
+  for (std::int32_t l = 0; l < domain_.owned; ++l) {
+    const std::size_t n = 3 * static_cast<std::size_t>(domain_.natural[l]);
+    for (int k = 0; k < 3; ++k) {
+      u[3 * l + k] = c.displacement[n + k];
+      v[3 * l + k] = c.velocity[n + k];
+    }
+  }
+  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
+  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
+
+  long long found = apply_broken_pairs(domain_, c.broken), found_all = 0;
+  MPI_Allreduce(&found, &found_all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
+  if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
+    throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +
+                     " broken bonds, but only " + std::to_string(found_all / 2) + " are bonds of this scene");
+
+  // Tallies: per rank when the ownership is the checkpoint's (sums continue bit for bit), else
+  // their totals on rank 0.
+  int same = c.ranks == ranks_ && c.owner_hash[rank_] == ownership_hash(domain_), all_same = 0;
+  MPI_Allreduce(&same, &all_same, 1, MPI_INT, MPI_MIN, comm_);
+  if (all_same) {
+    tally_.dissipated = c.dissipated[rank_];
+    damping_work_ = c.damping_work[rank_];
+    external_work_ = c.external_work[rank_];
+    tally_.newly_broken = c.newly_broken[rank_];
+  } else {
+    tally_ = BondTally{};
+    damping_work_ = 0;
+    external_work_ = 0;
+    if (rank_ == 0)
+      for (int r = 0; r < c.ranks; ++r) {
+        tally_.dissipated += c.dissipated[r];
+        damping_work_ += c.damping_work[r];
+        external_work_ += c.external_work[r];
+        tally_.newly_broken += c.newly_broken[r];
+      }
+  }
+  restore_summary_extras(c);
+  step_ = c.step;
+  time_ = c.time;
+  stage_ = static_cast<std::size_t>(c.stage);
+  stage_step_ = c.stage_step;
+  summary_.initial_total_energy = c.initial_total_energy;
+  for (const Extra& e : extras_) {
+    const auto it = c.extras.find(e.name);
+    e.restore(it == c.extras.end() ? nullptr : &it->second);
+  }
+
+  // Forces at the restored positions, computed as the uninterrupted run did at the end of this
+  // step; every bond past its critical stretch there is already broken, so none breaks now.
+  compute_forces(true);
+  summary_.final_energy = reduce_energies(tally_.strain_energy);
+  while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
+  last_checkpoint_step_ = step_;
+  if (rank_ == 0 && !options_.quiet) {
+    std::printf("[peridrive] resumed at step %lld/%lld (t = %.6g s) from a checkpoint written on %d rank%s\n",
+                static_cast<long long>(step_), static_cast<long long>(total_steps_), time_, c.ranks,
+                c.ranks > 1 ? "s" : "");
+    std::fflush(stdout);
+  }
+  loop_start_ = std::chrono::steady_clock::now();
+  last_progress_ = loop_start_;
 }
 
 }  // namespace peri

@@ -66,6 +66,12 @@ expect missing_file "cannot read scene file '$work/none.yaml': No such file or d
 expect bad_override "--set: bodies.sheet.spacing: expected a positive number [m], got -1" -- --set bodies.sheet.spacing=-1
 expect unknown_option "unknown option --bogus; see --help" -- --bogus
 expect unstable_dt "stages.0.dt: time step 1e-05 s exceeds the stable bound" -- --set stages.0.dt=1e-5
+expect absurd_resolution "the scene cannot fit in memory: about 6.25e+08 nodes" -- --set bodies.sheet.spacing=2e-6
+expect huge_number "the scene cannot fit in memory: about >1e308 nodes" -- --set bodies.sheet.size=[1e300,1e300]
+expect bad_checkpoint_cadence "--set: output.checkpoint_every_steps: expected an integer >= 0, got -1" -- --set output.checkpoint_every_steps=-1
+printf 'not a checkpoint\n' > "$work/fake.h5"
+expect foreign_checkpoint "checkpoint '$work/fake.h5': not a peridrive checkpoint" -- --resume "$work/fake.h5"
+expect missing_checkpoint "checkpoint '$work/none': no such file" -- --resume "$work/none"
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -188,6 +188,9 @@ void expect_same(const Scene& a, const Scene& b) {
   EXPECT_EQ(a.output.series_every, b.output.series_every);
   EXPECT_EQ(a.output.write_velocity, b.output.write_velocity);
   expect_same_bits(a.output.progress_seconds, b.output.progress_seconds, "progress_seconds");
+  EXPECT_EQ(a.output.checkpoint_every_steps, b.output.checkpoint_every_steps);
+  expect_same_bits(a.output.checkpoint_every_seconds, b.output.checkpoint_every_seconds,
+                   "checkpoint_every_seconds");
 }
 
 /// Emits, re-reads and re-emits; the text and the structs must not change.
@@ -444,6 +447,8 @@ output:
   series_every: 3
   velocity: false
   progress_seconds: 0
+  checkpoint_every_steps: 25
+  checkpoint_every_seconds: 0.5
 )";
   const Scene s = peri::parse_scene(text, "scene.yaml");
   EXPECT_EQ(s.name, "true");
@@ -511,6 +516,8 @@ output:
   series_every: 10
   velocity: true
   progress_seconds: 2
+  checkpoint_every_steps: 0
+  checkpoint_every_seconds: 900
 )";
   EXPECT_EQ(peri::emit_scene(s), expected);
 }
@@ -877,6 +884,10 @@ TEST(SceneErrors, Output) {
               StartsWith("scene.yaml:17: output.frames: expected an integer >= 1"));
   EXPECT_THAT(error_of(kBase + "output:\n  series_every: 2.5\n"),
               StartsWith("scene.yaml:17: output.series_every: expected an integer >= 1"));
+  EXPECT_THAT(error_of(kBase + "output:\n  checkpoint_every_steps: -3\n"),
+              StartsWith("scene.yaml:17: output.checkpoint_every_steps: expected an integer >= 0, got -3"));
+  EXPECT_THAT(error_of(kBase + "output:\n  checkpoint_every_seconds: .inf\n"),
+              StartsWith("scene.yaml:17: output.checkpoint_every_seconds: expected a finite number, got .inf"));
   EXPECT_THAT(error_of(kBase + "output:\n  progress_seconds: -1\n"),
               StartsWith("scene.yaml:17: output.progress_seconds: expected a non-negative number [s]"));
 }

@@ -33,8 +33,10 @@ struct EnergyRow {
 class FrameWriter {
  public:
   /// Opens <dir>/<stem>.h5 collectively and writes the mesh (reference positions, body, volume).
+  /// With resume_step >= 0 the existing file is continued instead: frames after that step are
+  /// deleted and the XDMF rewritten (a file that cannot be continued is replaced, with a note).
   FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain, State& state,
-              const std::string& resolved_scene, bool write_velocity);
+              const std::string& resolved_scene, bool write_velocity, std::int64_t resume_step = -1);
   ~FrameWriter();
   FrameWriter(const FrameWriter&) = delete;
   FrameWriter& operator=(const FrameWriter&) = delete;
@@ -45,6 +47,7 @@ class FrameWriter {
  private:
   void write_dataset(hid_t group, const char* name, const double* natural_slice, int bs);
   void write_xdmf() const;
+  bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
   std::string dir_, stem_;
   const Domain& domain_;
   State& state_;
@@ -58,7 +61,9 @@ class FrameWriter {
 /// CSV energy series, written by rank 0 (other ranks hold an inert writer).
 class SeriesWriter {
  public:
-  SeriesWriter(const std::string& path, bool active);
+  /// With resume_step >= 0 the existing file keeps its header and the complete rows of steps
+  /// <= resume_step, and new rows are appended.
+  SeriesWriter(const std::string& path, bool active, std::int64_t resume_step = -1);
   void write(const EnergyRow& row);
 
  private:

@@ -187,6 +187,8 @@ struct Output {
   int series_every = 10;       ///< CSV energy row every N steps (>= 1)
   bool write_velocity = true;  ///< velocity field in HDF5 frames
   double progress_seconds = 2.0;  ///< wall seconds between progress lines (0: every check)
+  long checkpoint_every_steps = 0;         ///< checkpoint every N steps (0: not by step count)
+  double checkpoint_every_seconds = 900.0; ///< checkpoint every T wall seconds (0: not by time)
 };
 
 struct Scene {

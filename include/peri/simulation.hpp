@@ -5,6 +5,7 @@
 #include <mpi.h>
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -17,9 +18,14 @@
 
 namespace peri {
 
+struct Checkpoint;
+
 struct RunOptions {
   std::string out_dir;   ///< empty: write no files (tests)
   bool quiet = false;    ///< no progress lines
+  /// Continue from this checkpoint: begin() restores it instead of applying initial conditions,
+  /// and the outputs in out_dir are continued (frames and series rows after it are dropped).
+  std::shared_ptr<const Checkpoint> restart;
 };
 
 /// Figures of a finished (or running) simulation, as written to summary.json.
@@ -89,6 +95,20 @@ class Simulation : public EquilibriumModel {
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
 
+  /// The run's state as a checkpoint, complete on rank 0 (collective).
+  Checkpoint make_checkpoint();
+  /// Write <out_dir>/checkpoint.h5 now, keeping the previous one as checkpoint.prev.h5 until the
+  /// new one is complete (collective).
+  void write_checkpoint();
+  std::string checkpoint_path() const { return options_.out_dir + "/checkpoint.h5"; }
+  /// True when SIGTERM/SIGINT stopped the run (after its final checkpoint); finish() was skipped.
+  bool stopped() const { return stopped_; }
+  /// Store an extra array in checkpoints (e.g. a diagnostic's history). `save` is called on every
+  /// rank and rank 0's values are stored; on restart `restore` is called on every rank with the
+  /// stored values, or nullptr when the checkpoint has none under that name.
+  void add_checkpoint_extra(std::string name, std::function<std::vector<double>()> save,
+                            std::function<void(const std::vector<double>*)> restore);
+
  private:
   void apply_initial_conditions();
   void compute_forces(bool with_energy, bool intact = false);  // intact: laws that never break
@@ -104,6 +124,10 @@ class Simulation : public EquilibriumModel {
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
+  void check_restart(const Checkpoint& c);        // InputError unless c continues this scene
+  void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
+  void restore_summary_extras(const Checkpoint& c);  // figures of stages before the checkpoint
+  bool checkpoint_due(bool poll);                 // collective at poll steps; sets stopped_
 
   Scene scene_;
   MPI_Comm comm_;
@@ -149,6 +173,16 @@ class Simulation : public EquilibriumModel {
   std::string resolved_;
   RunSummary summary_;
   std::chrono::steady_clock::time_point start_, last_progress_;
+  // Checkpoints and stop requests.
+  struct Extra {
+    std::string name;
+    std::function<std::vector<double>()> save;
+    std::function<void(const std::vector<double>*)> restore;
+  };
+  std::vector<Extra> extras_;
+  bool stopped_ = false;
+  std::int64_t last_checkpoint_step_ = -1;
+  std::chrono::steady_clock::time_point last_checkpoint_;
 };
 
 }  // namespace peri

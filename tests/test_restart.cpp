@@ -1,0 +1,462 @@
+// Checkpoint and restart, in process, under MPI (registered at 1 and 2 ranks): a run continued
+// from a checkpoint must end bit for bit where the uninterrupted run ends; damaged, foreign and
+// mismatched checkpoints must be refused with a clear message.
+#include <gtest/gtest.h>
+#include <petscsys.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include <unistd.h>
+
+#include "peri/checkpoint.hpp"
+#include "peri/error.hpp"
+#include "peri/resources.hpp"
+#include "peri/restart.hpp"
+#include "peri/simulation.hpp"
+
+namespace peri {
+namespace {
+
+int world_rank() {
+  int r;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
+  return r;
+}
+
+// Small slit membrane that fractures within a few hundred steps, over two stages.
+const char* kScene = R"(
+name: small-slit
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 1.6}
+bodies:
+  sheet: {material: rubber, origin: [-0.01, -0.01, 0], size: [0.02, 0.02], thickness: 0.0005, spacing: 0.0005}
+cracks:
+  - {name: slit, from: [-0.003, 0, 0], to: [0.003, 0, 0]}
+boundaries:
+  - {name: top, region: {min: [-1, 0.0088, -1], max: [1, 1, 1]}, velocity: [0, 20, 0], ramp_time: 1.0e-5}
+  - {name: bottom, region: {min: [-1, -1, -1], max: [1, -0.0088, 1]}, velocity: [0, -20, 0], ramp_time: 1.0e-5}
+initial:
+  displacement_gradient: [[0, 0, 0], [0, 0.1, 0], [0, 0, 0]]
+  velocity_gradient: [[0, 0, 0], [0, 2000, 0], [0, 0, 0]]
+  seed: {amplitude: 1.0e-6, wavelength: [0.004, 0.004]}
+stages:
+  - {name: pull, duration: 3.0e-5}
+  - {name: hold, duration: 2.0e-5, safety_factor: 0.5}
+output: {frames: 1, series_every: 10}
+)";
+
+/// A file name private to this test and rank, removed at the end of the test.
+struct TempFile {
+  std::string path;
+  explicit TempFile(const std::string& stem)
+      : path((std::filesystem::temp_directory_path() /
+              (stem + "-" + std::to_string(::getpid()) + "-" + std::to_string(world_rank()) + ".h5"))
+                 .string()) {}
+  ~TempFile() {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+  }
+};
+
+/// Same path on every rank (rank 0's pid), for collective writes.
+std::string shared_path(const std::string& stem) {
+  long pid = ::getpid();
+  MPI_Bcast(&pid, 1, MPI_LONG, 0, PETSC_COMM_WORLD);
+  return (std::filesystem::temp_directory_path() / (stem + "-" + std::to_string(pid) + ".h5")).string();
+}
+
+RunOptions quiet() {
+  RunOptions o;
+  o.quiet = true;
+  return o;
+}
+
+TEST(Restart, ContinuedRunIsBitForBitTheUninterruptedOne) {
+  const Scene scene = parse_scene(kScene, "small-slit");
+  Simulation whole(scene, PETSC_COMM_WORLD, quiet());
+  whole.run();
+
+  const std::string path = shared_path("restart-bits");
+  std::int64_t checkpoint_step = 0;
+  {
+    Simulation first(scene, PETSC_COMM_WORLD, quiet());
+    first.begin();
+    first.advance(whole.total_steps() / 2 + 7);  // inside the second stage, between series rows
+    checkpoint_step = first.current_step();
+    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
+  }
+  RunOptions o = quiet();
+  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
+  EXPECT_EQ(o.restart->step, checkpoint_step);
+  EXPECT_EQ(o.restart->stage, 1);
+  Simulation second(scene, PETSC_COMM_WORLD, o);
+  second.run();
+  if (world_rank() == 0) {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+  }
+
+  EXPECT_EQ(second.current_step(), whole.current_step());
+  EXPECT_EQ(second.current_time(), whole.current_time());
+  const auto xa = whole.natural_positions(), xb = second.natural_positions();
+  const auto va = whole.natural_velocities(), vb = second.natural_velocities();
+  std::size_t differing = 0;
+  for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k] || va[k] != vb[k];
+  const auto ba = whole.broken_bonds(), bb = second.broken_bonds();
+  const EnergyRow ea = whole.summary().final_energy, eb = second.summary().final_energy;
+  if (world_rank() == 0)
+    std::printf("restart at step %lld of %lld: %zu of %zu position/velocity values differ; broken bonds %zu vs %zu; "
+                "dissipated %.17g vs %.17g\n",
+                static_cast<long long>(checkpoint_step), static_cast<long long>(whole.total_steps()), differing,
+                xa.size(), ba.size(), bb.size(), ea.dissipated, eb.dissipated);
+  EXPECT_EQ(differing, 0u);
+  EXPECT_EQ(ba, bb);
+  EXPECT_GT(ba.size(), 100u);  // the crack ran: the flags were worth restoring
+  // Same rank count: per-rank tallies continue, so the energy sums agree bit for bit too.
+  EXPECT_EQ(ea.dissipated, eb.dissipated);
+  EXPECT_EQ(ea.external_work, eb.external_work);
+  EXPECT_EQ(ea.kinetic, eb.kinetic);
+  EXPECT_EQ(ea.strain, eb.strain);
+  EXPECT_EQ(ea.broken_bonds, eb.broken_bonds);
+  EXPECT_EQ(whole.summary().energy_balance_error, second.summary().energy_balance_error);
+}
+
+// Quasi-static preload, release of a slit, a damped dynamic stage, then a pulled one.
+const char* kStagedScene = R"(
+name: staged
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 2}
+bodies:
+  sheet: {material: rubber, origin: [-0.01, -0.01, 0], size: [0.02, 0.02], thickness: 0.0005, spacing: 0.0005}
+cracks:
+  - {name: slit, from: [-0.002, 0, 0], to: [0.002, 0, 0]}
+boundaries:
+  - {name: top, region: {min: [-1, 0.0088, -1], max: [1, 1, 1]}}
+  - {name: bottom, region: {min: [-1, -1, -1], max: [1, -0.0088, 1]}}
+initial:
+  seed: {amplitude: 1.0e-6, wavelength: [0.005, 0.005]}
+stages:
+  - {name: preload, kind: quasistatic, displacements: {top: [0, 0.005, 0], bottom: [0, -0.005, 0]}, load_steps: 3}
+  - {name: cut, kind: release, cracks: [slit]}
+  - {name: settle, steps: 40, damping: 2.0e4, safety_factor: 0.35}
+  - {name: pull, duration: 2.0e-5, safety_factor: 0.35, boundary_velocity: {top: [0, 5, 0], bottom: [0, -5, 0]}}
+output: {frames: 1, series_every: 5}
+)";
+
+TEST(Restart, AfterQuasiStaticReleaseAndDampedStages) {
+  const Scene scene = parse_scene(kStagedScene, "staged");
+  Simulation whole(scene, PETSC_COMM_WORLD, quiet());
+  whole.run();
+  const std::string path = shared_path("restart-staged");
+  {
+    Simulation first(scene, PETSC_COMM_WORLD, quiet());
+    first.begin();
+    first.advance(25);  // inside the damped stage
+    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
+  }
+  RunOptions o = quiet();
+  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
+  EXPECT_EQ(o.restart->stage, 2);
+  EXPECT_EQ(o.restart->stage_step, 25);
+  Simulation second(scene, PETSC_COMM_WORLD, o);
+  second.run();
+  if (world_rank() == 0) {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+  }
+  const auto xa = whole.natural_positions(), xb = second.natural_positions();
+  std::size_t differing = 0;
+  for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k];
+  const RunSummary &a = whole.summary(), &b = second.summary();
+  if (world_rank() == 0)
+    std::printf("staged restart: %zu of %zu positions differ; precrack+released bonds %lld vs %lld; "
+                "quasi-static increments %zu vs %zu; dissipated (with damping) %.17g vs %.17g\n",
+                differing, xa.size(), static_cast<long long>(a.precrack_bonds),
+                static_cast<long long>(b.precrack_bonds), a.quasistatic.at(0).second.increments.size(),
+                b.quasistatic.empty() ? 0 : b.quasistatic[0].second.increments.size(), a.final_energy.dissipated,
+                b.final_energy.dissipated);
+  EXPECT_EQ(differing, 0u);
+  EXPECT_EQ(whole.broken_bonds(), second.broken_bonds());
+  EXPECT_EQ(a.final_energy.dissipated, b.final_energy.dissipated);
+  EXPECT_EQ(a.final_energy.external_work, b.final_energy.external_work);
+  EXPECT_EQ(a.energy_balance_error, b.energy_balance_error);
+  EXPECT_EQ(a.precrack_bonds, b.precrack_bonds);
+  ASSERT_EQ(b.quasistatic.size(), 1u);
+  EXPECT_EQ(b.quasistatic[0].first, "preload");
+  EXPECT_EQ(b.quasistatic[0].second.increments.size(), a.quasistatic[0].second.increments.size());
+  EXPECT_EQ(b.quasistatic[0].second.newton_iterations, a.quasistatic[0].second.newton_iterations);
+  EXPECT_EQ(b.quasistatic_work_error, a.quasistatic_work_error);
+}
+
+TEST(Restart, ExtraArraysRoundTrip) {
+  const Scene scene = parse_scene(kScene, "small-slit");
+  const std::string path = shared_path("restart-extras");
+  {
+    Simulation sim(scene, PETSC_COMM_WORLD, quiet());
+    sim.add_checkpoint_extra("tip_history", [] { return std::vector<double>{1.5, -2.25, 3e-300}; },
+                             [](const std::vector<double>*) {});
+    sim.begin();
+    sim.advance(5);
+    store_checkpoint(path, sim.make_checkpoint(), PETSC_COMM_WORLD);
+  }
+  RunOptions o = quiet();
+  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
+  Simulation sim(scene, PETSC_COMM_WORLD, o);
+  std::vector<double> got;
+  bool missing_seen = false;
+  sim.add_checkpoint_extra("tip_history", [] { return std::vector<double>{}; },
+                           [&](const std::vector<double>* v) { got = v ? *v : std::vector<double>{}; });
+  sim.add_checkpoint_extra("not_stored", [] { return std::vector<double>{}; },
+                           [&](const std::vector<double>* v) { missing_seen = v == nullptr; });
+  sim.begin();
+  if (world_rank() == 0) {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+  }
+  EXPECT_EQ(got, (std::vector<double>{1.5, -2.25, 3e-300}));
+  EXPECT_TRUE(missing_seen);
+  EXPECT_EQ(sim.current_step(), 5);
+}
+
+TEST(Restart, RefusesAnotherScene) {
+  const Scene scene = parse_scene(kScene, "small-slit");
+  const std::string path = shared_path("restart-scene");
+  {
+    Simulation sim(scene, PETSC_COMM_WORLD, quiet());
+    sim.begin();
+    sim.advance(3);
+    store_checkpoint(path, sim.make_checkpoint(), PETSC_COMM_WORLD);
+  }
+  RunOptions o = quiet();
+  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
+  const Scene other = parse_scene(kScene, "small-slit", {{"materials.rubber.density", "1300"}});
+  std::string message;
+  try {
+    Simulation sim(other, PETSC_COMM_WORLD, o);
+  } catch (const InputError& e) {
+    message = e.what();
+  }
+  // Only the cadence of checkpoints and progress lines may change.
+  const Scene cadence = parse_scene(kScene, "small-slit", {{"output.checkpoint_every_steps", "7"}});
+  EXPECT_NO_THROW(Simulation(cadence, PETSC_COMM_WORLD, o));
+  if (world_rank() == 0) std::remove(path.c_str());
+  EXPECT_NE(message.find("was written by a different scene"), std::string::npos) << message;
+  EXPECT_NE(message.find("density: 1200"), std::string::npos) << message;
+  EXPECT_NE(message.find("density: 1300"), std::string::npos) << message;
+}
+
+TEST(Restart, CheckpointCadence) {
+  // By steps: the last checkpoint is at the last multiple of 7. By wall time (1 ns): at every
+  // collective check (each 20 steps and the last step).
+  for (const char* mode : {"steps", "seconds"}) {
+    const bool by_steps = std::string(mode) == "steps";
+    const Scene scene = parse_scene(kScene, "small-slit",
+                                    {{"output.checkpoint_every_steps", by_steps ? "7" : "0"},
+                                     {"output.checkpoint_every_seconds", by_steps ? "0" : "1e-9"}});
+    RunOptions o = quiet();
+    o.out_dir = shared_path(std::string("restart-cadence-") + mode);
+    std::int64_t total = 0;
+    {
+      Simulation sim(scene, PETSC_COMM_WORLD, o);
+      sim.run();
+      total = sim.total_steps();
+    }
+    const Checkpoint last = read_checkpoint(o.out_dir + "/checkpoint.h5");
+    const Checkpoint prev = read_checkpoint(o.out_dir + "/checkpoint.prev.h5");
+    MPI_Barrier(PETSC_COMM_WORLD);
+    if (world_rank() == 0) std::filesystem::remove_all(o.out_dir);
+    if (by_steps) {
+      EXPECT_EQ(last.step, total / 7 * 7);
+      EXPECT_EQ(prev.step, total / 7 * 7 - 7);
+    } else {
+      EXPECT_EQ(last.step, total);
+      EXPECT_EQ(prev.step, (total - 1) / 20 * 20);
+    }
+    EXPECT_FALSE(std::filesystem::exists(o.out_dir + "/checkpoint.h5.tmp"));
+  }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Damaged files: every rank works on its own copy (read_checkpoint is serial).
+
+Checkpoint small_checkpoint() {
+  Checkpoint c;
+  c.peridrive_version = "test";
+  c.git_revision = "none";
+  c.scene = "name: x\n";
+  c.scene_hash = fnv1a64(c.scene.data(), c.scene.size());
+  c.nodes = 4;
+  c.ordered_bonds = 12;
+  c.step = 10;
+  c.time = 1e-6;
+  c.stage = 0;
+  c.stage_step = 10;
+  c.initial_total_energy = 1.0;
+  c.ranks = 2;
+  c.dissipated = {0.5, 0.25};
+  c.damping_work = {0.125, 0.0};
+  c.external_work = {1.0, 2.0};
+  c.newly_broken = {2, 2};
+  c.owner_hash = {1, 2};
+  for (int k = 0; k < 12; ++k) {
+    c.displacement.push_back(1e-3 * k);
+    c.velocity.push_back(-0.5 * k);
+  }
+  c.broken = {0, 1, 2, 3};
+  c.extras["history"] = {1, 2, 3};
+  return c;
+}
+
+std::string bytes_of(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void put_bytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << bytes;
+}
+
+std::string refusal(const std::string& path) {
+  try {
+    read_checkpoint(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+
+TEST(CheckpointFile, RoundTripKeepsEveryField) {
+  TempFile f("ckpt-roundtrip");
+  const Checkpoint c = small_checkpoint();
+  write_checkpoint(f.path, c);
+  write_checkpoint(f.path, c);  // a second write keeps the first as the previous checkpoint
+  EXPECT_TRUE(std::filesystem::exists(previous_checkpoint_path(f.path)));
+  EXPECT_FALSE(std::filesystem::exists(f.path + ".tmp"));
+  const Checkpoint r = read_checkpoint(f.path);
+  EXPECT_EQ(r.scene, c.scene);
+  EXPECT_EQ(r.nodes, c.nodes);
+  EXPECT_EQ(r.step, c.step);
+  EXPECT_EQ(r.time, c.time);
+  EXPECT_EQ(r.stage_step, c.stage_step);
+  EXPECT_EQ(r.ranks, c.ranks);
+  EXPECT_EQ(r.dissipated, c.dissipated);
+  EXPECT_EQ(r.damping_work, c.damping_work);
+  EXPECT_EQ(r.external_work, c.external_work);
+  EXPECT_EQ(r.newly_broken, c.newly_broken);
+  EXPECT_EQ(r.owner_hash, c.owner_hash);
+  EXPECT_EQ(r.displacement, c.displacement);
+  EXPECT_EQ(r.velocity, c.velocity);
+  EXPECT_EQ(r.broken, c.broken);
+  EXPECT_EQ(r.extras, c.extras);
+}
+
+TEST(CheckpointFile, RefusesDamagedForeignAndOtherVersions) {
+  TempFile f("ckpt-damaged"), g("ckpt-copy");
+  write_checkpoint(f.path, small_checkpoint());
+  const std::string good = bytes_of(f.path);
+  ASSERT_GT(good.size(), 2000u);
+  auto refused = [&](const std::string& bytes) {
+    put_bytes(g.path, bytes);
+    return refusal(g.path);
+  };
+  const auto has = [](const std::string& msg, const char* want) { return msg.find(want) != std::string::npos; };
+
+  std::string m = refused(good.substr(0, good.size() - 100));
+  EXPECT_TRUE(has(m, "truncated")) << m;
+  m = refused(good.substr(0, 300));
+  EXPECT_TRUE(has(m, "truncated")) << m;
+  m = refused("");
+  EXPECT_TRUE(has(m, "not a peridrive checkpoint")) << m;
+
+  std::string flipped = good;
+  flipped[good.size() / 2] ^= 0x10;  // one bit in the data
+  m = refused(flipped);
+  EXPECT_TRUE(has(m, "checksum mismatch")) << m;
+  flipped = good;
+  flipped[1] ^= 0x01;  // one bit in the magic
+  m = refused(flipped);
+  EXPECT_TRUE(has(m, "not a peridrive checkpoint")) << m;
+  flipped = good;
+  flipped[good.find("file_bytes: ") + 12] ^= 0x01;  // one bit in the recorded length
+  m = refused(flipped);
+  EXPECT_TRUE(has(m, "the header says")) << m;
+
+  std::string version = good;
+  version.replace(good.find("format_version: 1"), 17, "format_version: 7");
+  m = refused(version);
+  EXPECT_TRUE(has(m, "format version 7; this peridrive reads version 1")) << m;
+
+  // A foreign HDF5 file (no checkpoint header) and a text file.
+  m = refused(std::string("\x89HDF\r\n\x1a\n", 8) + std::string(4000, '\0'));
+  EXPECT_TRUE(has(m, "not a peridrive checkpoint")) << m;
+  m = refused("name: a scene, not a checkpoint\n");
+  EXPECT_TRUE(has(m, "not a peridrive checkpoint")) << m;
+  m = refusal(f.path + ".missing");
+  EXPECT_TRUE(has(m, "no such file")) << m;
+  m = refusal(std::filesystem::temp_directory_path().string());
+  EXPECT_TRUE(has(m, "not a regular file")) << m;
+  EXPECT_EQ(m.rfind("checkpoint '", 0), 0u) << m;  // every message names the file
+}
+
+TEST(CheckpointFile, EveryRankRefusesTogether) {
+  // One rank's file is damaged: load_checkpoint must raise on all ranks (no rank left waiting).
+  TempFile f("ckpt-collective");
+  write_checkpoint(f.path, small_checkpoint());
+  if (world_rank() == 0) {
+    std::string bytes = bytes_of(f.path);
+    bytes[bytes.size() - 1] ^= 0x40;
+    put_bytes(f.path, bytes);
+  }
+  std::string message;
+  try {
+    load_checkpoint(f.path, PETSC_COMM_WORLD);
+  } catch (const InputError& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("checksum mismatch"), std::string::npos) << message;
+}
+
+TEST(Resources, MemoryModelAndRefusal) {
+  SizeEstimate e;
+  e.nodes = 1e6;
+  e.bonds = 4e7;
+  e.bytes = 9 * e.bonds + 200 * e.nodes;
+  const MemoryNeed one = memory_need(e, 1), two = memory_need(e, 2);
+  EXPECT_DOUBLE_EQ(one.per_rank, e.bytes + 64 * e.nodes);
+  EXPECT_DOUBLE_EQ(one.rank0, one.per_rank);  // no partitioner graph on one rank
+  EXPECT_DOUBLE_EQ(two.per_rank, e.bytes / 2 + 64 * e.nodes);
+  EXPECT_DOUBLE_EQ(two.rank0, two.per_rank + 24 * e.bonds);
+  EXPECT_GT(available_memory(), 1e8);  // /proc/meminfo is readable here
+
+  EXPECT_NO_THROW(check_fits(parse_scene(kScene, "small-slit"), PETSC_COMM_WORLD));
+  std::string message;
+  try {
+    check_fits(parse_scene(kScene, "small-slit", {{"bodies.sheet.spacing", "1e-7"}}), PETSC_COMM_WORLD);
+  } catch (const InputError& err) {
+    message = err.what();
+  }
+  EXPECT_NE(message.find("small-slit: the scene cannot fit in memory: about 4e+10 nodes"), std::string::npos)
+      << message;
+}
+
+}  // namespace
+}  // namespace peri
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  if (PetscInitialize(&argc, &argv, nullptr, nullptr)) return 1;
+  if (peri::world_rank() != 0) {
+    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
+    delete listeners.Release(listeners.default_result_printer());
+  }
+  const int result = RUN_ALL_TESTS();
+  int global = 0;
+  MPI_Allreduce(&result, &global, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+  PetscFinalize();
+  return global;
+}
