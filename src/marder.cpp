@@ -92,8 +92,32 @@ double marder_node(const MarderLaw& law, int n, const double* d, const std::uint
   return energy;
 }
 
+std::vector<std::uint8_t> marder_directions(const BondView& v, std::int64_t rows) {
+  const double sector = 3.14159265358979323846 / 3.0;
+  std::vector<std::uint8_t> dir(static_cast<std::size_t>(v.offsets[rows]));
+  for (std::int64_t i = 0; i < rows; ++i)
+    for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) {
+      const std::int32_t j = v.neighbor[b];
+      const double a = std::atan2(v.X[3 * j + 1] - v.X[3 * i + 1], v.X[3 * j] - v.X[3 * i]);
+      dir[b] = static_cast<std::uint8_t>(((std::lround(a / sector) % 6) + 6) % 6);
+    }
+  return dir;
+}
+
+void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_t n, double* force) {
+  for (std::size_t r = 0; r < n; ++r) {
+    const std::int32_t i = nodes[r];
+    const double* s = slots + 3 * kMarderSlots * static_cast<std::size_t>(i);
+    for (int c = 0; c < 3; ++c) {
+      double f = s[c];
+      for (int k = 1; k < kMarderSlots; ++k) f += s[3 * k + c];
+      force[3 * i + c] = f;
+    }
+  }
+}
+
 void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows,
-                   double* force, bool with_energy, BondTally& tally) {
+                   const std::uint8_t* direction, double* slots, bool with_energy, BondTally& tally) {
   double d[3 * kMarderMaxNeighbours], grad[3 * kMarderMaxNeighbours];
   std::uint8_t active[kMarderMaxNeighbours], before[kMarderMaxNeighbours];
   const double uc2 = law.uc * law.uc;
@@ -140,12 +164,16 @@ void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* 
     double fi[3] = {0, 0, 0};
     for (int k = 0; k < n; ++k) {
       const std::int32_t j = v.neighbor[b0 + k];
+      // This row is the neighbour of j in the direction opposite to j's from i.
+      const int slot = 1 + (direction[b0 + k] + 3) % 6;
+      double* sj = slots + 3 * (kMarderSlots * static_cast<std::size_t>(j) + slot);
       for (int c = 0; c < 3; ++c) {
         fi[c] += grad[3 * k + c];
-        force[3 * j + c] -= grad[3 * k + c];
+        sj[c] = -grad[3 * k + c];
       }
     }
-    for (int c = 0; c < 3; ++c) force[3 * i + c] += fi[c];
+    double* si = slots + 3 * kMarderSlots * static_cast<std::size_t>(i);
+    for (int c = 0; c < 3; ++c) si[c] = fi[c];
   }
 }
 
@@ -175,7 +203,13 @@ double marder_stable_time_step(const MarderLaw& law) {
   const double cutoff = A / 6.0 * (6.0 * u1 - 2.0 * D) / us + 4.0 * B / 9.0 * (3.0 * u1 * u1 - D * D);
   const double quartic = A / 3.0 + 4.0 * B / 9.0 * (3.0 * uc * uc - D * D);
   const double pair = 2.0 * std::max(cutoff, quartic);
-  const double three = 2.0 * 10.0 * (2.0 * B / 27.0) * (2.0 * uc * uc + 2.0 * D * D);
+  // Three-body terms a bond takes part in (10 ordered pairs of each of its two rows), with
+  // X = d_j . d_k <= u_c^2: |g''| u_c^2 and |g'| from the angular law; the switch h adds
+  // |g| |h''| (|h''| <= 0.1/u_s^2) and 2 |g'| |h'| u_c (|h'| <= 1/(4 u_s)), the stiffest part
+  // when u_s is small: h turns the three-body terms off within a few u_s of u_c.
+  const double t = uc * uc + 2.0 * D * D;
+  const double g_max = B / 27.0 * t * t, dg_max = 2.0 * B / 27.0 * t, ddg = 2.0 * B / 27.0;
+  const double three = 2.0 * 10.0 * (ddg * uc * uc + dg_max + 0.1 * g_max / (us * us) + 0.5 * dg_max * uc / us);
   return std::sqrt(2.0 * law.mass / (6.0 * (pair + three)));
 }
 

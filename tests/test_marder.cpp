@@ -156,6 +156,22 @@ Patch make_patch(int nx, int ny) {
   return p;
 }
 
+// Forces of all rows through the slot layout: marder_forces, then the per-node slot sums.
+std::vector<double> loop_forces(const MarderLaw& law, const BondView& v, const std::vector<std::int32_t>& rows,
+                                std::size_t local, bool with_energy, BondTally& t,
+                                std::vector<std::uint8_t>& dirs, const std::vector<std::int32_t>& owner = {}) {
+  if (dirs.empty()) dirs = marder_directions(v, static_cast<std::int64_t>(rows.size()));
+  std::vector<double> slots(3 * kMarderSlots * local, 0.0);
+  marder_forces(law, v, rows.data(), rows.size(), dirs.data(), slots.data(), with_energy, t);
+  // Images (periodic lattices): their slots are added to their owners' (the reverse update).
+  const std::size_t w = 3 * kMarderSlots;
+  for (std::size_t k = 0; k < owner.size(); ++k)
+    for (std::size_t c = 0; c < w; ++c) slots[w * owner[k] + c] += slots[w * (rows.size() + k) + c];
+  std::vector<double> force(3 * local, 0.0);
+  marder_sum_slots(slots.data(), rows.data(), rows.size(), force.data());
+  return force;
+}
+
 TEST(MarderForces, LoopForcesAreMinusGradientOfTotalEnergy) {
   for (bool reversible : {false, true}) {
     const MarderLaw law = marder_law(kA, 0.6, kDelta, 0.05 * kDelta, 1.5 * kDelta, kMass, reversible);
@@ -174,9 +190,9 @@ TEST(MarderForces, LoopForcesAreMinusGradientOfTotalEnergy) {
     for (std::int64_t b = p.offsets[p.neighbor[0]]; b < p.offsets[p.neighbor[0] + 1]; ++b)
       if (p.neighbor[b] == 0) p.broken[b] = p.broken[0];
     BondView v{p.X.data(), u.data(), p.volume.data(), p.offsets.data(), p.neighbor.data(), p.broken.data(), nullptr};
-    std::vector<double> force(3 * n, 0.0);
     BondTally t;
-    marder_forces(law, v, p.rows.data(), p.rows.size(), force.data(), true, t);
+    std::vector<std::uint8_t> dirs;
+    const std::vector<double> force = loop_forces(law, v, p.rows, n, true, t, dirs);
     EXPECT_EQ(t.newly_broken, 0);
     const double energy = marder_energy(law, v, p.rows.data(), p.rows.size());
     EXPECT_NEAR(t.strain_energy, energy, 1e-14 * std::fabs(energy));
@@ -219,16 +235,16 @@ TEST(MarderForces, IrreversibleBreakBooksTheEnergyItRemoves) {
   v.broken = intact.data();
   const double before = marder_energy(law, v, p.rows.data(), p.rows.size());
   v.broken = p.broken.data();
-  std::vector<double> force(3 * n, 0.0);
   BondTally t;
-  marder_forces(law, v, p.rows.data(), p.rows.size(), force.data(), true, t);
+  std::vector<std::uint8_t> dirs;
+  loop_forces(law, v, p.rows, n, true, t, dirs);
   EXPECT_GT(t.newly_broken, 0);
   EXPECT_EQ(t.newly_broken % 2, 0);  // both rows of every bond decide alike
   EXPECT_GT(t.dissipated, 0);
   EXPECT_NEAR(t.strain_energy + t.dissipated, before, 1e-12 * before);
   // A second pass breaks nothing more.
   BondTally t2;
-  marder_forces(law, v, p.rows.data(), p.rows.size(), force.data(), true, t2);
+  loop_forces(law, v, p.rows, n, true, t2, dirs);
   EXPECT_EQ(t2.newly_broken, 0);
   EXPECT_NEAR(t2.strain_energy, t.strain_energy, 1e-14 * before);
 }
@@ -334,15 +350,13 @@ double time_of_flight(const MarderLaw& law, double l1, double l2, int component)
     u[3 * i + component] += amp * std::exp(-std::pow((p.X[3 * i] - x0) / w, 2));
   }
   BondView view{p.X.data(), u.data(), p.volume.data(), p.offsets.data(), p.neighbor.data(), p.broken.data(), nullptr};
+  std::vector<std::uint8_t> dirs;
   auto forces = [&]() {
     for (std::size_t k = 0; k < p.owner.size(); ++k)
       for (int c = 0; c < 3; ++c)
         u[3 * (p.n + k) + c] = u[3 * p.owner[k] + c] + (c < 2 ? G[c] * p.shift[k][c] : 0.0);
-    std::fill(f.begin(), f.end(), 0.0);
     BondTally t;
-    marder_forces(law, view, p.rows.data(), p.rows.size(), f.data(), false, t);
-    for (std::size_t k = 0; k < p.owner.size(); ++k)  // reverse update: images -> owners
-      for (int c = 0; c < 3; ++c) f[3 * p.owner[k] + c] += f[3 * (p.n + k) + c];
+    f = loop_forces(law, view, p.rows, local, false, t, dirs, p.owner);
   };
   const double c_guess = std::sqrt(law.a * 4);  // upper bound of both speeds here
   const double dt = 0.5 * marder_stable_time_step(law);

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "peri/forces.hpp"
 
@@ -86,15 +87,30 @@ MarderLaw marder_law(double a, double b, double delta, double us, double uc, dou
 double marder_node(const MarderLaw& law, int n, const double* d, const std::uint8_t* active,
                    double* grad) noexcept;
 
-/// Forces [N] of the rows: adds -dU_i/dx to force[3*i..] and to force[3*j..] of every neighbour
-/// (local indices, ghosts included; the caller zeroes and reduces). Updates the bond flags first:
+/// Per-node force slots: slot 0 holds the force of the node's own term U_i, slot 1 + s the force
+/// from the term of its neighbour in lattice direction s (0..5, angle s*60 degrees). Every slot is
+/// written by exactly one row, so a reverse ghost update with ADD_VALUES onto zeroed owner slots
+/// copies values exactly, and the owner sums the slots in a fixed order: forces are the same bit
+/// for bit on any number of ranks.
+constexpr int kMarderSlots = 1 + kMarderMaxNeighbours;
+
+/// Lattice direction (0..5) of every ordered bond of the rows: round(angle(X_j - X_i) / 60 deg).
+std::vector<std::uint8_t> marder_directions(const BondView& view, std::int64_t rows);
+
+/// Force [N] of each node from its slots (3 * kMarderSlots per node), summed in slot order.
+void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_t n, double* force);
+
+/// Forces [N] of the rows: writes -dU_i/dx of each row into slot 0 of node i and into slot
+/// 1 + direction(j -> i) of every neighbour j (local indices, ghosts included; the caller zeroes
+/// the slots, reduces them to the owners and sums them). Updates the bond flags first:
 /// irreversible (default) a bond with u >= u_c breaks for good; reversible, the flag follows
 /// u >= u_c except for bonds cut at the start (flag bit kMarderCut). The energy lost when a bond
 /// breaks irreversibly (its two-body term and the three-body terms it switches off) is added to
 /// tally.dissipated, so kinetic + strain + dissipated is conserved. With `with_energy`, the
 /// energy of the rows is added to tally.strain_energy.
 void marder_forces(const MarderLaw& law, const BondView& view, const std::int32_t* rows,
-                   std::size_t nrows, double* force, bool with_energy, BondTally& tally);
+                   std::size_t nrows, const std::uint8_t* direction, double* slots, bool with_energy,
+                   BondTally& tally);
 
 /// Energy of the rows with the current flags (no breaking, no forces).
 double marder_energy(const MarderLaw& law, const BondView& view, const std::int32_t* rows,
@@ -105,8 +121,8 @@ constexpr std::uint8_t kMarderCut = 4;
 
 /// Estimate of the stable explicit time step of the lattice: sqrt(2 m / k) with k the sum over
 /// six neighbours of the largest pair stiffness reachable below u_c (cutoff branch at Delta + u_s
-/// or quartic branch at u_c, both rows of a bond) plus the three-body curvature |g''| u_c^2 over
-/// the ten pairs a bond takes part in.
+/// or quartic branch at u_c, both rows of a bond) plus bounds of the three-body curvature over
+/// the pairs a bond takes part in, including the switch h near u_c (see marder.cpp).
 double marder_stable_time_step(const MarderLaw& law);
 
 /// Small-amplitude wave speeds of the Mooney-Rivlin sheet W/rho = a [J1 + b J2] about the

@@ -6,11 +6,13 @@
 
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "peri/forces.hpp"
+#include "peri/marder.hpp"
 #include "peri/output.hpp"
 #include "peri/state.hpp"
 
@@ -86,6 +88,12 @@ class Simulation {
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
+  // Marder lattice bodies (src/simulation_lattice.cpp); nothing is built when there is none.
+  void lattice_setup();
+  void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally);
+  void lattice_reduce();
+  double lattice_energy(const BondView& view);
+  void lattice_derived(std::size_t body);
 
   Scene scene_;
   MPI_Comm comm_;
@@ -96,6 +104,9 @@ class Simulation {
   Domain domain_;
   std::unique_ptr<State> state_;
   std::vector<BondLaw> laws_;           // per body
+  std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
+  bool has_lattice_ = false;
+  std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   std::vector<double> density_;         // per body
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
   std::vector<double> inv_density_, mass_;  // per owned node
