@@ -138,10 +138,12 @@ void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* 
         r2 += d[3 * k + c] * d[3 * k + c];
       }
       std::uint8_t& flag = v.broken[b0 + k];
-      const bool beyond = r2 >= uc2;
+      const bool beyond = r2 >= uc2 && !(flag & kMarderUnbreakable);
       if (law.reversible) {
         before[k] = active[k] = !(flag & kMarderCut);
-        const std::uint8_t now = (flag & kMarderCut) ? flag : static_cast<std::uint8_t>(beyond ? kBrokenBit : 0);
+        const std::uint8_t keep = flag & kMarderUnbreakable;
+        const std::uint8_t now =
+            (flag & kMarderCut) ? flag : static_cast<std::uint8_t>(keep | (beyond ? kBrokenBit : 0));
         newly += (now & kBrokenBit) && !(flag & kBrokenBit);
         flag = now;
       } else {

@@ -453,6 +453,12 @@ const Keys kBodyKeys = {
     {"horizon_factor", false, ""},
     {"horizon", false, ""},
     {"quadrature", false, ""},
+    {"breakable", false, ""},
+};
+
+const Keys kBoxKeys = {
+    {"min", true, "lower corner [x, y, z], m"},
+    {"max", true, "upper corner [x, y, z], m"},
 };
 
 const Keys kCrackKeys = {
@@ -696,6 +702,19 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
                    ", fracture_separation = " + format_number(p.fracture_separation) + "): " + why);
     b.grid = Grid::Hexagonal;
     b.quadrature = Quadrature::Full;
+    if (auto x = m.get("breakable")) {
+      const Map box(*x, &kBoxKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+      const Vec3 lo = box.at("min").vec3("m");
+      const Value max = box.at("max");
+      const Vec3 hi = max.vec3("m");
+      for (int d = 0; d < 3; ++d)
+        if (lo[d] > hi[d])
+          max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+                   format_number(lo[d]) + " > max " + format_number(hi[d]));
+      b.breakable = std::array<Vec3, 2>{lo, hi};
+    }
+  } else if (auto x = m.get("breakable")) {
+    x->fail("only a lattice body takes breakable (peridynamic bonds break by their material's critical_stretch)");
   }
 
   if (auto x = m.get("grid")) {
@@ -1128,6 +1147,8 @@ void emit_body(Writer& w, const Body& b) {
   w.key(4, "size", membrane ? flow({b.size[0], b.size[1]}) : flow(b.size));
   if (membrane) w.key(4, "thickness", b.thickness);
   w.key(4, "spacing", b.spacing);
+  if (b.breakable)
+    w.key(4, "breakable", "{min: " + flow((*b.breakable)[0]) + ", max: " + flow((*b.breakable)[1]) + "}");
   if (b.kind == BodyKind::Lattice) return;
   w.key(4, "grid", to_text(b.grid));
   // horizon and horizon_factor exclude each other: write the one in effect.

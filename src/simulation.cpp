@@ -598,7 +598,7 @@ std::vector<std::pair<std::int64_t, std::int64_t>> Simulation::broken_bonds() {
   std::vector<long long> mine;
   for (std::int32_t i = 0; i < domain_.owned; ++i)
     for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b)
-      if (domain_.bonds.broken[b]) {
+      if (domain_.bonds.broken[b] & 1) {  // bit 0: broken (lattices keep other bits)
         const long long a = domain_.natural[i], c = domain_.natural[domain_.bonds.neighbor[b]];
         if (a < c) mine.insert(mine.end(), {a, c});
         else mine.insert(mine.end(), {c, a});

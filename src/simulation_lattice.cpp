@@ -39,6 +39,16 @@ void Simulation::lattice_setup() {
     if (law->reversible)
       for (std::int64_t k = b0; k < b1; ++k)
         if (domain_.bonds.broken[k]) domain_.bonds.broken[k] |= kMarderCut;
+    // Bonds with an end outside the breakable box never break (same decision at both ends).
+    const auto& box = scene_.bodies[domain_.body[i]].breakable;
+    if (!box) continue;
+    auto inside = [&](std::int32_t l) {
+      for (int c = 0; c < 3; ++c)
+        if (domain_.X[3 * l + c] < (*box)[0][c] || domain_.X[3 * l + c] > (*box)[1][c]) return false;
+      return true;
+    };
+    for (std::int64_t k = b0; k < b1; ++k)
+      if (!inside(i) || !inside(domain_.bonds.neighbor[k])) domain_.bonds.broken[k] |= kMarderUnbreakable;
   }
 }
 

@@ -340,7 +340,7 @@ Periodic make_periodic(int nx, int ny) {
 // Reference-frame speed of a plane pulse travelling along x (component 0: longitudinal, 1:
 // transverse), from the positions of its right-going peak over time (least squares).
 double time_of_flight(const MarderLaw& law, double l1, double l2, int component) {
-  Periodic p = make_periodic(400, 4);
+  Periodic p = make_periodic(300, 4);
   const int local = static_cast<int>(p.X.size() / 3);
   const double G[2] = {l1 - 1, l2 - 1};
   const double Lx = p.nx * kDelta, x0 = 0.5 * Lx, w = 8 * kDelta, amp = 1e-3 * kDelta;
@@ -395,11 +395,11 @@ double time_of_flight(const MarderLaw& law, double l1, double l2, int component)
 }
 
 TEST(MarderWaves, TimeOfFlightMatchesMooneyRivlin) {
-  // All bonds in the Mooney-Rivlin range (Delta + u_s < u, h(u) = 1 within 2e-9); 400 x 4
+  // All bonds in the Mooney-Rivlin range (Delta + u_s < u, h(u) = 1 within 2e-9); 300 x 4
   // periodic nodes, Gaussian pulse of width 8 Delta and amplitude 1e-3 Delta. b = 0.3: larger b
   // makes the stretched lattice unstable at short wavelengths (README "Marder lattice").
   const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false);
-  for (const auto& [l1, l2] : std::vector<std::pair<double, double>>{{1.1, 1.5}, {1.2, 2.0}, {1.5, 1.1}}) {
+  for (const auto& [l1, l2] : std::vector<std::pair<double, double>>{{1.1, 1.5}, {1.2, 2.0}}) {
     const WaveSpeeds mr = mooney_rivlin_wave_speeds(law.a, law.b, l1, l2);
     const double cl = time_of_flight(law, l1, l2, 0), cs = time_of_flight(law, l1, l2, 1);
     std::printf("stretch (%.2f, %.2f): c_l %.4f m/s (Mooney-Rivlin %.4f, %+.3f%%), c_s %.4f m/s (%.4f, %+.3f%%)\n",

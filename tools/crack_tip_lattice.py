@@ -91,18 +91,31 @@ def main():
         x = g["position"][...]
         d = g["damage"][...]
         tip = tips[k]
-    # Tip region, deformed configuration, coloured by damage; the tip's reference x marked.
+    # Left: tip region, deformed configuration, damaged nodes drawn on top. Right: tip position
+    # against time with lines of slope c_l and c_s through the first measured point.
     sel = np.abs(X[:, 0] - tip) < 40 * delta
-    fig, ax = plt.subplots(figsize=(8, 5))
-    sc = ax.scatter(x[sel, 0] * 1e3, x[sel, 1] * 1e3, c=d[sel], s=3, cmap="viridis", vmin=0, vmax=0.6)
+    intact = sel & (d == 0)
+    hit = sel & (d > 0)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1.3, 1]})
+    ax.scatter(x[intact, 0] * 1e3, x[intact, 1] * 1e3, c="0.75", s=1)
+    sc = ax.scatter(x[hit, 0] * 1e3, x[hit, 1] * 1e3, c=d[hit], s=4, cmap="plasma", vmin=0, vmax=0.7)
     fig.colorbar(sc, ax=ax, label="damage (broken fraction of bonds)")
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm] (deformed)")
     ax.set_ylabel("y [mm] (deformed)")
-    ax.set_title(f"t = {times[k] * 1e3:.3f} ms, v/c_l = {v / cl:.2f}, v/c_s = {v / cs:.2f}")
+    ax.set_title(f"tip region at t = {times[k] * 1e3:.3f} ms")
+    t0, x0m = times[use][0], tips[use][0]
+    bx.plot(times * 1e3, tips * 1e3, "k.", label="tip (reference x)")
+    tt = np.array([t0, times[use][-1]])
+    bx.plot(tt * 1e3, (x0m + v * (tt - t0)) * 1e3, "k-", label=f"fit: {v:.1f} m/s")
+    bx.plot(tt * 1e3, (x0m + cl * (tt - t0)) * 1e3, "b--", label=f"c_l = {cl:.1f} m/s")
+    bx.plot(tt * 1e3, (x0m + cs * (tt - t0)) * 1e3, "r--", label=f"c_s = {cs:.1f} m/s")
+    bx.set_xlabel("t [ms]")
+    bx.set_ylabel("tip position [mm] (reference)")
+    bx.set_title(f"v/c_l = {v / cl:.2f}, v/c_s = {v / cs:.2f}")
+    bx.legend()
     fig.tight_layout()
-    fig.savefig(os.path.join(args.out, "tip_region.png"), dpi=130)
-
+    fig.savefig(os.path.join(args.out, "tip_region.png"), dpi=110)
 
 if __name__ == "__main__":
     main()

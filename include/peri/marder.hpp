@@ -118,6 +118,8 @@ double marder_energy(const MarderLaw& law, const BondView& view, const std::int3
 
 /// Flag bit of a bond cut by a pre-crack: stays broken in the reversible mode too.
 constexpr std::uint8_t kMarderCut = 4;
+/// Flag bit of a bond that never breaks (outside a lattice body's breakable box).
+constexpr std::uint8_t kMarderUnbreakable = 8;
 
 /// Estimate of the stable explicit time step of the lattice: sqrt(2 m / k) with k the sum over
 /// six neighbours of the largest pair stiffness reachable below u_c (cutoff branch at Delta + u_s

@@ -91,6 +91,10 @@ struct Body {
   double horizon_factor = 3.0;          ///< m in delta = m*dx (>= 1); ignored when horizon set
   std::optional<double> horizon;        ///< delta [m] (>= spacing)
   Quadrature quadrature = Quadrature::PartialArea;
+  /// Lattice bodies: only bonds with both ends inside this box [min, max] (reference positions)
+  /// may break; empty = every bond (Marder's simulations often let bonds break only along the
+  /// crack line, so that the crack neither branches nor tears the clamped edges).
+  std::optional<std::array<Vec3, 2>> breakable;
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
 };
 
