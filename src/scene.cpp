@@ -414,6 +414,7 @@ const Keys kSceneKeys = {
     {"boundaries", false, ""},
     {"initial", false, ""},
     {"stages", true, "list of stages, at least one"},
+    {"stability", false, ""},
     {"output", false, ""},
 };
 
@@ -494,8 +495,32 @@ const Keys kSeedKeys = {
 };
 
 const Keys kStageKeys = {
-    {"name", false, ""}, {"kind", false, ""},          {"duration", false, ""},          {"steps", false, ""},
-    {"dt", false, ""},   {"safety_factor", false, ""}, {"allow_unstable_dt", false, ""},
+    {"name", false, ""},          {"kind", false, ""},           {"duration", false, ""},
+    {"steps", false, ""},         {"dt", false, ""},             {"safety_factor", false, ""},
+    {"allow_unstable_dt", false, ""}, {"damping", false, ""},    {"boundary_velocity", false, ""},
+    {"displacements", false, ""}, {"displacement_gradient", false, ""}, {"load_steps", false, ""},     {"max_load_steps", false, ""},
+    {"in_plane", false, ""},      {"jacobian", false, ""},       {"jacobian_shift", false, ""},
+    {"max_break_passes", false, ""}, {"cracks", false, ""},
+};
+
+const char* to_text(StageKind k);
+
+/// Stage keys that only one kind of stage accepts.
+const std::map<std::string, StageKind> kStageKeyKind = {
+    {"duration", StageKind::Dynamic},         {"steps", StageKind::Dynamic},
+    {"dt", StageKind::Dynamic},               {"safety_factor", StageKind::Dynamic},
+    {"allow_unstable_dt", StageKind::Dynamic}, {"damping", StageKind::Dynamic},
+    {"boundary_velocity", StageKind::Dynamic}, {"displacements", StageKind::QuasiStatic},
+    {"displacement_gradient", StageKind::QuasiStatic},
+    {"load_steps", StageKind::QuasiStatic},   {"max_load_steps", StageKind::QuasiStatic},
+    {"in_plane", StageKind::QuasiStatic},     {"jacobian", StageKind::QuasiStatic},
+    {"jacobian_shift", StageKind::QuasiStatic}, {"max_break_passes", StageKind::QuasiStatic},
+    {"cracks", StageKind::Release},
+};
+
+const Keys kStabilityKeys = {
+    {"energy_error", false, ""},
+    {"motion_per_step", false, ""},
 };
 
 const Keys kOutputKeys = {
@@ -826,12 +851,76 @@ Initial read_initial(const Value& v) {
   return init;
 }
 
-Stage read_stage(const Value& v, std::size_t index, UniqueNames& names) {
+/// {boundary name: [x, y, z]} with every name an entry of `boundaries`.
+std::vector<BoundaryValue> read_boundary_values(const Value& v, const std::vector<Boundary>& boundaries,
+                                                std::string_view unit) {
+  const Map m(v, nullptr, "a map of boundary name to [x, y, z]");
+  std::vector<BoundaryValue> out;
+  for (const auto& [name, value] : m.items()) {
+    bool known = false;
+    for (const Boundary& b : boundaries) known |= b.name == name;
+    if (!known) {
+      std::vector<std::string> defined;
+      for (const Boundary& b : boundaries) defined.push_back(b.name);
+      value.fail("no boundary named '" + name + "'; defined: " + (defined.empty() ? "none" : join(defined)));
+    }
+    out.push_back({name, value.vec3(unit)});
+  }
+  return out;
+}
+
+Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const std::vector<Boundary>& boundaries,
+                 const std::vector<Crack>& cracks) {
   const Map m(v, &kStageKeys, "a map describing the stage");
   Stage s;
   s.name = entry_name(m, "stage", index, names);
   s.where = m.where();
-  if (auto x = m.get("kind")) s.kind = x->choice<StageKind>({{"dynamic", StageKind::Dynamic}});
+  if (auto x = m.get("kind"))
+    s.kind = x->choice<StageKind>({{"dynamic", StageKind::Dynamic},
+                                   {"quasistatic", StageKind::QuasiStatic},
+                                   {"release", StageKind::Release}});
+  for (const auto& [key, kind] : kStageKeyKind)
+    if (kind != s.kind)
+      if (auto x = m.get(key))
+        x->fail(std::string("this key belongs to ") + to_text(kind) + " stages; this stage is " + to_text(s.kind));
+  if (s.kind == StageKind::QuasiStatic) {
+    if (auto x = m.get("displacements")) s.displacements = read_boundary_values(*x, boundaries, "m");
+    if (auto x = m.get("displacement_gradient")) s.displacement_gradient = x->matrix3("");
+    if (auto x = m.get("load_steps")) s.load_steps = x->integer(1, 1000000);
+    if (auto x = m.get("max_load_steps")) s.max_load_steps = x->integer(1, 100000000);
+    if (s.max_load_steps < s.load_steps)
+      m.at("max_load_steps").fail("expected an integer >= load_steps (" + std::to_string(s.load_steps) + "), got " +
+                                  std::to_string(s.max_load_steps));
+    if (auto x = m.get("in_plane")) s.in_plane = x->boolean();
+    if (auto x = m.get("jacobian"))
+      s.matrix_free = x->choice<bool>({{"assembled", false}, {"matrix_free", true}});
+    if (auto x = m.get("jacobian_shift"))
+      s.jacobian_shift = x->number_if("a number in [0, 1)", [](double f) { return f >= 0 && f < 1; });
+    if (auto x = m.get("max_break_passes")) s.max_break_passes = x->integer(1, 1000000);
+    return s;
+  }
+  if (s.kind == StageKind::Release) {
+    const Value list = m.at("cracks");
+    const std::string expected = "a non-empty list of crack names";
+    const auto items = list.list(expected);
+    if (items.empty()) list.fail("expected " + expected + ", got an empty list");
+    for (const Value& item : items) {
+      const std::string name = item.name();
+      bool known = false;
+      for (const Crack& c : cracks) known |= c.name == name;
+      if (!known) {
+        std::vector<std::string> defined;
+        for (const Crack& c : cracks) defined.push_back(c.name);
+        item.fail("no crack named '" + name + "'; defined: " + (defined.empty() ? "none" : join(defined)));
+      }
+      if (std::find(s.cracks.begin(), s.cracks.end(), name) != s.cracks.end())
+        item.fail("crack '" + name + "' is named twice");
+      s.cracks.push_back(name);
+    }
+    return s;
+  }
+  if (auto x = m.get("damping")) s.damping = x->non_negative("1/s");
+  if (auto x = m.get("boundary_velocity")) s.boundary_velocity = read_boundary_values(*x, boundaries, "m/s");
   if (auto x = m.get("steps")) s.steps = x->integer(1);
   if (auto x = m.get("duration")) {
     s.duration = x->positive("s");
@@ -885,7 +974,22 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   const auto stages = stages_value.list("a list of stages");
   if (stages.empty()) stages_value.fail("expected at least one stage, got an empty list");
   UniqueNames stage_names("stage");
-  for (std::size_t i = 0; i < stages.size(); ++i) s.stages.push_back(read_stage(stages[i], i, stage_names));
+  for (std::size_t i = 0; i < stages.size(); ++i)
+    s.stages.push_back(read_stage(stages[i], i, stage_names, s.boundaries, s.cracks));
+  std::map<std::string, std::string> released;  // crack -> stage releasing it
+  for (std::size_t i = 0; i < s.stages.size(); ++i)
+    for (const std::string& c : s.stages[i].cracks)
+      if (!released.emplace(c, s.stages[i].name).second)
+        stages[i].fail("crack '" + c + "' is already released by stage '" + released[c] + "'");
+  bool dynamic = false;
+  for (const Stage& st : s.stages) dynamic |= st.kind == StageKind::Dynamic;
+  if (!dynamic) stages_value.fail("expected at least one stage of kind dynamic");
+
+  if (auto x = top.get("stability")) {
+    const Map m(*x, &kStabilityKeys, "a map {energy_error, motion_per_step}");
+    if (auto e = m.get("energy_error")) s.stability.energy_error = e->non_negative("");
+    if (auto e = m.get("motion_per_step")) s.stability.motion_per_step = e->non_negative("");
+  }
 
   if (auto x = top.get("output")) s.output = read_output(*x);
   return s;
@@ -1088,7 +1192,9 @@ const char* to_text(BodyKind k) {
 }
 const char* to_text(Grid k) { return k == Grid::Square ? "square" : "hexagonal"; }
 const char* to_text(Quadrature k) { return k == Quadrature::Full ? "full" : "partial_area"; }
-const char* to_text(StageKind) { return "dynamic"; }
+const char* to_text(StageKind k) {
+  return k == StageKind::Dynamic ? "dynamic" : k == StageKind::QuasiStatic ? "quasistatic" : "release";
+}
 const char* to_text(bool b) { return b ? "true" : "false"; }
 
 /// Line-oriented YAML writer: `key(indent, name, value)` writes "<indent>name: value".
@@ -1172,15 +1278,40 @@ void emit_boundary(Writer& w, const Boundary& b) {
   w.key(4, "ramp_time", b.ramp_time);
 }
 
+std::string flow_values(const std::vector<BoundaryValue>& values) {
+  std::vector<std::string> items;
+  for (const BoundaryValue& b : values) items.push_back(yaml_string(b.boundary) + ": " + flow(b.value));
+  return "{" + join(items) + "}";
+}
+
 void emit_stage(Writer& w, const Stage& s) {
   w.key(2, "- name", yaml_string(s.name));
   w.key(4, "kind", to_text(s.kind));
+  if (s.kind == StageKind::QuasiStatic) {
+    w.key(4, "displacements", flow_values(s.displacements));
+    w.key(4, "displacement_gradient", flow(s.displacement_gradient));
+    w.key(4, "load_steps", std::to_string(s.load_steps));
+    w.key(4, "max_load_steps", std::to_string(s.max_load_steps));
+    w.key(4, "in_plane", to_text(s.in_plane));
+    w.key(4, "jacobian", s.matrix_free ? "matrix_free" : "assembled");
+    w.key(4, "jacobian_shift", s.jacobian_shift);
+    w.key(4, "max_break_passes", std::to_string(s.max_break_passes));
+    return;
+  }
+  if (s.kind == StageKind::Release) {
+    std::vector<std::string> names;
+    for (const std::string& c : s.cracks) names.push_back(yaml_string(c));
+    w.key(4, "cracks", "[" + join(names) + "]");
+    return;
+  }
   // With steps given, duration is optional; 0 stands for "not given".
   if (!(s.steps && s.duration == 0.0)) w.key(4, "duration", s.duration);
   if (s.steps) w.key(4, "steps", std::to_string(*s.steps));
   w.optional(4, "dt", s.dt);
   w.key(4, "safety_factor", s.safety_factor);
   w.key(4, "allow_unstable_dt", to_text(s.allow_unstable_dt));
+  w.key(4, "damping", s.damping);
+  if (!s.boundary_velocity.empty()) w.key(4, "boundary_velocity", flow_values(s.boundary_velocity));
 }
 
 }  // namespace
@@ -1203,6 +1334,13 @@ int Scene::material_index(const std::string& material_name) const {
   for (std::size_t i = 0; i < materials.size(); ++i)
     if (materials[i].name == material_name) return static_cast<int>(i);
   return -1;
+}
+
+bool Scene::released_later(const std::string& crack) const {
+  for (const Stage& st : stages)
+    for (const std::string& c : st.cracks)
+      if (c == crack) return true;
+  return false;
 }
 
 Scene parse_scene(const std::string& text, const std::string& file, const std::vector<Override>& overrides) {
@@ -1259,6 +1397,9 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
             ", wavelength: " + flow({init.seed_wavelength_x, init.seed_wavelength_y}) + "}");
   w.key(0, "stages", "");
   for (const Stage& st : s.stages) emit_stage(w, st);
+  w.key(0, "stability", "");
+  w.key(2, "energy_error", s.stability.energy_error);
+  w.key(2, "motion_per_step", s.stability.motion_per_step);
   w.key(0, "output", "");
   w.key(2, "frames", std::to_string(s.output.frames));
   w.key(2, "series_every", std::to_string(s.output.series_every));

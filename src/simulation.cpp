@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "peri/build_info.hpp"
+#include "peri/tangent.hpp"
 
 namespace peri {
 namespace {
@@ -115,6 +116,13 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
                         ? BondLaw{}
                         : calibrate(m, nodes_.bodies[b], scene_.bodies[b].where.str() + ": bodies." + scene_.bodies[b].name));
     density_.push_back(m.density);
+    BondLaw intact = laws_.back();
+    intact.breaks = false;
+    intact.linear_critical = false;
+    intact.critical0 = intact.critical_delta = INFINITY;
+    intact_laws_.push_back(intact);
+    const double limit = scene_.stability.motion_per_step * scene_.bodies[b].spacing;
+    motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
   }
 
   // Bonds, partition, this rank's domain and state.
@@ -122,7 +130,11 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   for (const BodyGeometry& g : nodes_.bodies) max_reach = std::max(max_reach, reach(g));
   CellList cells(nodes_, max_reach);
   partition_ = partition_nodes(nodes_, cells, ranks_, comm_);
-  domain_ = build_domain(scene_, nodes_, cells, partition_, rank_);
+  {
+    Scene initial_cracks = scene_;  // cracks named by release stages break later
+    std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
+    domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_);
+  }
   state_ = std::make_unique<State>(domain_, comm_);
 
   const std::size_t nb = scene_.bodies.size();
@@ -165,8 +177,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   MPI_Allreduce(&dt_local, &summary_.dt_stable, 1, MPI_DOUBLE, MPI_MIN, comm_);
   if (!std::isfinite(summary_.dt_stable))
     throw InputError(scene_.file + ": no node has a bond; the horizon is too small for the spacing");
+  for (const Boundary& b : scene_.boundaries) active_bc_.push_back({b.velocity, b.ramp_time});
   for (std::size_t s = 0; s < scene_.stages.size(); ++s) {
     const Stage& st = scene_.stages[s];
+    if (st.kind != StageKind::Dynamic) {  // no time passes
+      stage_dt_.push_back(0.0);
+      stage_steps_.push_back(0);
+      continue;
+    }
     const double dt = st.dt ? *st.dt : st.safety_factor * summary_.dt_stable;
     if (dt > summary_.dt_stable && !st.allow_unstable_dt) {
       std::ostringstream msg;
@@ -176,8 +194,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
           << ", or allow_unstable_dt: true to run anyway";
       throw InputError(msg.str());
     }
-    const std::int64_t n = st.steps ? *st.steps : static_cast<std::int64_t>(std::ceil(st.duration / dt - 1e-9));
-    stage_dt_.push_back(dt);
+    // A duration is covered exactly: n steps of duration / n (at most the requested step).
+    const std::int64_t n = st.steps ? *st.steps : std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(st.duration / dt - 1e-9)));
+    stage_dt_.push_back(st.steps ? dt : st.duration / static_cast<double>(n));
     stage_steps_.push_back(std::max<std::int64_t>(n, 1));
     total_steps_ += stage_steps_.back();
   }
@@ -193,7 +212,11 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   summary_.nodes = domain_.global_nodes;
   summary_.ranks = ranks_;
   summary_.steps = total_steps_;
-  summary_.dt = stage_dt_.front();
+  for (std::size_t s = 0; s < stage_dt_.size(); ++s)
+    if (scene_.stages[s].kind == StageKind::Dynamic) {
+      summary_.dt = stage_dt_[s];
+      break;
+    }
   double bpb = domain_.bonds.bytes_per_bond(), bpb_max = 0;
   MPI_Allreduce(&bpb, &bpb_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
   summary_.bytes_per_bond = bpb_max;
@@ -218,6 +241,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
   summary_.derived.push_back({"dt_stable", summary_.dt_stable});
   for (std::size_t s = 0; s < stage_dt_.size(); ++s) {
+    if (scene_.stages[s].kind != StageKind::Dynamic) continue;
     summary_.derived.push_back({"stages." + std::to_string(s) + ".dt", stage_dt_[s]});
     summary_.derived.push_back({"stages." + std::to_string(s) + ".steps", double(stage_steps_[s])});
   }
@@ -295,8 +319,9 @@ void Simulation::apply_initial_conditions() {
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
 }
 
-void Simulation::compute_forces(bool with_energy) {
+void Simulation::compute_forces(bool with_energy, bool intact) {
   PetscLogEventBegin(events().forces, 0, 0, 0, 0);
+  const std::vector<BondLaw>& laws = intact ? intact_laws_ : laws_;
   BondView view = bond_view();
   BondTally t;
   state_->halo_begin();  // interior rows need no ghost: overlap them with the exchange
@@ -305,7 +330,7 @@ void Simulation::compute_forces(bool with_energy) {
     view.u = u.data();
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b])
-        bond_forces(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
+        bond_forces(laws[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
                     force_.data(), with_energy, t);
     if (has_lattice_) lattice_forces(view, true, with_energy, t);
   }
@@ -317,7 +342,7 @@ void Simulation::compute_forces(bool with_energy) {
     view.u = u.data();
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b])
-        bond_forces(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
+        bond_forces(laws[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
                     force_.data(), with_energy, t);
     if (has_lattice_) lattice_forces(view, false, with_energy, t);
   }
@@ -328,8 +353,17 @@ void Simulation::compute_forces(bool with_energy) {
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
 }
 
+bool Simulation::has_intact_bond(std::int32_t row) const {
+  for (std::int64_t b = domain_.bonds.offsets[row]; b < domain_.bonds.offsets[row + 1]; ++b)
+    if (!(domain_.bonds.broken[b] & 1)) return true;  // bit 0: broken (lattices keep other bits)
+  return false;
+}
+
 void Simulation::step(bool with_energy) {
   const double dt = dt_, t0 = time_, t1 = time_ + dt;
+  // Mass-proportional damping alpha (force -rho alpha v), integrated semi-implicitly:
+  // v_half = (1 - alpha dt/2) v + dt/2 a(t),  v(t+dt) = (v_half + dt/2 a(t+dt)) / (1 + alpha dt/2).
+  const double damp_old = 1.0 - 0.5 * damping_ * dt, damp_new = 1.0 / (1.0 + 0.5 * damping_ * dt);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   double* u;
   double* v;
@@ -337,20 +371,32 @@ void Simulation::step(bool with_energy) {
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
   std::vector<double>& du_bc = du_bc_;  // read only where written below (prescribed components)
   std::vector<double>& v_old_bc = v_old_bc_;
+  double damped = 0;  // energy removed by damping: alpha m v.v dt, trapezoidal in time
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const Boundary* b = bc_[i] >= 0 ? &scene_.boundaries[bc_[i]] : nullptr;
+    const int bi = bc_[i];
+    double moved2 = 0;
     for (int c = 0; c < 3; ++c) {
       const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-      if (b && b->components[c]) {
+      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
+        const ActiveBoundary& b = active_bc_[bi];
         v_old_bc[k] = v[k];
-        du_bc[k] = b->velocity[c] * (ramp_integral(t1, b->ramp_time) - ramp_integral(t0, b->ramp_time));
+        du_bc[k] = b.velocity[c] * (ramp_integral(t1, b.ramp_time) - ramp_integral(t0, b.ramp_time));
         u[k] += du_bc[k];
-        v[k] = b->velocity[c] * ramp(t1, b->ramp_time);
+        v[k] = b.velocity[c] * ramp(t1, b.ramp_time);
+        moved2 += du_bc[k] * du_bc[k];
       } else {
-        v[k] += 0.5 * dt * force_[k] * inv_density_[i];
+        damped += mass_[i] * v[k] * v[k];
+        v[k] = damp_old * v[k] + 0.5 * dt * force_[k] * inv_density_[i];
         u[k] += dt * v[k];
+        moved2 += dt * dt * v[k] * v[k];
       }
+    }
+    // Instability detector: no stable explicit step moves a node by a sizeable part of the spacing.
+    // (A node without intact bonds flies ballistically: exact at any speed, never unstable.)
+    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0 && has_intact_bond(i)) {
+      unstable_node_ = domain_.natural[i];
+      unstable_motion_ = std::sqrt(moved2);
     }
   }
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
@@ -359,20 +405,22 @@ void Simulation::step(bool with_energy) {
   compute_forces(with_energy);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const Boundary* b = bc_[i] >= 0 ? &scene_.boundaries[bc_[i]] : nullptr;
+    const int bi = bc_[i];
     for (int c = 0; c < 3; ++c) {
       const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-      if (b && b->components[c]) {
+      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
         // Work of the reaction that enforces the motion: change of the node's kinetic energy
         // minus the work of the internal force along the prescribed path (trapezoidal).
         const double fi = 0.5 * (force_[k] + prev_force_[k]) * domain_.volume[i];
         external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[k] * v_old_bc[k]) - fi * du_bc[k];
       } else {
-        v[k] += 0.5 * dt * force_[k] * inv_density_[i];
+        v[k] = damp_new * (v[k] + 0.5 * dt * force_[k] * inv_density_[i]);
+        damped += mass_[i] * v[k] * v[k];
       }
     }
   }
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
+  if (damping_ > 0) damping_work_ += 0.5 * damping_ * dt * damped;
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
   time_ = t1;
   ++step_;
@@ -408,7 +456,7 @@ EnergyRow Simulation::energies() {
 }
 
 EnergyRow Simulation::reduce_energies(double local_strain) {
-  double local[4] = {local_strain, tally_.dissipated, external_work_, double(tally_.newly_broken)};
+  double local[4] = {local_strain, tally_.dissipated + damping_work_, external_work_, double(tally_.newly_broken)};
   double global[4];
   MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, comm_);
   EnergyRow row;
@@ -424,6 +472,24 @@ EnergyRow Simulation::reduce_energies(double local_strain) {
 
 void Simulation::write_series_row() {
   const EnergyRow row = reduce_energies(tally_.strain_energy);
+  // Energy growth detector (after the first row, which sets the reference).
+  const double tolerance = scene_.stability.energy_error;
+  if (tolerance > 0 && step_ > 0) {
+    const double e0 = summary_.initial_total_energy;
+    const double scale = std::max({std::fabs(row.kinetic) + std::fabs(row.strain) + std::fabs(row.dissipated),
+                                   std::fabs(row.external_work), std::fabs(e0), 1e-300});
+    const double error = std::fabs(row.total() - e0) / scale;
+    if (!(error <= tolerance)) {
+      std::ostringstream msg;
+      msg << "energy balance error " << fmt(error) << " at step " << step_ << " (t = " << fmt(time_)
+          << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
+          << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt_)
+          << " s, stable bound " << fmt(summary_.dt_stable)
+          << " s at the reference state; the membrane law stiffens in compression), or boundary motion "
+             "too violent for the resolution";
+      throw RuntimeFailure(msg.str());
+    }
+  }
   if (series_) series_->write(row);
   summary_.final_energy = row;
 }
@@ -457,9 +523,32 @@ void Simulation::check_health(std::int64_t step, double time) {
   }
   PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
   PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  long long bad_global;
-  MPI_Allreduce(&bad, &bad_global, 1, MPI_LONG_LONG, MPI_MIN, comm_);
-  if (bad_global != std::numeric_limits<long long>::max()) {
+  const long long none = std::numeric_limits<long long>::max();
+  long long local[2] = {bad, unstable_node_ >= 0 ? unstable_node_ : none}, global[2];
+  MPI_Allreduce(local, global, 2, MPI_LONG_LONG, MPI_MIN, comm_);
+  const long long bad_global = global[0];
+  if (global[1] != none && bad_global == none) {
+    const long long node = global[1];
+    double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
+    MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
+    const double* X = &nodes_.X[3 * node];
+    std::ostringstream msg;
+    msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
+        << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
+        << ") moved " << fmt(moved_max) << " m in one step, more than stability.motion_per_step = "
+        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
+    if (dt_ > summary_.dt_stable)
+      msg << "the time step " << fmt(dt_) << " s is above the stable bound " << fmt(summary_.dt_stable)
+          << " s (accepted because of allow_unstable_dt)";
+    else
+      msg << "the time step " << fmt(dt_) << " s is too large for the current state (stable bound "
+          << fmt(summary_.dt_stable) << " s at the reference state; the membrane law stiffens in compression by "
+          << "1 + 3/lambda^4, so snapping-back fragments need a smaller safety_factor, e.g. 0.35), or a boundary "
+          << "velocity too violent for the resolution";
+    msg << ". Positions and velocities are still finite; nothing non-finite was written";
+    throw RuntimeFailure(msg.str());
+  }
+  if (bad_global != none) {
     const double* X = &nodes_.X[3 * bad_global];
     std::ostringstream msg;
     msg << "non-finite displacement or velocity at step " << step << " (t = " << fmt(time)
@@ -494,6 +583,11 @@ void Simulation::run() {
 
 void Simulation::begin() {
   apply_initial_conditions();
+  // Stages that take no time and come first (preload, release) shape the initial state.
+  while (stage_ < scene_.stages.size() && scene_.stages[stage_].kind != StageKind::Dynamic) {
+    start_stage();
+    ++stage_;
+  }
   compute_forces(true);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
@@ -512,27 +606,224 @@ void Simulation::begin() {
   last_progress_ = loop_start_;
 }
 
+void Simulation::start_stage() {
+  const Stage& st = scene_.stages[stage_];
+  if (st.kind == StageKind::QuasiStatic) {
+    run_quasistatic(st);
+    return;
+  }
+  if (st.kind == StageKind::Release) {
+    run_release(st);
+    return;
+  }
+  dt_ = stage_dt_[stage_];
+  damping_ = st.damping;
+  for (std::size_t b = 0; b < scene_.boundaries.size(); ++b)
+    active_bc_[b] = {scene_.boundaries[b].velocity, scene_.boundaries[b].ramp_time};
+  for (const BoundaryValue& bv : st.boundary_velocity)
+    for (std::size_t b = 0; b < scene_.boundaries.size(); ++b)
+      if (scene_.boundaries[b].name == bv.boundary) active_bc_[b] = {bv.value, 0.0};
+}
+
 std::int64_t Simulation::advance(std::int64_t n) {
   std::int64_t taken = 0;
-  while (taken < n && stage_ < stage_steps_.size()) {
+  while (stage_ < scene_.stages.size()) {
+    if (scene_.stages[stage_].kind != StageKind::Dynamic) {
+      // A later stage that takes no time: run it, and restart the energy balance after a
+      // quasi-static one (it removes kinetic energy by construction).
+      start_stage();
+      ++stage_;
+      compute_forces(true);
+      write_series_row();
+      if (scene_.stages[stage_ - 1].kind == StageKind::QuasiStatic)
+        summary_.initial_total_energy = summary_.final_energy.total();
+      continue;
+    }
+    if (!stage_started_) {
+      start_stage();
+      stage_started_ = true;
+    }
     if (stage_step_ >= stage_steps_[stage_]) {
       ++stage_;
       stage_step_ = 0;
+      stage_started_ = false;
       continue;
     }
-    dt_ = stage_dt_[stage_];
+    if (taken >= n) break;
     const bool series = (step_ + 1) % scene_.output.series_every == 0 || step_ + 1 == total_steps_;
     step(series);
     ++stage_step_;
     ++taken;
+    const bool frame = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_;
+    // Nothing is written before the state is checked: no non-finite value reaches a file.
+    if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
     if (series) write_series_row();
-    if (step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
-    if (frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) {
+    if (frame) {
       write_frame();
       while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
     }
   }
   return taken;
+}
+
+void Simulation::run_release(const Stage& stage) {
+  // Break every intact bond crossing the named cracks in the current (e.g. preloaded) state; its
+  // current energy becomes dissipated energy, so the energy balance continues exactly.
+  std::vector<const Crack*> cracks;
+  for (const std::string& name : stage.cracks)
+    for (const Crack& c : scene_.cracks)
+      if (c.name == name) cracks.push_back(&c);
+  state_->halo_begin();
+  state_->halo_end();
+  LocalArray u(state_->displacement());
+  std::int64_t released = 0;
+  double energy = 0;
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    const BondLaw& law = laws_[domain_.body[i]];
+    const double* Xi = &domain_.X[3 * static_cast<std::size_t>(i)];
+    for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b) {
+      if (domain_.bonds.broken[b]) continue;
+      const std::int32_t j = domain_.bonds.neighbor[b];
+      const double* Xj = &domain_.X[3 * static_cast<std::size_t>(j)];
+      bool cut = false;
+      for (const Crack* c : cracks) cut = cut || crosses(Xi, Xj, *c);
+      if (!cut) continue;
+      double xi2 = 0, y2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        const double d = Xj[c] - Xi[c], e = d + u.data()[3 * j + c] - u.data()[3 * i + c];
+        xi2 += d * d;
+        y2 += e * e;
+      }
+      const double w = domain_.bonds.weight.empty() ? 1.0 : domain_.bonds.weight[b];
+      energy += 0.5 * domain_.volume[i] * w * domain_.volume[j] * law.energy(xi2, y2);  // eq. (5), one end
+      domain_.bonds.broken[b] = 1;
+      ++released;
+    }
+  }
+  tally_.dissipated += energy;
+  tally_.newly_broken += released;
+  long long global = 0, local = released;
+  MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, comm_);
+  summary_.precrack_bonds += global / 2;
+  if (rank_ == 0 && !options_.quiet) {
+    std::printf("[peridrive] release '%s': %lld bonds broken\n", stage.name.c_str(), global / 2);
+    std::fflush(stdout);
+  }
+  if (global == 0)
+    throw InputError(stage.where.str() + ": stages." + stage.name + ".cracks: no intact bond crosses the named cracks");
+}
+
+std::unique_ptr<QuasiStaticLoader> Simulation::make_loader(const Stage& stage) {
+  std::vector<PetscInt> d_nnz(domain_.owned), o_nnz(domain_.owned);
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    PetscInt d = 1, o = 0;
+    for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b)
+      (domain_.bonds.neighbor[b] < domain_.owned ? d : o) += 1;
+    d_nnz[i] = d;
+    o_nnz[i] = o;
+  }
+  BondView view = bond_view();
+  double local[2] = {0, double(domain_.owned)}, global[2];
+  for (std::size_t b = 0; b < laws_.size(); ++b)
+    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
+      local[0] += reference_stiffness_sum(laws_[b], view, rows->data(), rows->size());
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, comm_);
+  double spacing = INFINITY;
+  for (const Body& b : scene_.bodies) spacing = std::min(spacing, b.spacing);
+  return std::make_unique<QuasiStaticLoader>(comm_, domain_.owned, d_nnz, o_nnz, global[0] / std::max(global[1], 1.0),
+                                             spacing, stage);
+}
+
+void Simulation::run_quasistatic(const Stage& stage) {
+  const std::size_t n = 3 * static_cast<std::size_t>(domain_.owned);
+  std::vector<std::uint8_t> constrained(n, 0);
+  std::vector<double> increment(n, 0.0);
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    const int bi = bc_[i];
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
+      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
+        constrained[k] = 1;
+        for (const BoundaryValue& bv : stage.displacements)
+          if (bv.boundary == scene_.boundaries[bi].name) increment[k] = bv.value[c];
+        for (int d = 0; d < 3; ++d)
+          increment[k] += stage.displacement_gradient[3 * c + d] * (domain_.X[3 * i + d] - scene_.initial.center[d]);
+      }
+      // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
+      if (c == 2 && stage.in_plane && scene_.bodies[domain_.body[i]].kind == BodyKind::Membrane) constrained[k] = 1;
+    }
+  }
+  const EnergyRow before = energies();
+  std::unique_ptr<QuasiStaticLoader> loader = make_loader(stage);
+  if (rank_ == 0 && !options_.quiet) {
+    std::printf("[peridrive] quasistatic '%s': %ld initial load steps\n", stage.name.c_str(), stage.load_steps);
+    std::fflush(stdout);
+  }
+  QuasiStaticStats stats = loader->run(*this, constrained, increment, !options_.quiet);
+  external_work_ += stats.external_work;
+  // Equilibrium: at rest.
+  PERI_PETSC(VecSet(state_->velocity(), 0.0));
+  const EnergyRow after = energies();
+  double work = 0, local = stats.external_work;
+  MPI_Allreduce(&local, &work, 1, MPI_DOUBLE, MPI_SUM, comm_);
+  stats.external_work = work;
+  const double stored = (after.strain - before.strain) + (after.dissipated - before.dissipated) - before.kinetic;
+  summary_.quasistatic.push_back({stage.name, stats});
+  summary_.quasistatic_work_error.push_back(std::fabs(work - stored) / std::max(std::fabs(work), 1e-300));
+  if (rank_ == 0 && !options_.quiet) {
+    std::printf("[peridrive] quasistatic '%s': %zu increments, %d cut-backs, %ld Newton and %ld linear iterations, "
+                "%lld bonds broken, %.3g s; support work %.6g J vs stored + dissipated %.6g J\n",
+                stage.name.c_str(), stats.increments.size(), stats.cutbacks, stats.newton_iterations,
+                stats.linear_iterations, static_cast<long long>(stats.broken), stats.seconds, work, stored);
+    std::fflush(stdout);
+  }
+}
+
+void Simulation::set_displacement(const double* u_owned) {
+  double* u;
+  PERI_PETSC(VecGetArray(state_->displacement(), &u));
+  std::copy(u_owned, u_owned + 3 * static_cast<std::size_t>(domain_.owned), u);
+  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
+  state_->halo_begin();
+  state_->halo_end();
+}
+
+void Simulation::get_displacement(double* u_owned) {
+  const double* u;
+  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
+  std::copy(u, u + 3 * static_cast<std::size_t>(domain_.owned), u_owned);
+  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
+}
+
+void Simulation::internal_force(double* f_owned) {
+  compute_forces(false, true);
+  for (std::int32_t i = 0; i < domain_.owned; ++i)
+    for (int c = 0; c < 3; ++c) f_owned[3 * i + c] = force_[3 * i + c] * domain_.volume[i];
+}
+
+void Simulation::add_tangent(Mat J) {
+  BondView view = bond_view();
+  LocalArray u(state_->displacement());  // ghosts current: set_displacement exchanged them
+  view.u = u.data();
+  std::vector<std::int32_t> cols;
+  std::vector<PetscInt> global_cols;
+  std::vector<double> blocks;
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    row_tangent(intact_laws_[domain_.body[i]], view, i, cols, blocks);
+    global_cols.resize(cols.size());
+    for (std::size_t k = 0; k < cols.size(); ++k) global_cols[k] = static_cast<PetscInt>(domain_.global[cols[k]]);
+    const PetscInt row = static_cast<PetscInt>(domain_.global[i]);
+    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, static_cast<PetscInt>(cols.size()), global_cols.data(), blocks.data(),
+                                   ADD_VALUES));
+  }
+}
+
+std::int64_t Simulation::break_bonds() {
+  const std::int64_t before = tally_.newly_broken;
+  compute_forces(false);
+  long long local = tally_.newly_broken - before, global = 0;
+  MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, comm_);
+  return global / 2;
 }
 
 void Simulation::finish() {

@@ -25,6 +25,12 @@ void Simulation::lattice_setup() {
     has_lattice_ = true;
   }
   if (!has_lattice_) return;
+  for (std::size_t s = 0; s < scene_.stages.size(); ++s)
+    if (scene_.stages[s].kind != StageKind::Dynamic)
+      throw InputError(scene_.stages[s].where.str() + ": stages." + scene_.stages[s].name +
+                       ".kind: a scene with a lattice body runs dynamic stages only (the quasi-static "
+                       "loader and the release stage use the peridynamic bond laws); got a " +
+                       (scene_.stages[s].kind == StageKind::QuasiStatic ? "quasistatic" : "release") + " stage");
   state_->enable_force_accumulation(3 * kMarderSlots);
   lattice_direction_ = marder_directions(bond_view(), domain_.owned);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {

@@ -61,6 +61,8 @@ f=$(variant membrane_marder 's/kind: lattice/kind: membrane/')
 expect membrane_marder "bodies.strip.material: material 'rubber' has model: marder, which needs a body with kind: lattice" -- "$f"
 f=$(variant lattice_pmb 's/model: marder/model: pmb\n    bulk_modulus: 1.0e6/; /mooney_rivlin\|cutoff\|fracture_separation\|breaking/d')
 expect lattice_pmb "bodies.strip.material: a lattice body needs a material with model: marder" -- "$f"
+f=$(variant quasistatic 's/^stages:$/stages:\n  - {name: load, kind: quasistatic}/')
+expect quasistatic "$f:$(line_of "$f" 'name: load'): stages.load.kind: a scene with a lattice body runs dynamic stages only" -- "$f"
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

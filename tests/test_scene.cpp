@@ -502,6 +502,10 @@ stages:
     duration: 1e-5
     safety_factor: 0.7
     allow_unstable_dt: false
+    damping: 0
+stability:
+  energy_error: 0.05
+  motion_per_step: 1
 output:
   frames: 20
   series_every: 10
@@ -619,7 +623,7 @@ TEST(SceneErrors, UnknownKey) {
             "breaking");
   EXPECT_THAT(error_of(kBase + "outptu: {frames: 2}\n"),
               AllOf(StartsWith("scene.yaml:16: outptu: unknown key; expected one of: name, "),
-                    HasSubstr("stages, output")));
+                    HasSubstr("stages, stability, output")));
   EXPECT_THAT(error_of(with("spacing: 0.001", "spacing: 0.001\n    horizon_facter: 2")),
               StartsWith("scene.yaml:14: bodies.sheet.horizon_facter: unknown key; expected one of: kind,"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    sfety: 1")),
@@ -862,7 +866,7 @@ TEST(SceneErrors, Stages) {
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    safety_factor: 1.5")),
               StartsWith("scene.yaml:16: stages.0.safety_factor: expected a number in (0, 1], got 1.5"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    kind: static")),
-              StartsWith("scene.yaml:16: stages.0.kind: expected one of: dynamic; got static"));
+              StartsWith("scene.yaml:16: stages.0.kind: expected one of: dynamic, quasistatic, release; got static"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n  - {name: stage0, duration: 1}")),
               StartsWith("scene.yaml:16: stages.1.name: duplicate stage name 'stage0'"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  []")),
@@ -909,3 +913,71 @@ TEST(SceneErrors, EmptyOrNotAMap) {
 }
 
 }  // namespace
+
+// Quasi-static and release stages
+
+const std::string kStaged = R"(name: staged
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 2}
+bodies:
+  sheet: {material: rubber, origin: [0, 0, 0], size: [0.01, 0.01], thickness: 0.0005, spacing: 0.001}
+cracks:
+  - {name: slit, from: [0.004, 0.005, 0], to: [0.006, 0.005, 0]}
+boundaries:
+  - {name: top, region: {min: [0, 0.0095, 0], max: [0.01, 0.01, 0]}, components: [y]}
+  - {name: bottom, region: {min: [0, 0, 0], max: [0.01, 0.0005, 0]}, components: [y]}
+stages:
+  - {name: preload, kind: quasistatic, displacements: {top: [0, 0.002, 0]}, load_steps: 4}
+  - {name: cut, kind: release, cracks: [slit]}
+  - {name: run, duration: 1.0e-5, damping: 100, boundary_velocity: {top: [0, 1, 0]}}
+)";
+
+TEST(SceneStages, QuasiStaticReleaseAndDynamicKeys) {
+  const Scene s = peri::parse_scene(kStaged, "scene.yaml");
+  ASSERT_EQ(s.stages.size(), 3u);
+  EXPECT_EQ(s.stages[0].kind, peri::StageKind::QuasiStatic);
+  ASSERT_EQ(s.stages[0].displacements.size(), 1u);
+  EXPECT_EQ(s.stages[0].displacements[0].boundary, "top");
+  EXPECT_DOUBLE_EQ(s.stages[0].displacements[0].value[1], 0.002);
+  EXPECT_EQ(s.stages[0].load_steps, 4);
+  EXPECT_TRUE(s.stages[0].in_plane);
+  EXPECT_EQ(s.stages[1].kind, peri::StageKind::Release);
+  EXPECT_EQ(s.stages[1].cracks, std::vector<std::string>{"slit"});
+  EXPECT_TRUE(s.released_later("slit"));
+  EXPECT_DOUBLE_EQ(s.stages[2].damping, 100.0);
+  ASSERT_EQ(s.stages[2].boundary_velocity.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.stages[2].boundary_velocity[0].value[1], 1.0);
+  // Round trip of the resolved form.
+  const std::string once = peri::emit_scene(s);
+  EXPECT_EQ(peri::emit_scene(peri::parse_scene(once, "resolved.yaml")), once);
+}
+
+TEST(SceneStages, Errors) {
+  const auto staged = [](const std::string& from, const std::string& to) {
+    std::string t = kStaged;
+    const auto at = t.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return error_of(t.replace(at, from.size(), to));
+  };
+  EXPECT_THAT(staged("displacements: {top:", "displacements: {tpo:"),
+              StartsWith("scene.yaml:12: stages.0.displacements.tpo: no boundary named 'tpo'; defined: top, bottom"));
+  EXPECT_THAT(staged("cracks: [slit]", "cracks: [slot]"),
+              StartsWith("scene.yaml:13: stages.1.cracks.0: no crack named 'slot'; defined: slit"));
+  EXPECT_THAT(staged("cracks: [slit]", "cracks: []"),
+              StartsWith("scene.yaml:13: stages.1.cracks: expected a non-empty list of crack names"));
+  EXPECT_THAT(staged("load_steps: 4", "load_steps: 4, duration: 1"),
+              StartsWith("scene.yaml:12: stages.0.duration: this key belongs to dynamic stages; this stage is quasistatic"));
+  EXPECT_THAT(staged("damping: 100", "damping: -1"),
+              StartsWith("scene.yaml:14: stages.2.damping: expected a non-negative number [1/s], got -1"));
+  EXPECT_THAT(staged("damping: 100", "damping: 100, cracks: [slit]"),
+              StartsWith("scene.yaml:14: stages.2.cracks: this key belongs to release stages; this stage is dynamic"));
+  EXPECT_THAT(staged("load_steps: 4", "load_steps: 4, max_load_steps: 2"),
+              StartsWith("scene.yaml:12: stages.0.max_load_steps: expected an integer >= load_steps (4), got 2"));
+  EXPECT_THAT(staged("  - {name: run, duration: 1.0e-5, damping: 100, boundary_velocity: {top: [0, 1, 0]}}\n", ""),
+              StartsWith("scene.yaml:12: stages: expected at least one stage of kind dynamic"));
+  EXPECT_THAT(staged("  - {name: cut, kind: release, cracks: [slit]}\n",
+                     "  - {name: cut, kind: release, cracks: [slit]}\n  - {name: again, kind: release, cracks: [slit]}\n"),
+              HasSubstr("crack 'slit' is already released by stage 'cut'"));
+  EXPECT_THAT(error_of(kStaged + "stability: {energy_error: -0.1}\n"),
+              StartsWith("scene.yaml:15: stability.energy_error: expected a non-negative number, got -0.1"));
+}

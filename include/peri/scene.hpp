@@ -144,17 +144,58 @@ struct Initial {
   double seed_wavelength_y = 0.0;  ///< Ly [m]
 };
 
-enum class StageKind { Dynamic };
+enum class StageKind {
+  Dynamic,      ///< explicit velocity Verlet over a duration
+  QuasiStatic,  ///< static equilibrium by PETSc SNES with load stepping (no time passes)
+  Release,      ///< break the bonds crossing named cracks, velocities set to zero (no time passes)
+};
+
+/// A velocity or displacement given to a named boundary by one stage.
+struct BoundaryValue {
+  std::string boundary;  ///< name of an entry of Scene::boundaries
+  Vec3 value{0, 0, 0};
+};
 
 struct Stage {
   std::string name;
   SourceLoc where;
   StageKind kind = StageKind::Dynamic;
+  // Dynamic stages.
   double duration = 0.0;               ///< simulated time [s] (> 0); 0 when only steps is given
   std::optional<long> steps;           ///< number of steps; overrides duration
   std::optional<double> dt;            ///< time step [s]; default safety_factor * stable bound
   double safety_factor = 0.7;          ///< (0, 1]
   bool allow_unstable_dt = false;      ///< accept a dt above the stable bound
+  double damping = 0.0;                ///< mass-proportional viscous damping alpha [1/s] (>= 0)
+  /// Constant velocity of named boundaries during this stage (replaces their scene velocity and
+  /// ramp for the stage) [m/s].
+  std::vector<BoundaryValue> boundary_velocity;
+  // Quasi-static stages.
+  /// Displacement of named boundaries reached at the end of the stage, added to where they are
+  /// at its start (prescribed components only) [m]. Boundaries not named keep their position.
+  std::vector<BoundaryValue> displacements;
+  /// Affine part of the same: constrained components also move by H (X - initial.center) over the
+  /// stage (3x3 row-major, dimensionless; e.g. a homogeneous stretch of boundary bands).
+  std::array<double, 9> displacement_gradient{};
+  long load_steps = 10;         ///< initial number of load increments (adaptive afterwards)
+  long max_load_steps = 1000;   ///< increments, cut-backs included, before giving up
+  bool in_plane = true;         ///< membranes: out-of-plane components held where they are
+  bool matrix_free = false;     ///< Newton-Krylov without the assembled tangent (-snes_mf)
+  double jacobian_shift = 1e-8; ///< regularization of the tangent's diagonal (relative; not of the residual)
+  long max_break_passes = 100;  ///< re-equilibrations per increment while bonds keep breaking
+  // Release stages.
+  std::vector<std::string> cracks;  ///< names of entries of Scene::cracks broken by this stage
+};
+
+/// Instability detectors of explicit stages (checked whenever energies or frames are written,
+/// and every 20 steps).
+struct Stability {
+  /// Stop when |E(t) - E(0)| exceeds this fraction of the energy scale (E: kinetic + strain +
+  /// dissipated - external work). 0 disables.
+  double energy_error = 0.05;
+  /// Stop when a node moves more than this fraction of its body's grid spacing in one step (a stable
+  /// step moves a node by at most about safety_factor * (material speed / wave speed) spacings).
+  double motion_per_step = 1.0;
 };
 
 struct Output {
@@ -174,10 +215,13 @@ struct Scene {
   std::vector<Boundary> boundaries;
   Initial initial;
   std::vector<Stage> stages;
+  Stability stability;
   Output output;
 
   const Material& material(const std::string& name) const;  ///< InputError if unknown
   int material_index(const std::string& name) const;        ///< -1 if unknown
+  /// True when a release stage names the crack (it is then not broken at the start).
+  bool released_later(const std::string& crack) const;
 };
 
 /// Command-line override "path.to.key=value"; value is parsed as YAML (scalars, [a, b], {k: v}).

@@ -14,6 +14,7 @@
 #include "peri/forces.hpp"
 #include "peri/marder.hpp"
 #include "peri/output.hpp"
+#include "peri/quasistatic.hpp"
 #include "peri/state.hpp"
 
 namespace peri {
@@ -33,13 +34,17 @@ struct RunSummary {
   double partition_seconds = 0;
   std::int64_t edge_cut = 0;
   EnergyRow final_energy;
-  double initial_total_energy = 0;
+  double initial_total_energy = 0;  ///< total at the start of the explicit part (after quasi-static stages)
   double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
+  /// Quasi-static stages run: (stage name, figures).
+  std::vector<std::pair<std::string, QuasiStaticStats>> quasistatic;
+  /// Per quasi-static stage: |W_reactions - (dU + D)| / W_reactions (trapezoidal work).
+  std::vector<double> quasistatic_work_error;
   std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
   std::string to_json() const;
 };
 
-class Simulation {
+class Simulation : public EquilibriumModel {
  public:
   /// Builds everything and validates what needs the discretization (regions, time steps).
   /// Throws InputError before any file is written.
@@ -74,13 +79,26 @@ class Simulation {
   std::vector<std::pair<std::int64_t, std::int64_t>> broken_bonds();
   /// Current energies (collective).
   EnergyRow energies();
+
+  // EquilibriumModel (the quasi-static loader's view; also used by tests). Collective.
+  void set_displacement(const double* u_owned) override;
+  void get_displacement(double* u_owned) override;
+  void internal_force(double* f_owned) override;
+  void add_tangent(Mat J) override;
+  std::int64_t break_bonds() override;
+  /// Loader for quasi-static stage `s` (sized for this run's bonds).
+  std::unique_ptr<QuasiStaticLoader> make_loader(const Stage& stage);
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
 
  private:
   void apply_initial_conditions();
-  void compute_forces(bool with_energy);
+  void compute_forces(bool with_energy, bool intact = false);  // intact: laws that never break
+  void start_stage();               // stage_: set its boundaries and step, or run it (no-time stages)
+  void run_quasistatic(const Stage& stage);
+  void run_release(const Stage& stage);
   void step(bool with_energy);
+  bool has_intact_bond(std::int32_t row) const;
   void check_health(std::int64_t step, double time);
   void write_frame();
   void write_series_row();
@@ -107,6 +125,18 @@ class Simulation {
   std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
   bool has_lattice_ = false;
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
+  std::vector<BondLaw> intact_laws_;    // same, never breaking (quasi-static residuals, tangents)
+  struct ActiveBoundary {
+    Vec3 velocity{0, 0, 0};
+    double ramp_time = 0;
+  };
+  std::vector<ActiveBoundary> active_bc_;  // per boundary, in the current stage
+  double damping_ = 0;                     // current stage's viscous damping [1/s]
+  double damping_work_ = 0;                // this rank's energy removed by damping [J]
+  std::vector<double> motion_limit2_;      // per body: (motion_per_step * spacing)^2
+  long long unstable_node_ = -1;           // natural id of a node that moved too far in one step
+  double unstable_motion_ = 0;
+  bool stage_started_ = false;
   std::vector<double> density_;         // per body
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
   std::vector<double> inv_density_, mass_;  // per owned node
