@@ -13,6 +13,7 @@ std::int64_t count_along(double length, double dx) {
 
 // Number of neighbours inside a horizon of m spacings (continuum estimate + boundary cells).
 double neighbours_estimate(const Body& b) {
+  if (b.kind == BodyKind::Lattice) return 6.0;  // nearest neighbours of a triangular lattice
   const double m = b.horizon_value() / b.spacing + 0.71;
   return b.kind == BodyKind::Solid ? 4.18879 * m * m * m : 3.14159 * m * m;
 }
@@ -25,7 +26,7 @@ SizeEstimate estimate_size(const Scene& scene) {
     double n = 1;
     const int dims = b.kind == BodyKind::Solid ? 3 : 2;
     for (int d = 0; d < dims; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
-    if (b.grid == Grid::Hexagonal) n *= 2.0 / std::sqrt(3.0);
+    if (b.grid == Grid::Hexagonal || b.kind == BodyKind::Lattice) n *= 2.0 / std::sqrt(3.0);
     e.nodes += n;
     e.bonds += n * neighbours_estimate(b);
   }
@@ -61,9 +62,16 @@ Nodes discretize(const Scene& scene) {
       nodes.volume.push_back(vol);
       nodes.body.push_back(static_cast<int>(bi));
     };
-    if (b.kind == BodyKind::Membrane) {
+    if (b.kind == BodyKind::Lattice) {
+      // Marder's triangular lattice: the hexagonal grid below, bonds to the six nearest
+      // neighbours only (next-nearest ones are sqrt(3) Delta away).
+      g.grid = Grid::Hexagonal;
+      g.quadrature = Quadrature::Full;
+      g.horizon = 1.1 * dx;
+    }
+    if (b.kind != BodyKind::Solid) {
       g.thickness = b.thickness;
-      if (b.grid == Grid::Square) {
+      if (g.grid == Grid::Square) {
         // Cell-centred square grid: node (i, j) sits at the centre of its dx-by-dx cell.
         const std::int64_t nx = count_along(b.size[0], dx), ny = count_along(b.size[1], dx);
         g.cells = {nx, ny, 1};

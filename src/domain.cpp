@@ -80,7 +80,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
       }
       d.bonds.neighbor[b] = lj;
       if (any_partial) d.bonds.weight[b] = static_cast<float>(nbr_weight[b]);
-      if (nodes.bodies[nodes.body[i]].kind == BodyKind::Membrane) {
+      if (nodes.bodies[nodes.body[i]].kind != BodyKind::Solid) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
         const double* c = &nodes.X[3 * std::max(i, j)];

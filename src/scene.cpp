@@ -18,6 +18,8 @@
 #include "peri/scene.hpp"
 
 #include <yaml-cpp/eventhandler.h>
+#include "peri/marder.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -419,7 +421,7 @@ const Keys kSceneKeys = {
 };
 
 const Keys kMaterialKeys = {
-    {"model", true, "force law: membrane or pmb"},
+    {"model", true, "force law: membrane, pmb or marder"},
     {"density", true, "mass density, kg/m^3"},
     {"wave_speed", false, ""},
     {"bulk_modulus", false, ""},
@@ -429,7 +431,14 @@ const Keys kMaterialKeys = {
     {"critical_stretch", false, ""},
     {"critical_stretch_at_horizon", false, ""},
     {"hardening", false, ""},
+    {"mooney_rivlin_a", false, ""},
+    {"mooney_rivlin_b", false, ""},
+    {"cutoff", false, ""},
+    {"fracture_separation", false, ""},
+    {"breaking", false, ""},
 };
+
+const char* const kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking"};
 
 const Keys kHardeningKeys = {
     {"coefficient", true, "hardening coefficient c', >= 0"},
@@ -447,6 +456,12 @@ const Keys kBodyKeys = {
     {"horizon_factor", false, ""},
     {"horizon", false, ""},
     {"quadrature", false, ""},
+    {"breakable", false, ""},
+};
+
+const Keys kBoxKeys = {
+    {"min", true, "lower corner [x, y, z], m"},
+    {"max", true, "upper corner [x, y, z], m"},
 };
 
 const Keys kCrackKeys = {
@@ -578,13 +593,38 @@ double critical_value(const Value& v, ModelKind model) {
   return x;
 }
 
+/// The marder model's keys: its four constants (no peridynamic stiffness, influence, failure
+/// stretch or hardening), and the breaking mode.
+Material read_marder_material(const Map& m, Material mat) {
+  for (const char* key : {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus", "influence",
+                          "critical_stretch", "critical_stretch_at_horizon", "hardening"})
+    if (auto x = m.get(key))
+      x->fail("not used by the marder model (its stiffness is mooney_rivlin_a, mooney_rivlin_b; its failure "
+              "fracture_separation)");
+  for (const char* key : {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation"})
+    if (!m.given(key)) m.missing(key, "required by the marder model");
+  MarderParams p;
+  p.a = m.at("mooney_rivlin_a").positive("J/kg");
+  p.b = m.at("mooney_rivlin_b").number("a number");
+  p.cutoff = m.at("cutoff").positive("m");
+  p.fracture_separation = m.at("fracture_separation").positive("m");
+  if (auto x = m.get("breaking"))
+    p.reversible = x->choice<bool>({{"irreversible", false}, {"reversible", true}});
+  mat.marder = p;
+  return mat;
+}
+
 Material read_material(const std::string& name, const Value& v) {
   const Map m(v, &kMaterialKeys, "a map describing the material");
   Material mat;
   mat.name = name;
   mat.where = m.where();
-  mat.model = m.at("model").choice<ModelKind>({{"membrane", ModelKind::Membrane}, {"pmb", ModelKind::PMB}});
+  mat.model = m.at("model").choice<ModelKind>(
+      {{"membrane", ModelKind::Membrane}, {"pmb", ModelKind::PMB}, {"marder", ModelKind::Marder}});
   mat.density = m.at("density").positive("kg/m^3");
+  if (mat.model == ModelKind::Marder) return read_marder_material(m, std::move(mat));
+  for (const char* key : kMarderKeys)
+    if (auto x = m.get(key)) x->fail("only the marder model takes this key (model is " + m.at("model").string() + ")");
 
   int stiffness_given = 0;
   for (const char* key : kStiffnessKeys) stiffness_given += m.given(key) ? 1 : 0;
@@ -625,8 +665,9 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
   b.name = name;
   b.where = m.where();
   if (auto x = m.get("kind"))
-    b.kind = x->choice<BodyKind>({{"membrane", BodyKind::Membrane}, {"solid", BodyKind::Solid}});
-  const bool membrane = b.kind == BodyKind::Membrane;
+    b.kind = x->choice<BodyKind>(
+        {{"membrane", BodyKind::Membrane}, {"solid", BodyKind::Solid}, {"lattice", BodyKind::Lattice}});
+  const bool membrane = b.kind != BodyKind::Solid;  // membranes and lattices are flat sheets
 
   const Value material = m.at("material");
   b.material = material.name();
@@ -636,6 +677,12 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
     for (const Material& mat : materials) defined.push_back(mat.name);
     material.fail("no material named '" + b.material + "'; defined: " + join(defined));
   }
+  const Material& mat = *std::find_if(materials.begin(), materials.end(),
+                                      [&](const Material& x) { return x.name == b.material; });
+  if ((b.kind == BodyKind::Lattice) != (mat.model == ModelKind::Marder))
+    material.fail(b.kind == BodyKind::Lattice
+                      ? "a lattice body needs a material with model: marder, got '" + b.material + "'"
+                      : "material '" + b.material + "' has model: marder, which needs a body with kind: lattice");
 
   b.origin = m.at("origin").vec3("m");
 
@@ -671,6 +718,33 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
   if (b.spacing > smallest)
     spacing.fail("spacing must not exceed the smallest extent of size (" + format_number(smallest) +
                  " m), got " + spacing.got());
+
+  if (b.kind == BodyKind::Lattice) {
+    // Nearest neighbours of a triangular lattice: no grid, horizon or quadrature to choose.
+    for (const char* key : {"grid", "horizon_factor", "horizon", "quadrature"})
+      if (auto x = m.get(key)) x->fail("not used by a lattice body (triangular lattice, six nearest neighbours)");
+    const MarderParams& p = *mat.marder;
+    const std::string why = marder_parameter_problem(p.a, p.b, b.spacing, p.cutoff, p.fracture_separation);
+    if (!why.empty())
+      spacing.fail("lattice spacing " + spacing.got() + " m with material '" + b.material + "' (a = " +
+                   format_number(p.a) + ", b = " + format_number(p.b) + ", cutoff = " + format_number(p.cutoff) +
+                   ", fracture_separation = " + format_number(p.fracture_separation) + "): " + why);
+    b.grid = Grid::Hexagonal;
+    b.quadrature = Quadrature::Full;
+    if (auto x = m.get("breakable")) {
+      const Map box(*x, &kBoxKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+      const Vec3 lo = box.at("min").vec3("m");
+      const Value max = box.at("max");
+      const Vec3 hi = max.vec3("m");
+      for (int d = 0; d < 3; ++d)
+        if (lo[d] > hi[d])
+          max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+                   format_number(lo[d]) + " > max " + format_number(hi[d]));
+      b.breakable = std::array<Vec3, 2>{lo, hi};
+    }
+  } else if (auto x = m.get("breakable")) {
+    x->fail("only a lattice body takes breakable (peridynamic bonds break by their material's critical_stretch)");
+  }
 
   if (auto x = m.get("grid")) {
     b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
@@ -1159,9 +1233,13 @@ std::string flow(const std::array<double, 9>& m) {
          "]";
 }
 
-const char* to_text(ModelKind k) { return k == ModelKind::Membrane ? "membrane" : "pmb"; }
+const char* to_text(ModelKind k) {
+  return k == ModelKind::Membrane ? "membrane" : k == ModelKind::PMB ? "pmb" : "marder";
+}
 const char* to_text(Influence k) { return k == Influence::Constant ? "constant" : "conical"; }
-const char* to_text(BodyKind k) { return k == BodyKind::Membrane ? "membrane" : "solid"; }
+const char* to_text(BodyKind k) {
+  return k == BodyKind::Membrane ? "membrane" : k == BodyKind::Solid ? "solid" : "lattice";
+}
 const char* to_text(Grid k) { return k == Grid::Square ? "square" : "hexagonal"; }
 const char* to_text(Quadrature k) { return k == Quadrature::Full ? "full" : "partial_area"; }
 const char* to_text(StageKind k) {
@@ -1194,6 +1272,14 @@ void emit_material(Writer& w, const Material& m) {
   w.key(2, yaml_string(m.name), "");
   w.key(4, "model", to_text(m.model));
   w.key(4, "density", m.density);
+  if (m.marder) {
+    w.key(4, "mooney_rivlin_a", m.marder->a);
+    w.key(4, "mooney_rivlin_b", m.marder->b);
+    w.key(4, "cutoff", m.marder->cutoff);
+    w.key(4, "fracture_separation", m.marder->fracture_separation);
+    w.key(4, "breaking", m.marder->reversible ? "reversible" : "irreversible");
+    return;
+  }
   w.optional(4, "wave_speed", m.wave_speed);
   w.optional(4, "bulk_modulus", m.bulk_modulus);
   w.optional(4, "youngs_modulus", m.youngs_modulus);
@@ -1209,7 +1295,7 @@ void emit_material(Writer& w, const Material& m) {
 }
 
 void emit_body(Writer& w, const Body& b) {
-  const bool membrane = b.kind == BodyKind::Membrane;
+  const bool membrane = b.kind != BodyKind::Solid;
   w.key(2, yaml_string(b.name), "");
   w.key(4, "kind", to_text(b.kind));
   w.key(4, "material", yaml_string(b.material));
@@ -1217,6 +1303,9 @@ void emit_body(Writer& w, const Body& b) {
   w.key(4, "size", membrane ? flow({b.size[0], b.size[1]}) : flow(b.size));
   if (membrane) w.key(4, "thickness", b.thickness);
   w.key(4, "spacing", b.spacing);
+  if (b.breakable)
+    w.key(4, "breakable", "{min: " + flow((*b.breakable)[0]) + ", max: " + flow((*b.breakable)[1]) + "}");
+  if (b.kind == BodyKind::Lattice) return;
   w.key(4, "grid", to_text(b.grid));
   // horizon and horizon_factor exclude each other: write the one in effect.
   if (b.horizon)

@@ -144,7 +144,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     bc_nodes.push_back(select_nodes(nodes_, scene_, b.region, "boundaries." + b.name + ".region"));
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const Material& m = scene_.material(scene_.bodies[b].material);
-    laws_.push_back(calibrate(m, nodes_.bodies[b], scene_.bodies[b].where.str() + ": bodies." + scene_.bodies[b].name));
+    laws_.push_back(scene_.bodies[b].kind == BodyKind::Lattice
+                        ? BondLaw{}
+                        : calibrate(m, nodes_.bodies[b], scene_.bodies[b].where.str() + ": bodies." + scene_.bodies[b].name));
     density_.push_back(m.density);
     BondLaw intact = laws_.back();
     intact.breaks = false;
@@ -172,6 +174,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   boundary_by_body_.resize(nb);
   for (std::int32_t r : domain_.interior_rows) interior_by_body_[domain_.body[r]].push_back(r);
   for (std::int32_t r : domain_.boundary_rows) boundary_by_body_[domain_.body[r]].push_back(r);
+  lattice_setup();
   inv_density_.resize(domain_.owned);
   mass_.resize(domain_.owned);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
@@ -195,6 +198,11 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   BondView view = bond_view();
   double dt_local = std::numeric_limits<double>::infinity();
   for (std::size_t b = 0; b < nb; ++b) {
+    if (marder_[b]) {
+      if (!interior_by_body_[b].empty() || !boundary_by_body_[b].empty())
+        dt_local = std::min(dt_local, marder_stable_time_step(*marder_[b]));
+      continue;
+    }
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
       dt_local = std::min(dt_local, stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
   }
@@ -247,6 +255,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   summary_.partition_seconds = partition_.seconds;
   summary_.edge_cut = partition_.edge_cut;
   for (std::size_t b = 0; b < nb; ++b) {
+    if (marder_[b]) {
+      lattice_derived(b);
+      continue;
+    }
     const std::string p = scene_.bodies[b].name + ".";
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
     summary_.derived.push_back({p + "micromodulus", laws_[b].c});
@@ -351,8 +363,10 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     LocalArray u(state_->displacement());
     view.u = u.data();
     for (std::size_t b = 0; b < laws_.size(); ++b)
-      bond_forces(laws[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
-                  force_.data(), with_energy, t);
+      if (!marder_[b])
+        bond_forces(laws[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
+                    force_.data(), with_energy, t);
+    if (has_lattice_) lattice_forces(view, true, with_energy, t);
   }
   PetscLogEventBegin(events().halo, 0, 0, 0, 0);
   state_->halo_end();
@@ -361,9 +375,12 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     LocalArray u(state_->displacement());
     view.u = u.data();
     for (std::size_t b = 0; b < laws_.size(); ++b)
-      bond_forces(laws[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
-                  force_.data(), with_energy, t);
+      if (!marder_[b])
+        bond_forces(laws[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
+                    force_.data(), with_energy, t);
+    if (has_lattice_) lattice_forces(view, false, with_energy, t);
   }
+  if (has_lattice_) lattice_reduce();
   tally_.dissipated += t.dissipated;
   tally_.newly_broken += t.newly_broken;
   tally_.strain_energy = t.strain_energy;
@@ -372,7 +389,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
 
 bool Simulation::has_intact_bond(std::int32_t row) const {
   for (std::int64_t b = domain_.bonds.offsets[row]; b < domain_.bonds.offsets[row + 1]; ++b)
-    if (!domain_.bonds.broken[b]) return true;
+    if (!(domain_.bonds.broken[b] & 1)) return true;  // bit 0: broken (lattices keep other bits)
   return false;
 }
 
@@ -462,7 +479,9 @@ EnergyRow Simulation::energies() {
   {
     LocalArray u(state_->displacement());
     view.u = u.data();
+    if (has_lattice_) strain += lattice_energy(view);
     for (std::size_t b = 0; b < laws_.size(); ++b) {
+      if (marder_[b]) continue;
       strain += bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size());
       strain += bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size());
     }
@@ -910,7 +929,7 @@ std::vector<std::pair<std::int64_t, std::int64_t>> Simulation::broken_bonds() {
   std::vector<long long> mine;
   for (std::int32_t i = 0; i < domain_.owned; ++i)
     for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b)
-      if (domain_.bonds.broken[b]) {
+      if (domain_.bonds.broken[b] & 1) {  // bit 0: broken (lattices keep other bits)
         const long long a = domain_.natural[i], c = domain_.natural[domain_.bonds.neighbor[b]];
         if (a < c) mine.insert(mine.end(), {a, c});
         else mine.insert(mine.end(), {c, a});

@@ -23,6 +23,8 @@ State::State(const Domain& d, MPI_Comm comm) : comm_(comm), owned_(d.owned) {
   Vec u, v;
   PERI_PETSC(VecCreateGhostBlock(comm, 3, 3 * d.owned, 3 * d.global_nodes, nghost, ghosts.data(), &u));
   PERI_PETSC(VecDuplicate(u, &v));
+  ghost_globals_ = ghosts;
+  global_nodes_ = d.global_nodes;
   u_ = OwnedVec(u);
   v_ = OwnedVec(v);
   PERI_PETSC(VecZeroEntries(u));
@@ -75,6 +77,23 @@ void State::halo_begin() {
 
 void State::halo_end() {
   PERI_PETSC(VecGhostUpdateEnd(u_.get(), INSERT_VALUES, SCATTER_FORWARD));
+}
+
+void State::enable_force_accumulation(int bs) {
+  if (f_.get()) return;
+  Vec f;
+  PERI_PETSC(VecCreateGhostBlock(comm_, bs, bs * owned_, bs * global_nodes_,
+                                 static_cast<PetscInt>(ghost_globals_.size()), ghost_globals_.data(), &f));
+  PERI_PETSC(VecZeroEntries(f));
+  f_ = OwnedVec(f);
+}
+
+void State::reverse_begin() {
+  PERI_PETSC(VecGhostUpdateBegin(f_.get(), ADD_VALUES, SCATTER_REVERSE));
+}
+
+void State::reverse_end() {
+  PERI_PETSC(VecGhostUpdateEnd(f_.get(), ADD_VALUES, SCATTER_REVERSE));
 }
 
 const double* State::to_natural(const double* owned_values, int bs) {

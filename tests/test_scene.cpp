@@ -626,7 +626,8 @@ TEST(SceneErrors, UnknownKey) {
   EXPECT_EQ(error_of(with("density: 1200", "densty: 1200")),
             "scene.yaml:5: materials.rubber.densty: unknown key; expected one of: model, density, "
             "wave_speed, bulk_modulus, youngs_modulus, micromodulus, influence, critical_stretch, "
-            "critical_stretch_at_horizon, hardening");
+            "critical_stretch_at_horizon, hardening, mooney_rivlin_a, mooney_rivlin_b, cutoff, fracture_separation, "
+            "breaking");
   EXPECT_THAT(error_of(kBase + "outptu: {frames: 2}\n"),
               AllOf(StartsWith("scene.yaml:16: outptu: unknown key; expected one of: name, "),
                     HasSubstr("stages, stability, output")));
@@ -689,7 +690,7 @@ TEST(SceneErrors, WrongType) {
   EXPECT_THAT(error_of(kBase + "output: {velocity: yes}\n"),
               StartsWith("scene.yaml:16: output.velocity: expected true or false, got yes"));
   EXPECT_THAT(error_of(with("model: membrane", "model: rubbery")),
-              StartsWith("scene.yaml:4: materials.rubber.model: expected one of: membrane, pmb; "
+              StartsWith("scene.yaml:4: materials.rubber.model: expected one of: membrane, pmb, marder; "
                          "got rubbery"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - 3")),
               StartsWith("scene.yaml:15: stages.0: expected a map describing the stage, got 3"));

@@ -17,6 +17,7 @@ using Vec3 = std::array<double, 3>;
 enum class ModelKind {
   Membrane,  ///< rubbery membrane micropotential, eqs. (13), (15); optional hardening (16)
   PMB,       ///< prototype microelastic brittle bond: force c*s*g, s = lambda - 1
+  Marder,    ///< Marder's two- and three-body lattice law, eqs. (28)-(33) (lattice bodies only)
 };
 
 /// Influence function g(|xi|) of eq. (13).
@@ -34,6 +35,7 @@ enum class Quadrature {
 enum class BodyKind {
   Membrane,  ///< flat rectangle of nodes, measure = cell area * thickness
   Solid,     ///< box of simple-cubic points, measure = dx^3
+  Lattice,   ///< triangular lattice of spacing Delta, nearest neighbours (Marder model)
 };
 
 enum class Grid { Square, Hexagonal };
@@ -43,6 +45,15 @@ enum class Grid { Square, Hexagonal };
 struct Hardening {
   double coefficient = 0.0;  ///< c' [same unit as the micromodulus c]
   double exponent = 2.0;     ///< n > 1
+};
+
+/// Constants of Marder's lattice law (Marder paper eqs. 6, 27, 31-33).
+struct MarderParams {
+  double a = 0;                    ///< Mooney-Rivlin a of W/rho = a [J1 + b J2] [J/kg]
+  double b = 0;                    ///< Mooney-Rivlin b [-]
+  double cutoff = 0;               ///< u_s, short-distance cutoff [m]
+  double fracture_separation = 0;  ///< u_c, separation at which a bond fails [m]
+  bool reversible = false;         ///< bonds heal below u_c (default: irreversible)
 };
 
 struct Material {
@@ -64,6 +75,7 @@ struct Material {
   /// is Lambda_0, the value at |xi| = 0). Same meaning (stretch or strain) as critical_stretch.
   std::optional<double> critical_stretch_at_horizon;
   std::optional<Hardening> hardening;  ///< membrane model only
+  std::optional<MarderParams> marder;  ///< model marder only
 };
 
 struct Body {
@@ -79,6 +91,10 @@ struct Body {
   double horizon_factor = 3.0;          ///< m in delta = m*dx (>= 1); ignored when horizon set
   std::optional<double> horizon;        ///< delta [m] (>= spacing)
   Quadrature quadrature = Quadrature::PartialArea;
+  /// Lattice bodies: only bonds with both ends inside this box [min, max] (reference positions)
+  /// may break; empty = every bond (Marder's simulations often let bonds break only along the
+  /// crack line, so that the crack neither branches nor tears the clamped edges).
+  std::optional<std::array<Vec3, 2>> breakable;
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
 };
 

@@ -7,11 +7,13 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "peri/forces.hpp"
+#include "peri/marder.hpp"
 #include "peri/output.hpp"
 #include "peri/quasistatic.hpp"
 #include "peri/state.hpp"
@@ -128,6 +130,12 @@ class Simulation : public EquilibriumModel {
   void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
   void restore_summary_extras(const Checkpoint& c);  // figures of stages before the checkpoint
   bool checkpoint_due(bool poll);                 // collective at poll steps; sets stopped_
+  // Marder lattice bodies (src/simulation_lattice.cpp); nothing is built when there is none.
+  void lattice_setup();
+  void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally);
+  void lattice_reduce();
+  double lattice_energy(const BondView& view);
+  void lattice_derived(std::size_t body);
 
   Scene scene_;
   MPI_Comm comm_;
@@ -138,6 +146,9 @@ class Simulation : public EquilibriumModel {
   Domain domain_;
   std::unique_ptr<State> state_;
   std::vector<BondLaw> laws_;           // per body
+  std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
+  bool has_lattice_ = false;
+  std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   std::vector<BondLaw> intact_laws_;    // same, never breaking (quasi-static residuals, tangents)
   struct ActiveBoundary {
     Vec3 velocity{0, 0, 0};

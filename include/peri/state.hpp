@@ -77,7 +77,19 @@ class State {
   std::int64_t natural_count() const { return nat_count_; }
   MPI_Comm comm() const { return comm_; }
 
+  /// Ghosted force accumulator (block size bs per node) for terms whose force lands on ghosts
+  /// (Marder's three-body forces): created on first call. Kernels write into its local form
+  /// (owned + ghosts); the reverse update adds every ghost entry into its owner (ADD_VALUES,
+  /// SCATTER_REVERSE).
+  void enable_force_accumulation(int bs);
+  Vec force_accumulator() const { return f_.get(); }
+  void reverse_begin();
+  void reverse_end();
+
  private:
+  OwnedVec f_;
+  std::vector<PetscInt> ghost_globals_;
+  std::int64_t global_nodes_ = 0;
   MPI_Comm comm_;
   OwnedVec u_, v_;
   OwnedVec owned1_, owned3_, nat1_, nat3_;  // solver-order and natural-order work vectors

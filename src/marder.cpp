@@ -1,0 +1,225 @@
+#include "peri/marder.hpp"
+
+#include <algorithm>
+#include <sstream>
+
+namespace peri {
+namespace {
+
+constexpr std::uint8_t kBrokenBit = 1;  // the same bit the peridynamic loop and node_damage use
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+std::string marder_parameter_problem(double a, double b, double delta, double us, double uc) {
+  if (!(a > 0))
+    return "the Mooney-Rivlin constant a must be > 0 (a <= 0 gives no tension and no wave speed), got a = " +
+           num(a);
+  if (!(delta > 0)) return "the lattice spacing must be > 0, got " + num(delta);
+  if (!(us > 0)) return "the cutoff u_s must be > 0, got " + num(us);
+  if (!(uc > delta + us))
+    return "the fracture separation u_c = " + num(uc) + " m must exceed Delta + u_s = " + num(delta + us) +
+           " m: bonds would break before the lattice reaches the Mooney-Rivlin range (eq. 31)";
+  if (!(b < 2))
+    return "b = " + num(b) +
+           " >= 2 makes the stretched sheet lose its shear stiffness (c_s^2 = a (1 - b/2) <= 0); expected b < 2";
+  if (!(b < delta / us) || !(b > -2 * delta / us))
+    return "b = " + num(b) + " makes the unstretched lattice unstable: its cutoff branch (eq. 31) is stable to "
+           "homogeneous shear and dilatation only for -2 Delta/u_s < b < Delta/u_s, here (" +
+           num(-2 * delta / us) + ", " + num(delta / us) + "); expected a larger Delta/u_s or a smaller |b|";
+  return {};
+}
+
+MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass, bool reversible) {
+  MarderLaw law;
+  law.a = a;
+  law.b = b;
+  law.delta = delta;
+  law.us = us;
+  law.uc = uc;
+  law.mass = mass;
+  law.reversible = reversible;
+  const double d2 = delta * delta;
+  law.A = mass * a / d2;                    // eq. (27), rho = mass per node (eq. 25)
+  law.B = 9.0 * mass * a * b / (8.0 * d2 * d2);
+  return law;
+}
+
+double marder_node(const MarderLaw& law, int n, const double* d, const std::uint8_t* active,
+                   double* grad) noexcept {
+  double r[kMarderMaxNeighbours], hv[kMarderMaxNeighbours], hr[kMarderMaxNeighbours];
+  double energy = 0;
+  const double rmin = 1e-12 * law.delta;  // coincident nodes: no direction, no force
+  for (int j = 0; j < n; ++j) {
+    const double* dj = d + 3 * j;
+    r[j] = std::max(std::sqrt(dj[0] * dj[0] + dj[1] * dj[1] + dj[2] * dj[2]), rmin);
+    double c = 0;
+    hv[j] = hr[j] = 0;
+    if (active[j]) {
+      energy += law.f(r[j]);                // eq. (28)
+      c = law.df(r[j]) / r[j];
+      hv[j] = law.h(r[j]);
+      hr[j] = law.dh(r[j]) / r[j];
+    }
+    if (grad)
+      for (int k = 0; k < 3; ++k) grad[3 * j + k] = c * dj[k];
+  }
+  // eq. (29): sum over ordered pairs j != k = twice the sum over j < k.
+  for (int j = 0; j < n; ++j) {
+    if (hv[j] == 0) continue;
+    const double* dj = d + 3 * j;
+    for (int k = j + 1; k < n; ++k) {
+      if (hv[k] == 0) continue;
+      const double* dk = d + 3 * k;
+      const double X = dj[0] * dk[0] + dj[1] * dk[1] + dj[2] * dk[2];
+      const double gv = law.g(X), hh = hv[j] * hv[k];
+      energy += 2.0 * hh * gv;
+      if (!grad) continue;
+      const double cross = 2.0 * hh * law.dg(X);
+      const double cj = 2.0 * hr[j] * hv[k] * gv, ck = 2.0 * hv[j] * hr[k] * gv;
+      for (int c = 0; c < 3; ++c) {
+        grad[3 * j + c] += cj * dj[c] + cross * dk[c];
+        grad[3 * k + c] += ck * dk[c] + cross * dj[c];
+      }
+    }
+  }
+  return energy;
+}
+
+std::vector<std::uint8_t> marder_directions(const BondView& v, std::int64_t rows) {
+  const double sector = 3.14159265358979323846 / 3.0;
+  std::vector<std::uint8_t> dir(static_cast<std::size_t>(v.offsets[rows]));
+  for (std::int64_t i = 0; i < rows; ++i)
+    for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) {
+      const std::int32_t j = v.neighbor[b];
+      const double a = std::atan2(v.X[3 * j + 1] - v.X[3 * i + 1], v.X[3 * j] - v.X[3 * i]);
+      dir[b] = static_cast<std::uint8_t>(((std::lround(a / sector) % 6) + 6) % 6);
+    }
+  return dir;
+}
+
+void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_t n, double* force) {
+  for (std::size_t r = 0; r < n; ++r) {
+    const std::int32_t i = nodes[r];
+    const double* s = slots + 3 * kMarderSlots * static_cast<std::size_t>(i);
+    for (int c = 0; c < 3; ++c) {
+      double f = s[c];
+      for (int k = 1; k < kMarderSlots; ++k) f += s[3 * k + c];
+      force[3 * i + c] = f;
+    }
+  }
+}
+
+void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows,
+                   const std::uint8_t* direction, double* slots, bool with_energy, BondTally& tally) {
+  double d[3 * kMarderMaxNeighbours], grad[3 * kMarderMaxNeighbours];
+  std::uint8_t active[kMarderMaxNeighbours], before[kMarderMaxNeighbours];
+  const double uc2 = law.uc * law.uc;
+  for (std::size_t r = 0; r < nrows; ++r) {
+    const std::int32_t i = rows[r];
+    const std::int64_t b0 = v.offsets[i];
+    const int n = static_cast<int>(std::min<std::int64_t>(v.offsets[i + 1] - b0, kMarderMaxNeighbours));
+    const double xi[3] = {v.X[3 * i] + v.u[3 * i], v.X[3 * i + 1] + v.u[3 * i + 1], v.X[3 * i + 2] + v.u[3 * i + 2]};
+    int newly = 0;
+    for (int k = 0; k < n; ++k) {
+      const std::int32_t j = v.neighbor[b0 + k];
+      double r2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        // Both rows of a bond compute the same |d| bit for bit (d_ji = -d_ij exactly), so their
+        // break decisions agree on any number of ranks.
+        const double xj = v.X[3 * j + c] + v.u[3 * j + c];
+        d[3 * k + c] = xj - xi[c];
+        r2 += d[3 * k + c] * d[3 * k + c];
+      }
+      std::uint8_t& flag = v.broken[b0 + k];
+      const bool beyond = r2 >= uc2 && !(flag & kMarderUnbreakable);
+      if (law.reversible) {
+        before[k] = active[k] = !(flag & kMarderCut);
+        const std::uint8_t keep = flag & kMarderUnbreakable;
+        const std::uint8_t now =
+            (flag & kMarderCut) ? flag : static_cast<std::uint8_t>(keep | (beyond ? kBrokenBit : 0));
+        newly += (now & kBrokenBit) && !(flag & kBrokenBit);
+        flag = now;
+      } else {
+        before[k] = !(flag & kBrokenBit);
+        if (beyond && before[k]) {
+          flag |= kBrokenBit;
+          ++newly;
+        }
+        active[k] = !(flag & kBrokenBit);
+      }
+    }
+    double energy_before = 0;
+    if (newly && !law.reversible) energy_before = marder_node(law, n, d, before, nullptr);
+    const double energy = marder_node(law, n, d, active, grad);
+    if (newly) {
+      if (!law.reversible) tally.dissipated += energy_before - energy;
+      tally.newly_broken += newly;
+    }
+    if (with_energy) tally.strain_energy += energy;
+    double fi[3] = {0, 0, 0};
+    for (int k = 0; k < n; ++k) {
+      const std::int32_t j = v.neighbor[b0 + k];
+      // This row is the neighbour of j in the direction opposite to j's from i.
+      const int slot = 1 + (direction[b0 + k] + 3) % 6;
+      double* sj = slots + 3 * (kMarderSlots * static_cast<std::size_t>(j) + slot);
+      for (int c = 0; c < 3; ++c) {
+        fi[c] += grad[3 * k + c];
+        sj[c] = -grad[3 * k + c];
+      }
+    }
+    double* si = slots + 3 * kMarderSlots * static_cast<std::size_t>(i);
+    for (int c = 0; c < 3; ++c) si[c] = fi[c];
+  }
+}
+
+double marder_energy(const MarderLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows) {
+  double d[3 * kMarderMaxNeighbours];
+  std::uint8_t active[kMarderMaxNeighbours];
+  double total = 0;
+  for (std::size_t r = 0; r < nrows; ++r) {
+    const std::int32_t i = rows[r];
+    const std::int64_t b0 = v.offsets[i];
+    const int n = static_cast<int>(std::min<std::int64_t>(v.offsets[i + 1] - b0, kMarderMaxNeighbours));
+    for (int k = 0; k < n; ++k) {
+      const std::int32_t j = v.neighbor[b0 + k];
+      for (int c = 0; c < 3; ++c)
+        d[3 * k + c] = (v.X[3 * j + c] + v.u[3 * j + c]) - (v.X[3 * i + c] + v.u[3 * i + c]);
+      const std::uint8_t flag = v.broken[b0 + k];
+      active[k] = law.reversible ? !(flag & kMarderCut) : !(flag & kBrokenBit);
+    }
+    total += marder_node(law, n, d, active, nullptr);
+  }
+  return total;
+}
+
+double marder_stable_time_step(const MarderLaw& law) {
+  const double D = law.delta, us = law.us, uc = law.uc, A = law.A, B = std::fabs(law.B);
+  const double u1 = D + us;
+  const double cutoff = A / 6.0 * (6.0 * u1 - 2.0 * D) / us + 4.0 * B / 9.0 * (3.0 * u1 * u1 - D * D);
+  const double quartic = A / 3.0 + 4.0 * B / 9.0 * (3.0 * uc * uc - D * D);
+  const double pair = 2.0 * std::max(cutoff, quartic);
+  // Three-body terms a bond takes part in (10 ordered pairs of each of its two rows), with
+  // X = d_j . d_k <= u_c^2: |g''| u_c^2 and |g'| from the angular law; the switch h adds
+  // |g| |h''| (|h''| <= 0.1/u_s^2) and 2 |g'| |h'| u_c (|h'| <= 1/(4 u_s)), the stiffest part
+  // when u_s is small: h turns the three-body terms off within a few u_s of u_c.
+  const double t = uc * uc + 2.0 * D * D;
+  const double g_max = B / 27.0 * t * t, dg_max = 2.0 * B / 27.0 * t, ddg = 2.0 * B / 27.0;
+  const double three = 2.0 * 10.0 * (ddg * uc * uc + dg_max + 0.1 * g_max / (us * us) + 0.5 * dg_max * uc / us);
+  return std::sqrt(2.0 * law.mass / (6.0 * (pair + three)));
+}
+
+WaveSpeeds mooney_rivlin_wave_speeds(double a, double b, double /*lambda_along*/, double lambda_across) {
+  WaveSpeeds w;
+  w.longitudinal = std::sqrt(a * (1.0 + 0.5 * b * (lambda_across * lambda_across - 1.0)));
+  w.shear = std::sqrt(a * (1.0 - 0.5 * b));
+  return w;
+}
+
+}  // namespace peri

@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# Hostile lattice (Marder model) input at the driver level, on 2 ranks: each case must exit with
+# status 2, print one message naming file:line, key and why, and leave no output behind.
+# usage: bad_input_lattice.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
+set -u
+peridrive=$1 src=$2 mpiexec=$3
+shift 3
+mpi=("$mpiexec" -n 2 "$@")
+scene=$src/drivers/scenes/supersonic_rubber.yaml
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+pass=0 fail=0
+
+# expect NAME EXPECTED_SUBSTRING -- peridrive arguments...
+expect() {
+  local name=$1 want=$2
+  shift 3
+  local out="$work/out-$name"
+  "${mpi[@]}" "$peridrive" "$@" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+  local rc=$?
+  local msg
+  msg=$(grep -c "peridrive: error:" "$work/stderr")
+  if [ "$rc" -ne 2 ]; then
+    echo "FAIL $name: exit status $rc, expected 2"; cat "$work/stderr"; fail=$((fail + 1))
+  elif ! grep -qF -- "$want" "$work/stderr"; then
+    echo "FAIL $name: message lacks '$want':"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ "$msg" -ne 1 ]; then
+    echo "FAIL $name: expected exactly one error line, got $msg"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ -e "$out" ]; then
+    echo "FAIL $name: output directory $out was created"; fail=$((fail + 1))
+  else
+    echo "ok   $name: $(grep "peridrive: error:" "$work/stderr")"; pass=$((pass + 1))
+  fi
+}
+
+# variant NAME SED_EXPRESSION: a copy of the scene with one edit; prints its path.
+variant() {
+  sed "$2" "$scene" > "$work/$1.yaml"
+  echo "$work/$1.yaml"
+}
+line_of() { grep -n -m1 -- "$2" "$1" | cut -d: -f1; }
+
+f=$(variant uc_too_small 's/fracture_separation: .*/fracture_separation: 0.00051/')
+expect uc_too_small "$f:$(line_of "$f" 'spacing:'): bodies.strip.spacing: lattice spacing 0.0005 m with material 'rubber'" -- "$f"
+expect uc_too_small_why "must exceed Delta + u_s" -- "$f"
+f=$(variant b_no_shear 's/mooney_rivlin_b: .*/mooney_rivlin_b: 2.5/')
+expect b_no_shear "$f:$(line_of "$f" 'spacing:'): bodies.strip.spacing:" -- "$f"
+expect b_no_shear_why "makes the stretched sheet lose its shear stiffness" -- "$f"
+expect b_unstable_reference "makes the unstretched lattice unstable" -- "$scene" --set materials.rubber.mooney_rivlin_b=-3 --set materials.rubber.cutoff=0.0004 --set materials.rubber.fracture_separation=0.002
+f=$(variant a_negative 's/mooney_rivlin_a: .*/mooney_rivlin_a: -1000/')
+expect a_negative "$f:$(line_of "$f" 'mooney_rivlin_a'): materials.rubber.mooney_rivlin_a: expected a positive number [J/kg], got -1000" -- "$f"
+f=$(variant no_cutoff '/cutoff:/d')
+expect no_cutoff "materials.rubber: missing required key 'cutoff'" -- "$f"
+f=$(variant stiffness_key 's/density: 1000/density: 1000\n    wave_speed: 30/')
+expect stiffness_key "$f:$(line_of "$f" 'wave_speed'): materials.rubber.wave_speed: not used by the marder model" -- "$f"
+f=$(variant bad_breaking 's/breaking: irreversible/breaking: sometimes/')
+expect bad_breaking "materials.rubber.breaking: expected one of: irreversible, reversible; got sometimes" -- "$f"
+f=$(variant lattice_grid 's/spacing: 0.0005/spacing: 0.0005\n    grid: square/')
+expect lattice_grid "$f:$(line_of "$f" 'grid:'): bodies.strip.grid: not used by a lattice body" -- "$f"
+f=$(variant membrane_marder 's/kind: lattice/kind: membrane/')
+expect membrane_marder "bodies.strip.material: material 'rubber' has model: marder, which needs a body with kind: lattice" -- "$f"
+f=$(variant lattice_pmb 's/model: marder/model: pmb\n    bulk_modulus: 1.0e6/; /mooney_rivlin\|cutoff\|fracture_separation\|breaking/d')
+expect lattice_pmb "bodies.strip.material: a lattice body needs a material with model: marder" -- "$f"
+f=$(variant quasistatic 's/^stages:$/stages:\n  - {name: load, kind: quasistatic}/')
+expect quasistatic "$f:$(line_of "$f" 'name: load'): stages.load.kind: a scene with a lattice body runs dynamic stages only" -- "$f"
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]

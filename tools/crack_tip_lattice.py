@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Crack tip of a lattice run: position and speed against the Mooney-Rivlin wave speeds.
+
+usage: /usr/bin/python3 tools/crack_tip_lattice.py OUTDIR [--band B] [--frame K]
+
+Reads OUTDIR/frames.h5 and OUTDIR/scene.resolved.yaml (derived constants as comments). The tip
+of each frame is the largest reference x among nodes with damage > 0 within B (default 3)
+lattice spacings of the seed crack's line. The crack speed is the least-squares slope of tip
+position against time over the frames where the tip has left the seed and is still more than
+10 spacings from the far edge; it is a reference-frame speed, compared with the reference-frame
+wave speeds of the stretched sheet ahead of the tip (longitudinal_wave_speed_x, shear_wave_speed).
+Writes OUTDIR/crack_tip.csv, OUTDIR/crack_tip.json and OUTDIR/tip_region.png (frame K, default:
+the frame where the tip is nearest the middle of the measured run).
+Needs Debian's python3-h5py, python3-numpy and python3-matplotlib.
+"""
+import argparse
+import json
+import os
+import re
+import sys
+
+import h5py
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def derived(out):
+    values = {}
+    with open(os.path.join(out, "scene.resolved.yaml")) as f:
+        text = f.read()
+    for m in re.finditer(r"^# (\S+) = (\S+)$", text, re.M):
+        try:
+            values[m.group(1)] = float(m.group(2))
+        except ValueError:
+            pass
+    seed = re.search(r"cracks:\n  - name: \S+\n    from: \[([^\]]*)\]\n    to: \[([^\]]*)\]", text)
+    spacing = re.search(r"kind: lattice\n(?:    .*\n)*?    spacing: (\S+)", text)
+    if not seed or not spacing:
+        sys.exit("scene.resolved.yaml: expected a lattice body and a seed crack")
+    a = [float(v) for v in seed.group(1).split(",")]
+    b = [float(v) for v in seed.group(2).split(",")]
+    return values, a, b, float(spacing.group(1))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--band", type=float, default=3.0)
+    ap.add_argument("--frame", type=int, default=None)
+    args = ap.parse_args()
+    values, c0, c1, delta = derived(args.out)
+    y_line = 0.5 * (c0[1] + c1[1])
+    seed_end = max(c0[0], c1[0])
+    with h5py.File(os.path.join(args.out, "frames.h5"), "r") as f:
+        X = f["mesh/reference_position"][...]
+        names = sorted(f["frames"].keys())
+        times, tips, frames = [], [], []
+        for name in names:
+            g = f["frames"][name]
+            d = g["damage"][...]
+            near = (np.abs(X[:, 1] - y_line) < args.band * delta) & (d > 0)
+            tips.append(X[near, 0].max() if near.any() else np.nan)
+            times.append(float(g.attrs["time"]))
+            frames.append(name)
+        times, tips = np.array(times), np.array(tips)
+        x_end = X[:, 0].max()
+        use = (tips > seed_end + 5 * delta) & (tips < x_end - 10 * delta)
+        if use.sum() < 3:
+            sys.exit(f"{args.out}: the tip moved through fewer than 3 frames; no speed")
+        v, x0 = np.polyfit(times[use], tips[use], 1)
+        cl = values.get(next(k for k in values if k.endswith("longitudinal_wave_speed_x")))
+        cs = values.get(next(k for k in values if k.endswith("shear_wave_speed")))
+        result = {"crack_speed": v, "longitudinal_wave_speed_x": cl, "shear_wave_speed": cs,
+                  "v_over_cl": v / cl, "v_over_cs": v / cs, "frames_used": int(use.sum()),
+                  "tip_start": float(tips[use][0]), "tip_end": float(tips[use][-1])}
+        with open(os.path.join(args.out, "crack_tip.csv"), "w") as o:
+            o.write("time,tip_x\n")
+            for t, x in zip(times, tips):
+                o.write(f"{t:.9g},{x:.9g}\n")
+        with open(os.path.join(args.out, "crack_tip.json"), "w") as o:
+            json.dump(result, o, indent=2)
+        print(json.dumps(result, indent=2))
+        k = args.frame
+        if k is None:
+            idx = np.where(use)[0]
+            k = int(idx[len(idx) // 2])
+        g = f["frames"][frames[k]]
+        x = g["position"][...]
+        d = g["damage"][...]
+        tip = tips[k]
+    # Left: tip region, deformed configuration, damaged nodes drawn on top. Right: tip position
+    # against time with lines of slope c_l and c_s through the first measured point.
+    sel = np.abs(X[:, 0] - tip) < 40 * delta
+    intact = sel & (d == 0)
+    hit = sel & (d > 0)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1.3, 1]})
+    ax.scatter(x[intact, 0] * 1e3, x[intact, 1] * 1e3, c="0.75", s=1)
+    sc = ax.scatter(x[hit, 0] * 1e3, x[hit, 1] * 1e3, c=d[hit], s=4, cmap="plasma", vmin=0, vmax=0.7)
+    fig.colorbar(sc, ax=ax, label="damage (broken fraction of bonds)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm] (deformed)")
+    ax.set_ylabel("y [mm] (deformed)")
+    ax.set_title(f"tip region at t = {times[k] * 1e3:.3f} ms")
+    t0, x0m = times[use][0], tips[use][0]
+    bx.plot(times * 1e3, tips * 1e3, "k.", label="tip (reference x)")
+    tt = np.array([t0, times[use][-1]])
+    bx.plot(tt * 1e3, (x0m + v * (tt - t0)) * 1e3, "k-", label=f"fit: {v:.1f} m/s")
+    bx.plot(tt * 1e3, (x0m + cl * (tt - t0)) * 1e3, "b--", label=f"c_l = {cl:.1f} m/s")
+    bx.plot(tt * 1e3, (x0m + cs * (tt - t0)) * 1e3, "r--", label=f"c_s = {cs:.1f} m/s")
+    bx.set_xlabel("t [ms]")
+    bx.set_ylabel("tip position [mm] (reference)")
+    bx.set_title(f"v/c_l = {v / cl:.2f}, v/c_s = {v / cs:.2f}")
+    bx.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(args.out, "tip_region.png"), dpi=110)
+
+if __name__ == "__main__":
+    main()
