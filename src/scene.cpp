@@ -665,7 +665,8 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
 
   if (auto x = m.get("quadrature"))
     b.quadrature =
-        x->choice<Quadrature>({{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}});
+        x->choice<Quadrature>({{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea},
+                               {"taper", Quadrature::Taper}});
   return b;
 }
 
@@ -1009,7 +1010,9 @@ const char* to_text(ModelKind k) { return k == ModelKind::Membrane ? "membrane" 
 const char* to_text(Influence k) { return k == Influence::Constant ? "constant" : "conical"; }
 const char* to_text(BodyKind k) { return k == BodyKind::Membrane ? "membrane" : "solid"; }
 const char* to_text(Grid k) { return k == Grid::Square ? "square" : "hexagonal"; }
-const char* to_text(Quadrature k) { return k == Quadrature::Full ? "full" : "partial_area"; }
+const char* to_text(Quadrature k) {
+  return k == Quadrature::Full ? "full" : k == Quadrature::Taper ? "taper" : "partial_area";
+}
 const char* to_text(StageKind) { return "dynamic"; }
 const char* to_text(bool b) { return b ? "true" : "false"; }
 
