@@ -7,7 +7,7 @@
 namespace peri {
 
 double reach(const BodyGeometry& g) {
-  if (g.quadrature == Quadrature::Full) return g.horizon;
+  if (g.quadrature == Quadrature::Full || g.quadrature == Quadrature::Taper) return g.horizon;
   return g.horizon + g.spacing * (g.kind == BodyKind::Solid ? 0.8660254037844387 : 0.7071067811865476);
 }
 
@@ -89,6 +89,13 @@ double quadrature_weight(const BodyGeometry& g, const double xi[3]) {
   const double ax = std::fabs(xi[0]), ay = std::fabs(xi[1]), az = std::fabs(xi[2]);
   const double r2 = ax * ax + ay * ay + az * az;
   if (g.quadrature == Quadrature::Full) return r2 <= d * d * (1.0 + 1e-10) ? 1.0 : 0.0;
+  if (g.quadrature == Quadrature::Taper) {
+    // Volume fraction of a neighbour near the horizon as in LAMMPS' PERI package (Parks et al.
+    // 2008): 1/2 + (delta - |xi|)/dx within dx/2 of delta, 1 inside, 0 beyond delta.
+    if (r2 > d * d * (1.0 + 1e-10)) return 0.0;
+    const double r = std::sqrt(r2);
+    return std::fabs(r - d) <= 0.5 * g.spacing ? 0.5 + (d - r) / g.spacing : 1.0;
+  }
   const double hx = 0.5 * g.spacing;
   if (g.kind == BodyKind::Membrane) {
     // Cell of the neighbour: dx by (cell_area/dx) rectangle (square grid: dx by dx).

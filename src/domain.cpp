@@ -15,26 +15,29 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   const std::int64_t end = partition.part_begin[rank + 1];
   d.owned = static_cast<std::int32_t>(end - d.global_begin);
 
-  // Pass 1: families in natural ids; collect ghosts.
+  // Pass 1: family sizes and the ghost set. Families are recomputed in pass 2 rather than kept in
+  // natural ids, so setup holds no per-bond temporaries beyond the final arrays.
   std::vector<std::int64_t> ids;
   std::vector<double> w;
-  std::vector<std::int64_t> nbr_natural;
-  std::vector<double> nbr_weight;
   std::vector<std::int64_t> ghost_globals;
   d.bonds.offsets.assign(1, 0);
   d.bonds.offsets.reserve(d.owned + 1);
   bool any_partial = false;
+  std::size_t compact_at = 4096;
   for (std::int64_t g = d.global_begin; g < end; ++g) {
     const std::int64_t i = partition.global_to_natural[g];
     neighbours_of(nodes, cells, i, ids, w);
     for (std::size_t k = 0; k < ids.size(); ++k) {
-      nbr_natural.push_back(ids[k]);
-      nbr_weight.push_back(w[k]);
       any_partial |= w[k] != 1.0;
       const std::int64_t gj = partition.natural_to_global[ids[k]];
       if (gj < d.global_begin || gj >= end) ghost_globals.push_back(gj);
     }
-    d.bonds.offsets.push_back(static_cast<std::int64_t>(nbr_natural.size()));
+    d.bonds.offsets.push_back(d.bonds.offsets.back() + static_cast<std::int64_t>(ids.size()));
+    if (ghost_globals.size() > compact_at) {  // keep the duplicates bounded (amortised O(1))
+      std::sort(ghost_globals.begin(), ghost_globals.end());
+      ghost_globals.erase(std::unique(ghost_globals.begin(), ghost_globals.end()), ghost_globals.end());
+      compact_at = 2 * ghost_globals.size() + 4096;
+    }
   }
   std::sort(ghost_globals.begin(), ghost_globals.end());
   ghost_globals.erase(std::unique(ghost_globals.begin(), ghost_globals.end()), ghost_globals.end());
@@ -60,16 +63,19 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
     d.body[l] = nodes.body[i];
   }
 
-  // Pass 2: map neighbours to local indices, weights to float, pre-cracks to broken flags.
-  const std::int64_t nb = static_cast<std::int64_t>(nbr_natural.size());
+  // Pass 2: families again, neighbours mapped to local indices, weights to float, pre-cracks
+  // to broken flags.
+  const std::int64_t nb = d.bonds.offsets.back();
   d.bonds.neighbor.resize(nb);
   d.bonds.broken.assign(nb, 0);
   if (any_partial) d.bonds.weight.resize(nb);
   for (std::int32_t r = 0; r < d.owned; ++r) {
     bool touches_ghost = false;
     const std::int64_t i = d.natural[r];
+    neighbours_of(nodes, cells, i, ids, w);
     for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
-      const std::int64_t j = nbr_natural[b];
+      const std::size_t k = static_cast<std::size_t>(b - d.bonds.offsets[r]);
+      const std::int64_t j = ids[k];
       const std::int64_t gj = partition.natural_to_global[j];
       std::int32_t lj;
       if (gj >= d.global_begin && gj < end) {
@@ -79,7 +85,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         touches_ghost = true;
       }
       d.bonds.neighbor[b] = lj;
-      if (any_partial) d.bonds.weight[b] = static_cast<float>(nbr_weight[b]);
+      if (any_partial) d.bonds.weight[b] = static_cast<float>(w[k]);
       if (nodes.bodies[nodes.body[i]].kind != BodyKind::Solid) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];

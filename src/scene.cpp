@@ -768,7 +768,8 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
 
   if (auto x = m.get("quadrature"))
     b.quadrature =
-        x->choice<Quadrature>({{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}});
+        x->choice<Quadrature>({{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea},
+                               {"taper", Quadrature::Taper}});
   return b;
 }
 
@@ -1241,7 +1242,9 @@ const char* to_text(BodyKind k) {
   return k == BodyKind::Membrane ? "membrane" : k == BodyKind::Solid ? "solid" : "lattice";
 }
 const char* to_text(Grid k) { return k == Grid::Square ? "square" : "hexagonal"; }
-const char* to_text(Quadrature k) { return k == Quadrature::Full ? "full" : "partial_area"; }
+const char* to_text(Quadrature k) {
+  return k == Quadrature::Full ? "full" : k == Quadrature::Taper ? "taper" : "partial_area";
+}
 const char* to_text(StageKind k) {
   return k == StageKind::Dynamic ? "dynamic" : k == StageKind::QuasiStatic ? "quasistatic" : "release";
 }

@@ -88,6 +88,25 @@ TEST(Quadrature, WeightsAreSymmetric) {
     }
 }
 
+// The taper of LAMMPS' PERI package: 1/2 + (delta - |xi|)/dx within dx/2 of delta (delta = 3.015 dx).
+TEST(Quadrature, TaperWeightsNearTheHorizon) {
+  BodyGeometry g;
+  g.kind = BodyKind::Solid;
+  g.spacing = 1e-3;
+  g.horizon = 3.015e-3;
+  g.quadrature = Quadrature::Taper;
+  auto w = [&](int i, int j, int k) {
+    const double xi[3] = {i * g.spacing, j * g.spacing, k * g.spacing};
+    return quadrature_weight(g, xi);
+  };
+  EXPECT_EQ(w(1, 1, 1), 1.0);                                       // |xi| = 1.73 dx: inside
+  EXPECT_EQ(w(2, 1, 1), 1.0);                                       // 2.45 dx < delta - dx/2
+  EXPECT_NEAR(w(2, 2, 1), 0.515, 1e-12);
+  EXPECT_NEAR(w(2, 2, 0), 0.5 + 3.015 - std::sqrt(8.0), 1e-12);  // |xi| = 2.83 dx
+  EXPECT_NEAR(w(3, 0, 0), 0.515, 1e-12);
+  EXPECT_EQ(w(3, 1, 0), 0.0);                                       // 3.16 dx > delta
+}
+
 // Eq. (19): the discrete energy density converges to the closed form as dx -> 0 at fixed delta.
 TEST(MembraneLaw, HomogeneousEnergyConvergesToEq19) {
   const double delta = 1.0, c = 1.0, h = 1.0, R = delta * delta / 2.0;

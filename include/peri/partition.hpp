@@ -27,6 +27,17 @@ struct Partition {
 /// Assign parts from a given natural-id -> part array (any partitioner), renumbering nodes.
 Partition partition_from_parts(std::vector<int> part, int parts);
 
+/// The bond graph of all nodes (natural ids, CSR), as the partitioner sees it.
+struct BondGraph {
+  std::vector<std::int64_t> offsets{0};
+  std::vector<std::int32_t> adjacency;
+};
+BondGraph bond_graph(const Nodes& nodes, const CellList& cells);
+
+/// METIS k-way parts of a bond graph (vertex weight = degree + 1, the work of a node); sets the
+/// edge cut. Serial. Throws Error if METIS fails.
+std::vector<int> metis_kway(const BondGraph& graph, int parts, std::int64_t& edge_cut);
+
 /// METIS k-way on the bond graph into `parts` parts, computed on rank 0 of comm and broadcast.
 Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm);
 

@@ -30,6 +30,7 @@ enum class Influence {
 enum class Quadrature {
   Full,         ///< weight 1 for |xi| <= delta, 0 beyond
   PartialArea,  ///< exact fraction of the neighbour's cell (square of side dx) inside the disc
+  Taper,        ///< 1 inside, falling linearly to 1/2 at |xi| = delta over the last dx/2 (Parks et al.)
 };
 
 enum class BodyKind {
