@@ -177,18 +177,21 @@ void FrameWriter::write_xdmf() const {
   write_text_file(dir_ + "/" + stem_ + ".xdmf", x.str());
 }
 
-SeriesWriter::SeriesWriter(const std::string& path, bool active) : active_(active) {
+SeriesWriter::SeriesWriter(const std::string& path, bool active, const std::string& extra_columns)
+    : active_(active) {
   if (!active_) return;
   out_.open(path, std::ios::trunc);
   if (!out_) throw Error("cannot write '" + path + "': " + std::strerror(errno));
-  out_ << "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds\n";
+  out_ << "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds"
+       << (extra_columns.empty() ? "" : ",") << extra_columns << '\n';
   out_ << std::setprecision(12);
 }
 
-void SeriesWriter::write(const EnergyRow& r) {
+void SeriesWriter::write(const EnergyRow& r, const std::string& extra) {
   if (!active_) return;
   out_ << r.step << ',' << r.time << ',' << r.kinetic << ',' << r.strain << ',' << r.external_work
-       << ',' << r.dissipated << ',' << r.total() << ',' << r.broken_bonds << '\n';
+       << ',' << r.dissipated << ',' << r.total() << ',' << r.broken_bonds << (extra.empty() ? "" : ",")
+       << extra << '\n';
   out_.flush();
 }
 

@@ -58,8 +58,10 @@ class FrameWriter {
 /// CSV energy series, written by rank 0 (other ranks hold an inert writer).
 class SeriesWriter {
  public:
-  SeriesWriter(const std::string& path, bool active);
-  void write(const EnergyRow& row);
+  /// `extra_columns`: further comma-separated column names appended to the header (none if empty).
+  SeriesWriter(const std::string& path, bool active, const std::string& extra_columns = "");
+  /// `extra`: the values of the extra columns, comma-separated, in header order.
+  void write(const EnergyRow& row, const std::string& extra = "");
 
  private:
   std::ofstream out_;

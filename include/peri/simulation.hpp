@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "peri/crack_tips.hpp"
 #include "peri/forces.hpp"
 #include "peri/output.hpp"
 #include "peri/state.hpp"
@@ -34,6 +35,10 @@ struct RunSummary {
   double initial_total_energy = 0;
   double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
   std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
+  /// Crack tips (scenes whose materials break): final tips and speeds, see crack_tips.hpp.
+  bool crack_tracking = false;
+  double max_crack_speed = 0, mean_crack_speed = 0, rayleigh_wave_speed = 0, crack_speed_window = 0;
+  std::string crack_tips_json;  ///< JSON array, one object per track
   std::string to_json() const;
 };
 
@@ -74,6 +79,8 @@ class Simulation {
   EnergyRow energies();
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
+  /// Crack tip histories (identical on every rank); nullptr when no material breaks.
+  const CrackTipTracker* crack_tips() const { return tracker_.get(); }
 
  private:
   void apply_initial_conditions();
@@ -86,6 +93,9 @@ class Simulation {
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
+  void setup_crack_tips();                       // tracker settings from the scene (constructor)
+  std::string track_crack_tips(const EnergyRow& row);  // one tip sample; returns the series columns
+  void summarize_crack_tips();                   // summary fields from the tracker (finish)
 
   Scene scene_;
   MPI_Comm comm_;
@@ -116,6 +126,11 @@ class Simulation {
   std::chrono::steady_clock::time_point loop_start_;
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;
+  std::unique_ptr<CrackTipTracker> tracker_;
+  std::vector<double> tip_seeds_;          // pre-crack midpoints
+  std::int64_t tips_broken_at_ = -1;       // broken-bond count of the last tip sample
+  std::vector<CrackTip> last_tips_;
+  std::unique_ptr<std::ofstream> tips_csv_;  // rank 0
   std::string resolved_;
   RunSummary summary_;
   std::chrono::steady_clock::time_point start_, last_progress_;
