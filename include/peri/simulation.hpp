@@ -38,6 +38,7 @@ struct RunSummary {
   /// Crack tips (scenes whose materials break): final tips and speeds, see crack_tips.hpp.
   bool crack_tracking = false;
   double max_crack_speed = 0, mean_crack_speed = 0, rayleigh_wave_speed = 0, crack_speed_window = 0;
+  double crack_tip_seconds = 0;  ///< time spent finding and tracking tips (slowest rank)
   std::string crack_tips_json;  ///< JSON array, one object per track
   std::string to_json() const;
 };
