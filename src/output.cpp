@@ -233,10 +233,13 @@ void FrameWriter::write_xdmf() const {
   write_text_file(dir_ + "/" + stem_ + ".xdmf", x.str());
 }
 
-SeriesWriter::SeriesWriter(const std::string& path, bool active, std::int64_t resume_step) : active_(active) {
+SeriesWriter::SeriesWriter(const std::string& path, bool active, const std::string& extra_columns,
+                           std::int64_t resume_step)
+    : active_(active) {
   if (!active_) return;
   const std::string header =
-      "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds\n";
+      "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds" +
+      std::string(extra_columns.empty() ? "" : ",") + extra_columns + "\n";
   if (resume_step >= 0) {
     // Keep the header and the complete rows up to resume_step; a partial last line is dropped.
     std::ifstream in(path, std::ios::binary);
@@ -258,10 +261,11 @@ SeriesWriter::SeriesWriter(const std::string& path, bool active, std::int64_t re
   out_ << std::setprecision(12);
 }
 
-void SeriesWriter::write(const EnergyRow& r) {
+void SeriesWriter::write(const EnergyRow& r, const std::string& extra) {
   if (!active_) return;
   out_ << r.step << ',' << r.time << ',' << r.kinetic << ',' << r.strain << ',' << r.external_work
-       << ',' << r.dissipated << ',' << r.total() << ',' << r.broken_bonds << '\n';
+       << ',' << r.dissipated << ',' << r.total() << ',' << r.broken_bonds << (extra.empty() ? "" : ",")
+       << extra << '\n';
   out_.flush();
 }
 

@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <limits>
 #include <set>
 #include <sstream>
@@ -20,6 +23,7 @@ namespace peri {
 namespace {
 
 constexpr int kCheckEvery = 20;  // steps between collective health/progress checks
+constexpr int kTipColumns = 4;   // crack tip tracks with their own columns in series.csv
 
 // Velocity ramp: v(t) = v_target * ramp(t); its integral P(t) gives exact prescribed displacements.
 double ramp(double t, double tr) { return tr > 0 ? std::min(t / tr, 1.0) : 1.0; }
@@ -110,8 +114,17 @@ std::string RunSummary::to_json() const {
     << ", \"dissipated_energy\": " << json_number(final_energy.dissipated)
     << ", \"total_energy\": " << json_number(final_energy.total()) << "},\n"
     << "  \"initial_total_energy\": " << json_number(initial_total_energy) << ",\n"
-    << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n"
-    << "  \"quasistatic\": [";
+    << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n";
+  if (crack_tracking)
+    j << "  \"crack_tips\": " << crack_tips_json << ",\n"
+      << "  \"max_crack_speed\": " << json_number(max_crack_speed) << ",\n"
+      << "  \"mean_crack_speed\": " << json_number(mean_crack_speed) << ",\n"
+      << "  \"crack_speed_window\": " << json_number(crack_speed_window) << ",\n"
+      << "  \"crack_tip_seconds\": " << json_number(crack_tip_seconds) << ",\n"
+      << "  \"rayleigh_wave_speed\": " << json_number(rayleigh_wave_speed) << ",\n"
+      << "  \"max_crack_speed_over_rayleigh\": " << json_number(max_crack_speed / rayleigh_wave_speed) << ",\n"
+      << "  \"mean_crack_speed_over_rayleigh\": " << json_number(mean_crack_speed / rayleigh_wave_speed) << ",\n";
+  j << "  \"quasistatic\": [";
   for (std::size_t k = 0; k < quasistatic.size(); ++k) {
     const QuasiStaticStats& q = quasistatic[k].second;
     j << (k ? ", " : "") << "{\"stage\": " << json_string(quasistatic[k].first) << ", \"increments\": " << q.increments.size()
@@ -280,6 +293,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   summary_.derived.push_back({"ordered_bonds", double(summary_.ordered_bonds)});
   resolved_ = emit_scene(scene_, derived_lines());
   if (options_.restart) check_restart(*options_.restart);
+  setup_crack_tips();
   PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
   // Output last: nothing is written unless every check above passed.
@@ -295,7 +309,29 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
     frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
                                             scene_.output.write_velocity, resume_step);
-    series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, resume_step);
+    std::string tip_columns;
+    if (tracker_) {
+      tip_columns = "crack_tips";
+      for (int k = 0; k < kTipColumns; ++k)
+        for (const char* c : {"_x", "_y", "_speed"}) tip_columns += ",tip" + std::to_string(k) + c;
+      if (rank_ == 0) {
+        const std::string path = options_.out_dir + "/tips.csv", header = "step,time,track,x,y,z,path_length,speed\n";
+        std::string kept = header;
+        if (resume_step >= 0) {  // keep the complete rows up to the checkpoint's step
+          std::ifstream in(path, std::ios::binary);
+          const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+          std::size_t start = text.compare(0, header.size(), header) == 0 ? header.size() : text.size();
+          for (std::size_t nl; (nl = text.find('\n', start)) != std::string::npos; start = nl + 1) {
+            if (std::strtoll(text.c_str() + start, nullptr, 10) > resume_step) break;
+            kept.append(text, start, nl + 1 - start);
+          }
+        }
+        tips_csv_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
+        if (!*tips_csv_) throw Error("cannot write '" + path + "'");
+        *tips_csv_ << kept << std::setprecision(12);
+      }
+    }
+    series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
@@ -524,8 +560,133 @@ void Simulation::write_series_row() {
       throw RuntimeFailure(msg.str());
     }
   }
-  if (series_) series_->write(row);
+  const std::string tip_values = tracker_ ? track_crack_tips(row) : std::string();
+  if (series_) series_->write(row, tip_values);
   summary_.final_energy = row;
+}
+
+void Simulation::setup_crack_tips() {
+  // Tracking runs when some material breaks. Lengths from the breaking bodies (crack_tips.hpp):
+  // link 2 dx, tip separation 2 delta, window 10 delta / c_l, jumps up to 2 delta + 2 c_l x the
+  // time between samples. Seeds: the pre-cracks' midpoints.
+  double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
+  for (std::size_t b = 0; b < laws_.size(); ++b) {
+    if (!laws_[b].breaks) continue;
+    const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
+    dx = std::max(dx, nodes_.bodies[b].spacing);
+    delta = std::max(delta, laws_[b].horizon);
+    c_l = std::min(c_l, e.c_longitudinal);
+    c_r = std::min(c_r, e.c_rayleigh);
+  }
+  if (!(delta > 0)) return;
+  CrackTipSettings s;
+  s.link_distance = 2 * dx;
+  s.tip_separation = 2 * delta;
+  const double sample = scene_.output.series_every * *std::max_element(stage_dt_.begin(), stage_dt_.end());
+  tracker_ = std::make_unique<CrackTipTracker>(s, 10 * delta / c_l, s.tip_separation + 2 * c_l * sample);
+  for (const Crack& c : scene_.cracks)
+    for (int k = 0; k < 3; ++k) tip_seeds_.push_back(0.5 * (c.from[k] + c.to[k]));
+  summary_.crack_tracking = true;
+  summary_.rayleigh_wave_speed = c_r;
+  summary_.crack_speed_window = tracker_->window();
+  // The tip history continues across restarts; the tips themselves are recomputed from damage.
+  add_checkpoint_extra(
+      "crack_tip_tracks", [this] { return tracker_->save(); },
+      [this](const std::vector<double>* flat) {
+        if (flat) tracker_->restore(*flat);
+        tips_broken_at_ = -1;
+      });
+}
+
+std::string Simulation::track_crack_tips(const EnergyRow& row) {
+  const auto t0 = std::chrono::steady_clock::now();
+  // The damage field changes only when bonds break: otherwise the last tips stand.
+  if (row.broken_bonds != tips_broken_at_) {
+    tips_broken_at_ = row.broken_bonds;
+    update_damage();
+    std::vector<std::int64_t> ids;
+    std::vector<double> X;
+    for (std::int32_t i = 0; i < domain_.owned; ++i)
+      if (damage_[i] >= tracker_->settings().damage_threshold) {
+        ids.push_back(domain_.natural[i]);
+        X.insert(X.end(), &domain_.X[3 * i], &domain_.X[3 * i] + 3);
+      }
+    // Every rank gathers the (few) damaged nodes, sorts them by natural id, finds the same tips.
+    const int n = static_cast<int>(ids.size());
+    std::vector<int> counts(ranks_), displs(ranks_, 0), counts3(ranks_), displs3(ranks_, 0);
+    MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
+    for (int r = 0; r < ranks_; ++r) {
+      if (r > 0) displs[r] = displs[r - 1] + counts[r - 1];
+      counts3[r] = 3 * counts[r];
+      displs3[r] = 3 * displs[r];
+    }
+    const int total = displs.back() + counts.back();
+    std::vector<std::int64_t> all_ids(total);
+    std::vector<double> all_X(3 * static_cast<std::size_t>(total));
+    MPI_Allgatherv(ids.data(), n, MPI_INT64_T, all_ids.data(), counts.data(), displs.data(), MPI_INT64_T, comm_);
+    MPI_Allgatherv(X.data(), 3 * n, MPI_DOUBLE, all_X.data(), counts3.data(), displs3.data(), MPI_DOUBLE, comm_);
+    std::vector<int> order(total);
+    for (int k = 0; k < total; ++k) order[k] = k;
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return all_ids[a] < all_ids[b]; });
+    std::vector<std::int64_t> sorted_ids(total);
+    std::vector<double> sorted_X(3 * static_cast<std::size_t>(total));
+    for (int k = 0; k < total; ++k) {
+      sorted_ids[k] = all_ids[order[k]];
+      for (int c = 0; c < 3; ++c) sorted_X[3 * k + c] = all_X[3 * order[k] + c];
+    }
+    last_tips_ = find_crack_tips(sorted_ids, sorted_X, tip_seeds_, tracker_->settings());
+  }
+  tracker_->update(row.time, last_tips_);
+  // Series columns: tip count, then position and speed of tracks 0..kTipColumns-1 if sampled now.
+  std::ostringstream out;
+  out << std::setprecision(12) << last_tips_.size();
+  for (int k = 0; k < kTipColumns; ++k) {
+    const CrackTrack* t = k < static_cast<int>(tracker_->tracks().size()) ? &tracker_->tracks()[k] : nullptr;
+    if (t && t->active && t->time.back() == row.time) {
+      out << ',' << t->position.back()[0] << ',' << t->position.back()[1] << ',';
+      if (std::isfinite(t->speed.back())) out << t->speed.back();
+    } else {
+      out << ",,,";
+    }
+  }
+  if (tips_csv_) {
+    for (const CrackTrack& t : tracker_->tracks()) {
+      if (!t.active || t.time.back() != row.time) continue;
+      *tips_csv_ << row.step << ',' << row.time << ',' << t.id << ',' << t.position.back()[0] << ','
+                 << t.position.back()[1] << ',' << t.position.back()[2] << ',' << t.path_length.back() << ',';
+      if (std::isfinite(t.speed.back())) *tips_csv_ << t.speed.back();
+      *tips_csv_ << '\n';
+    }
+    tips_csv_->flush();
+  }
+  summary_.crack_tip_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out.str();
+}
+
+void Simulation::summarize_crack_tips() {
+  summary_.max_crack_speed = tracker_->max_speed();
+  summary_.mean_crack_speed = tracker_->mean_speed();
+  std::ostringstream j;
+  j << "[";
+  for (const CrackTrack& t : tracker_->tracks()) {
+    const auto& p = t.position.back();
+    const auto& p0 = t.position.front();
+    double vmax = 0;
+    for (double v : t.speed)
+      if (std::isfinite(v)) vmax = std::max(vmax, v);
+    const auto steady = tracker_->steady_part(t);
+    j << (t.id ? "," : "") << "\n    {\"track\": " << t.id << ", \"active\": " << (t.active ? "true" : "false")
+      << ", \"position\": [" << json_number(p[0]) << ", " << json_number(p[1]) << ", " << json_number(p[2]) << "]"
+      << ", \"path_length\": " << json_number(t.path_length.back())
+      << ", \"speed\": " << json_number(t.speed.back()) << ", \"max_speed\": " << json_number(vmax)
+      << ", \"first_time\": " << json_number(t.time.front()) << ", \"last_time\": " << json_number(t.time.back())
+      << ", \"first_position\": [" << json_number(p0[0]) << ", " << json_number(p0[1]) << ", "
+      << json_number(p0[2]) << "]"
+      << ", \"steady_from\": " << json_number(steady[0]) << ", \"steady_to\": " << json_number(steady[1])
+      << ", \"steady_mean_speed\": " << json_number(steady[2] / (steady[1] - steady[0])) << "}";
+  }
+  j << (tracker_->tracks().empty() ? "]" : "\n  ]");
+  summary_.crack_tips_json = j.str();
 }
 
 void Simulation::write_frame() {
@@ -876,9 +1037,12 @@ void Simulation::finish() {
   const double scale = std::max({std::fabs(f.kinetic) + std::fabs(f.strain) + std::fabs(f.dissipated),
                                  std::fabs(f.external_work), std::fabs(summary_.initial_total_energy), 1e-300});
   summary_.energy_balance_error = std::fabs(f.total() - summary_.initial_total_energy) / scale;
+  if (tracker_) summarize_crack_tips();
   // Timings of the slowest rank: the job's figures.
-  double times[3] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds}, tmax[3];
-  MPI_Allreduce(times, tmax, 3, MPI_DOUBLE, MPI_MAX, comm_);
+  double times[4] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
+                     summary_.crack_tip_seconds}, tmax[4];
+  MPI_Allreduce(times, tmax, 4, MPI_DOUBLE, MPI_MAX, comm_);
+  summary_.crack_tip_seconds = tmax[3];
   summary_.step_seconds = tmax[0];
   summary_.output_seconds = tmax[1];
   summary_.wall_seconds = tmax[2];

@@ -63,6 +63,29 @@ TEST(Decomposition, SameResultOnOneAndManyRanks) {
   EXPECT_GT(one.summary().final_energy.broken_bonds, 500);
   EXPECT_EQ(static_cast<std::int64_t>(bb.size()),
             one.summary().precrack_bonds + one.summary().final_energy.broken_bonds);
+  // Crack tip histories: the same tracks, sample times, positions and speeds on any rank count.
+  ASSERT_TRUE(many.crack_tips() && one.crack_tips());
+  const auto& ta = many.crack_tips()->tracks();
+  const auto& tb = one.crack_tips()->tracks();
+  ASSERT_EQ(ta.size(), tb.size());
+  double tip_diff = 0, speed_diff = 0, travel = 0;
+  for (std::size_t k = 0; k < ta.size(); ++k) {
+    ASSERT_EQ(ta[k].time, tb[k].time);
+    for (std::size_t n = 0; n < ta[k].time.size(); ++n) {
+      for (int c = 0; c < 3; ++c) tip_diff = std::max(tip_diff, std::fabs(ta[k].position[n][c] - tb[k].position[n][c]));
+      if (std::isfinite(tb[k].speed[n])) speed_diff = std::max(speed_diff, std::fabs(ta[k].speed[n] - tb[k].speed[n]));
+      else EXPECT_TRUE(std::isnan(ta[k].speed[n]));
+    }
+    travel = std::max(travel, std::fabs(tb[k].position.back()[0] - tb[k].position.front()[0]));
+  }
+  if (world_rank() == 0)
+    std::printf("crack tips: %zu tracks, largest travel %.2f mm, max speed %.1f m/s; %d ranks vs 1: position "
+                "difference %.3e m, speed difference %.3e m/s\n",
+                tb.size(), travel * 1e3, one.crack_tips()->max_speed(), many.summary().ranks, tip_diff, speed_diff);
+  EXPECT_GE(tb.size(), 2u);
+  EXPECT_GT(travel, 0.002);  // the tips ran
+  EXPECT_LE(tip_diff, 1e-15);
+  EXPECT_LE(speed_diff, 1e-9);
 }
 
 TEST(FreeFlight, ConservesMomentumAndEnergy) {

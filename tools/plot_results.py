@@ -7,6 +7,11 @@ Writes into OUTDIR:
   damage.png    damage (broken-bond fraction) of the last frame, drawn on the deformed membrane
   deformed.png  deformed positions coloured by out-of-plane displacement (wrinkles)
   energies.png  kinetic, strain, dissipated energy and external work versus time
+  wrinkles.png  four frames of the deformed membrane coloured by out-of-plane displacement
+                (the paper's Fig. 5 views: slit, crack running, crack through, halves rebounding)
+  crack_speed.png, crack_speed.csv  (runs with crack tips, from tips.csv) smoothed crack tip speed
+                against tip position, one curve per tip (the paper's Fig. 6), with c_R and the
+                mean speed of summary.json
 Needs Debian's python3-h5py, python3-numpy and python3-matplotlib.
 """
 import argparse
@@ -98,7 +103,134 @@ def main():
         ax.grid(alpha=0.3)
         fig.savefig(os.path.join(a.outdir, "energies.png"), dpi=130, bbox_inches="tight")
         plt.close(fig)
-    print(f"plot_results: wrote damage.png, deformed.png, energies.png in {a.outdir}")
+    wrote = ["damage.png", "deformed.png", "energies.png"]
+    wrote += plot_wrinkles(h5, ref, spacing, a.outdir)
+    wrote += plot_crack_speed(a.outdir)
+    print(f"plot_results: wrote {', '.join(wrote)} in {a.outdir}")
+
+
+def plot_wrinkles(h5, ref, spacing, outdir):
+    with h5py.File(h5, "r") as f:
+        names = sorted(f["frames"].keys())
+        if len(names) < 4:
+            return []
+        times = np.array([float(f["frames"][n].attrs["time"]) for n in names])
+        picks = [names[round(k * (len(names) - 1) / 3)] for k in range(4)]
+        growth = crack_growth_times(outdir)
+        if growth:
+            # Slit before it grows, crack half way, crack through, halves rebounding (last frame).
+            t0, t1 = growth
+            picks = [names[int(np.argmin(np.abs(times - t)))] for t in (t0, 0.5 * (t0 + t1), t1)] + [names[-1]]
+        frames = [(float(f["frames"][n].attrs["time"]), f["frames"][n]["position"][...],
+                   f["frames"][n]["displacement"][:, 2]) for n in picks]
+    fig, axes = plt.subplots(2, 2, figsize=(12.5, 10))
+    fig.subplots_adjust(wspace=0.35)
+    for ax, (t, x, uz) in zip(axes.flat, frames):
+        lim = max(float(np.percentile(np.abs(uz), 99.0)) * 1e6, 1e-9)  # each view its own range
+        scatter(ax, x, uz * 1e6, spacing, "coolwarm", "u_z [um]", -lim, lim)
+        lo = np.percentile(x[:, :2], 0.5, axis=0) * 1e3
+        hi = np.percentile(x[:, :2], 99.5, axis=0) * 1e3
+        ax.set_xlim(lo[0] - 1, hi[0] + 1)
+        ax.set_ylim(lo[1] - 1, hi[1] + 1)
+        ax.set_title(f"t = {t * 1e6:.1f} us")
+    fig.suptitle("out-of-plane displacement (wrinkles along the slit and in the wake), deformed configuration")
+    fig.savefig(os.path.join(outdir, "wrinkles.png"), dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return ["wrinkles.png"]
+
+
+def crack_growth_times(outdir):
+    """(time the first tip has moved 1 mm, time it has covered 95% of its travel), or None."""
+    path = os.path.join(outdir, "tips.csv")
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        rs = [r for r in csv.DictReader(f) if r["track"] == "0"]
+    if len(rs) < 3:
+        return None
+    p = np.array([[float(r["x"]), float(r["y"])] for r in rs])
+    t = np.array([float(r["time"]) for r in rs])
+    travel = np.hypot(*(p - p[0]).T)
+    if travel[-1] < 2e-3:
+        return None
+    return float(t[np.argmax(travel >= 1e-3)]), float(t[np.argmax(travel >= 0.95 * travel[-1])])
+
+
+def plot_crack_speed(outdir):
+    path = os.path.join(outdir, "tips.csv")
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        rows = [r for r in csv.DictReader(f)]
+    summary = {}
+    if os.path.exists(os.path.join(outdir, "summary.json")):
+        import json
+        with open(os.path.join(outdir, "summary.json")) as f:
+            summary = json.load(f)
+    tracks = {}
+    for r in rows:
+        tracks.setdefault(int(r["track"]), []).append(r)
+    # Tip position as the paper plots it: distance of the tip from the slit centre along x
+    # (the first sample of the first tracks is the slit end).
+    with open(os.path.join(outdir, "crack_speed.csv"), "w") as out:
+        out.write("track,time,tip_x,tip_y,tip_distance_from_centre,speed\n")
+        for k, rs in sorted(tracks.items()):
+            for r in rs:
+                if r["speed"]:
+                    out.write(f'{k},{r["time"]},{r["x"]},{r["y"]},{abs(float(r["x"]))},{r["speed"]}\n')
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for k, rs in sorted(tracks.items()):
+        pts = [(abs(float(r["x"])) * 1e3, float(r["speed"])) for r in rs if r["speed"]]
+        if len(pts) < 5:
+            continue
+        x, v = np.array(pts).T
+        ax.plot(x, v, label=f"tip {k} ({'x < 0' if float(rs[-1]['x']) < 0 else 'x > 0'})")
+    c_r = summary.get("rayleigh_wave_speed")
+    if c_r:
+        ax.axhline(c_r, color="k", ls="--", lw=1, label=f"Rayleigh speed c_R = {c_r:.0f} m/s")
+    mean = summary.get("mean_crack_speed")
+    if mean:
+        ax.axhline(mean, color="gray", ls=":", lw=1, label=f"mean over the steady part {mean:.0f} m/s")
+    win = summary.get("crack_speed_window")
+    ax.set_xlabel("crack tip position |x| [mm]")
+    ax.set_ylabel("crack tip speed [m/s]" + (f" ({win * 1e6:.1f} us window)" if win else ""))
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.savefig(os.path.join(outdir, "crack_speed.png"), dpi=130, bbox_inches="tight")
+    plt.close(fig)
+    dynamic_release_rate(outdir)
+    return ["crack_speed.png", "crack_speed.csv"]
+
+
+def dynamic_release_rate(outdir):
+    """Dissipated energy per unit new crack area while two tips (tracks 0 and 1) run, against
+    eq. (30) G = 2 h w_0 delta^3 / 3 (one membrane body, g = 1, constant lambda_0): printed."""
+    import re
+    try:
+        scene = open(os.path.join(outdir, "scene.resolved.yaml")).read()
+        h = [float(v) for v in re.findall(r"^\s+thickness: (\S+)", scene, re.M)]
+        l0 = [float(v) for v in re.findall(r"^\s+critical_stretch: (\S+)", scene, re.M)]
+        c = [float(v) for v in re.findall(r"micromodulus = (\S+)", scene)]
+        delta = [float(v) for v in re.findall(r"\.horizon = (\S+)", scene)]
+        with open(os.path.join(outdir, "series.csv")) as f:
+            rows = [r for r in csv.DictReader(f) if r.get("tip0_x") and r.get("tip1_x")]
+    except (OSError, ValueError):
+        return
+    if not (len(h) == len(l0) == len(c) == len(delta) == 1) or "influence: constant" not in scene or len(rows) < 10:
+        return
+    length = np.array([abs(float(r["tip1_x"]) - float(r["tip0_x"])) for r in rows])
+    dissipated = np.array([float(r["dissipated_energy"]) for r in rows])
+    # Middle half of the growth (the steady part), as for the mean speed.
+    lo, hi = length[0] + 0.25 * (length.max() - length[0]), length[0] + 0.75 * (length.max() - length[0])
+    sel = (length >= lo) & (length <= hi)
+    if sel.sum() < 3:
+        return
+    slope = np.polyfit(length[sel], dissipated[sel], 1)[0]
+    w0 = c[0] * (l0[0] ** 2 + l0[0] ** -2 - 2)
+    g30 = 2 * h[0] * w0 * delta[0] ** 3 / 3
+    print(f"dissipated energy per new crack area over the middle half of the growth: {slope / h[0]:.4g} J/m^2 "
+          f"= {slope / h[0] / g30:.3f} x eq. (30) G = {g30:.4g} J/m^2")
 
 
 if __name__ == "__main__":

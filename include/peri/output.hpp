@@ -61,10 +61,13 @@ class FrameWriter {
 /// CSV energy series, written by rank 0 (other ranks hold an inert writer).
 class SeriesWriter {
  public:
+  /// `extra_columns`: further comma-separated column names appended to the header (none if empty).
   /// With resume_step >= 0 the existing file keeps its header and the complete rows of steps
   /// <= resume_step, and new rows are appended.
-  SeriesWriter(const std::string& path, bool active, std::int64_t resume_step = -1);
-  void write(const EnergyRow& row);
+  SeriesWriter(const std::string& path, bool active, const std::string& extra_columns = "",
+               std::int64_t resume_step = -1);
+  /// `extra`: the values of the extra columns, comma-separated, in header order.
+  void write(const EnergyRow& row, const std::string& extra = "");
 
  private:
   std::ofstream out_;

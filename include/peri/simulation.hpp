@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "peri/crack_tips.hpp"
 #include "peri/forces.hpp"
 #include "peri/marder.hpp"
 #include "peri/output.hpp"
@@ -47,6 +48,11 @@ struct RunSummary {
   /// Per quasi-static stage: |W_reactions - (dU + D)| / W_reactions (trapezoidal work).
   std::vector<double> quasistatic_work_error;
   std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
+  /// Crack tips (scenes whose materials break): final tips and speeds, see crack_tips.hpp.
+  bool crack_tracking = false;
+  double max_crack_speed = 0, mean_crack_speed = 0, rayleigh_wave_speed = 0, crack_speed_window = 0;
+  double crack_tip_seconds = 0;  ///< time spent finding and tracking tips (slowest rank)
+  std::string crack_tips_json;  ///< JSON array, one object per track
   std::string to_json() const;
 };
 
@@ -96,6 +102,8 @@ class Simulation : public EquilibriumModel {
   std::unique_ptr<QuasiStaticLoader> make_loader(const Stage& stage);
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
+  /// Crack tip histories (identical on every rank); nullptr when no material breaks.
+  const CrackTipTracker* crack_tips() const { return tracker_.get(); }
 
   /// The run's state as a checkpoint, complete on rank 0 (collective).
   Checkpoint make_checkpoint();
@@ -136,6 +144,9 @@ class Simulation : public EquilibriumModel {
   void lattice_reduce();
   double lattice_energy(const BondView& view);
   void lattice_derived(std::size_t body);
+  void setup_crack_tips();                       // tracker settings from the scene (constructor)
+  std::string track_crack_tips(const EnergyRow& row);  // one tip sample; returns the series columns
+  void summarize_crack_tips();                   // summary fields from the tracker (finish)
 
   Scene scene_;
   MPI_Comm comm_;
@@ -181,6 +192,11 @@ class Simulation : public EquilibriumModel {
   std::chrono::steady_clock::time_point loop_start_;
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;
+  std::unique_ptr<CrackTipTracker> tracker_;
+  std::vector<double> tip_seeds_;          // pre-crack midpoints
+  std::int64_t tips_broken_at_ = -1;       // broken-bond count of the last tip sample
+  std::vector<CrackTip> last_tips_;
+  std::unique_ptr<std::ofstream> tips_csv_;  // rank 0
   std::string resolved_;
   RunSummary summary_;
   std::chrono::steady_clock::time_point start_, last_progress_;

@@ -1,0 +1,85 @@
+// Energy release rate: the work to advance a crack slowly, on the solver's discretization, against
+// eq. (30) (serial).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "peri/fracture_energy.hpp"
+
+namespace peri {
+namespace {
+
+// Sheet around a straight advance of about 4 delta along y = 0 (between node rows), m = delta/dx.
+struct Measured {
+  double G, exact;
+  std::int64_t bonds;
+};
+Measured measure(double delta, int m, const char* extra_material = "") {
+  const double dx = delta / m;
+  const double advance = std::ceil(4 * delta / dx) * dx;
+  const double hx = std::ceil((0.5 * advance + 2 * delta) / dx) * dx, hy = std::ceil(2 * delta / dx) * dx;
+  char text[1024];
+  std::snprintf(text, sizeof text, R"(
+name: sheet
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 2.0%s}
+bodies:
+  sheet: {material: rubber, origin: [%.17g, %.17g, 0], size: [%.17g, %.17g], thickness: 0.0005, spacing: %.17g, horizon: %.17g}
+stages:
+  - {name: none, steps: 1}
+)", extra_material, -hx, -hy, 2 * hx, 2 * hy, dx, delta);
+  const Scene scene = parse_scene(text, "release-rate");
+  const Nodes nodes = discretize(scene);
+  const CellList cells(nodes, reach(nodes.bodies[0]));
+  const BondLaw law = calibrate(scene.materials[0], nodes.bodies[0], "sheet");
+  Crack seg;
+  // Ends off the bonds' crossing points (which lie at rational fractions of dx).
+  seg.from = {-0.5 * advance + 0.3183098862 * dx, 0, 0};
+  seg.to = {0.5 * advance + 0.3183098862 * dx, 0, 0};
+  const CrackAdvanceEnergy e = crack_advance_energy(nodes, cells, law, 0, seg);
+  return {e.release_rate, eq30_release_rate(law, 0.0005), e.bonds};
+}
+
+TEST(ReleaseRate, Eq30ClosedFormForConstantInfluence) {
+  BondLaw law;
+  law.c = 3.0;
+  law.horizon = 2e-3;
+  law.breaks = true;
+  law.critical0 = law.critical_delta = 2.0;
+  const double w0 = law.c * (4 + 0.25 - 2);  // eq. (26)
+  EXPECT_NEAR(eq30_release_rate(law, 0.5e-3) / (2 * 0.5e-3 * w0 * std::pow(2e-3, 3) / 3), 1.0, 1e-12);
+}
+
+TEST(ReleaseRate, WorkToAdvanceACrackConvergesToEq30) {
+  const double delta = 1e-3;
+  const int ms[] = {3, 4, 6, 8, 12};
+  double err[5];
+  for (int k = 0; k < 5; ++k) {
+    const Measured r = measure(delta, ms[k]);
+    err[k] = std::fabs(r.G / r.exact - 1);
+    std::printf("G: m = %2d: %lld crossing bonds, G_h = %.6g J/m^2, eq. (30) %.6g, relative error %.3e\n", ms[k],
+                static_cast<long long>(r.bonds), r.G, r.exact, err[k]);
+  }
+  const double order = std::log(err[2] / err[4]) / std::log(2.0);
+  std::printf("G: observed order between m = 6 and 12: %.2f\n", order);
+  EXPECT_LT(err[4], 0.05);  // finest resolution of this test: within 5% of eq. (30)
+  for (int k = 1; k < 5; ++k) EXPECT_LT(err[k], err[k - 1]) << "error must decrease with refinement (m = " << ms[k] << ")";
+}
+
+TEST(ReleaseRate, ScaleFreeAtFixedM) {
+  // G / eq. (30) depends on m only: the ladder at fixed m is flat.
+  const Measured a = measure(2e-3, 3), b = measure(0.5e-3, 3);
+  EXPECT_NEAR(a.G / a.exact, b.G / b.exact, 1e-9);
+}
+
+TEST(ReleaseRate, LinearCriticalStretchAndConicalInfluence) {
+  // Eq. (29) and g = 1 - xi/delta: the same measurement against the integral form of eq. (30).
+  const Measured r = measure(1e-3, 12, ", critical_stretch_at_horizon: 1.5, influence: conical");
+  std::printf("G (conical, lambda_0 2 -> 1.5): G_h = %.6g, eq. (30) %.6g, relative error %.3e\n", r.G, r.exact,
+              std::fabs(r.G / r.exact - 1));
+  EXPECT_NEAR(r.G / r.exact, 1.0, 0.05);
+}
+
+}  // namespace
+}  // namespace peri
