@@ -233,6 +233,18 @@ void FrameWriter::write_xdmf() const {
   write_text_file(dir_ + "/" + stem_ + ".xdmf", x.str());
 }
 
+std::string rows_up_to(const std::string& path, const std::string& header, std::int64_t step) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string kept = header;
+  std::size_t start = text.compare(0, header.size(), header) == 0 ? header.size() : text.size();
+  for (std::size_t nl; (nl = text.find('\n', start)) != std::string::npos; start = nl + 1) {
+    if (std::strtoll(text.c_str() + start, nullptr, 10) > step) break;
+    kept.append(text, start, nl + 1 - start);
+  }
+  return kept;
+}
+
 SeriesWriter::SeriesWriter(const std::string& path, bool active, const std::string& extra_columns,
                            std::int64_t resume_step)
     : active_(active) {
@@ -241,17 +253,7 @@ SeriesWriter::SeriesWriter(const std::string& path, bool active, const std::stri
       "step,time,kinetic_energy,strain_energy,external_work,dissipated_energy,total_energy,broken_bonds" +
       std::string(extra_columns.empty() ? "" : ",") + extra_columns + "\n";
   if (resume_step >= 0) {
-    // Keep the header and the complete rows up to resume_step; a partial last line is dropped.
-    std::ifstream in(path, std::ios::binary);
-    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::string kept = header;
-    std::size_t start = text.compare(0, header.size(), header) == 0 ? header.size() : text.size();
-    for (std::size_t nl; (nl = text.find('\n', start)) != std::string::npos; start = nl + 1) {
-      const long long step = std::strtoll(text.c_str() + start, nullptr, 10);
-      if (step > resume_step) break;
-      kept.append(text, start, nl + 1 - start);
-    }
-    write_text_file(path, kept);
+    write_text_file(path, rows_up_to(path, header, resume_step));
     out_.open(path, std::ios::app);
   } else {
     out_.open(path, std::ios::trunc);

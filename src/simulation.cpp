@@ -5,10 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
 #include <iomanip>
-#include <iterator>
 #include <limits>
 #include <set>
 #include <sstream>
@@ -316,16 +314,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
         for (const char* c : {"_x", "_y", "_speed"}) tip_columns += ",tip" + std::to_string(k) + c;
       if (rank_ == 0) {
         const std::string path = options_.out_dir + "/tips.csv", header = "step,time,track,x,y,z,path_length,speed\n";
-        std::string kept = header;
-        if (resume_step >= 0) {  // keep the complete rows up to the checkpoint's step
-          std::ifstream in(path, std::ios::binary);
-          const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-          std::size_t start = text.compare(0, header.size(), header) == 0 ? header.size() : text.size();
-          for (std::size_t nl; (nl = text.find('\n', start)) != std::string::npos; start = nl + 1) {
-            if (std::strtoll(text.c_str() + start, nullptr, 10) > resume_step) break;
-            kept.append(text, start, nl + 1 - start);
-          }
-        }
+        const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
         tips_csv_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
         if (!*tips_csv_) throw Error("cannot write '" + path + "'");
         *tips_csv_ << kept << std::setprecision(12);

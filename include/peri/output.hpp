@@ -59,6 +59,10 @@ class FrameWriter {
 };
 
 /// CSV energy series, written by rank 0 (other ranks hold an inert writer).
+/// Text of a CSV file whose rows start with a step number: `header`, then the complete rows with
+/// step <= `step` (a partial last line is dropped). Used to continue outputs on restart.
+std::string rows_up_to(const std::string& path, const std::string& header, std::int64_t step);
+
 class SeriesWriter {
  public:
   /// `extra_columns`: further comma-separated column names appended to the header (none if empty).
