@@ -11,15 +11,10 @@
 #include <string>
 
 #include "peri/simulation.hpp"
+#include "mpi_test.hpp"
 
 namespace peri {
 namespace {
-
-int world_rank() {
-  int r;
-  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
-  return r;
-}
 
 // A stretched strip (40 x 24 nodes, Delta = 1 mm) clamped along its long edges with a seed crack
 // from the left edge: the crack runs within a few hundred steps.
@@ -152,17 +147,3 @@ TEST(LatticeEquilibrium, HomogeneousStretchStaysPutAwayFromEdges) {
 
 }  // namespace
 }  // namespace peri
-
-int main(int argc, char** argv) {
-  ::testing::InitGoogleTest(&argc, argv);
-  if (PetscInitialize(&argc, &argv, nullptr, nullptr)) return 1;
-  if (peri::world_rank() != 0) {
-    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
-    delete listeners.Release(listeners.default_result_printer());
-  }
-  const int result = RUN_ALL_TESTS();
-  int global = 0;
-  MPI_Allreduce(&result, &global, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
-  PetscFinalize();
-  return global;
-}

@@ -14,17 +14,12 @@
 #include "peri/bonds.hpp"
 #include "peri/model.hpp"
 #include "peri/simulation.hpp"
+#include "mpi_test.hpp"
 
 namespace peri {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-int world_rank() {
-  int r;
-  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
-  return r;
-}
 
 std::string subst(std::string text, const std::vector<std::pair<std::string, std::string>>& values) {
   for (const auto& [key, value] : values)
@@ -411,17 +406,3 @@ TEST(QuasiStatic, SnesPreloadMatchesDampedDynamics) {
 
 }  // namespace
 }  // namespace peri
-
-int main(int argc, char** argv) {
-  ::testing::InitGoogleTest(&argc, argv);
-  if (PetscInitialize(&argc, &argv, nullptr, nullptr)) return 1;
-  if (peri::world_rank() != 0) {
-    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
-    delete listeners.Release(listeners.default_result_printer());
-  }
-  const int result = RUN_ALL_TESTS();
-  int global = 0;
-  MPI_Allreduce(&result, &global, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
-  PetscFinalize();
-  return global;
-}

@@ -17,15 +17,10 @@
 #include "peri/resources.hpp"
 #include "peri/restart.hpp"
 #include "peri/simulation.hpp"
+#include "mpi_test.hpp"
 
 namespace peri {
 namespace {
-
-int world_rank() {
-  int r;
-  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
-  return r;
-}
 
 // Small slit membrane that fractures within a few hundred steps, over two stages.
 const char* kScene = R"(
@@ -446,17 +441,3 @@ TEST(Resources, MemoryModelAndRefusal) {
 
 }  // namespace
 }  // namespace peri
-
-int main(int argc, char** argv) {
-  ::testing::InitGoogleTest(&argc, argv);
-  if (PetscInitialize(&argc, &argv, nullptr, nullptr)) return 1;
-  if (peri::world_rank() != 0) {
-    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
-    delete listeners.Release(listeners.default_result_printer());
-  }
-  const int result = RUN_ALL_TESTS();
-  int global = 0;
-  MPI_Allreduce(&result, &global, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
-  PetscFinalize();
-  return global;
-}
