@@ -46,8 +46,10 @@ void kernel(benchmark::State& st, const char* model, const char* quadrature) {
   std::vector<std::int32_t> rows(d.owned);
   for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
   std::vector<double> F(3 * static_cast<std::size_t>(d.owned));
+  std::vector<double> x(4 * static_cast<std::size_t>(d.local()));
+  current_positions(d.X.data(), u.data(), 0, d.local(), x.data());
   BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
-             d.bonds.broken.data(), d.bonds.weight.empty() ? nullptr : d.bonds.weight.data()};
+             d.bonds.broken.data(), &d.bonds.patterns, x.data()};
   BondTally t;
   for (auto _ : st) {
     bond_forces(law, v, rows.data(), rows.size(), F.data(), false, t);
