@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numeric>
+#include <unordered_map>
 
 namespace peri {
 
@@ -158,10 +160,70 @@ bool crosses(const double* a, const double* b, const Crack& crack) {
   return o1 * o2 <= 0 && o3 * o4 <= 0;
 }
 
+double rounded_xi2(double xi2, double horizon) {
+  const double scale = std::max(horizon * horizon, xi2);  // lattices have no horizon
+  if (!(scale > 0)) return xi2;
+  const double quantum = std::ldexp(1.0, std::ilogb(scale) - 46);
+  return std::nearbyint(xi2 / quantum) * quantum;
+}
+
+// Patterns are found by a hash of their slots; equal hashes are confirmed slot by slot.
+struct PatternBuilder::Index {
+  std::unordered_multimap<std::uint64_t, std::int32_t> by_hash;
+};
+
+PatternBuilder::PatternBuilder() : index_(new Index) {}
+PatternBuilder::~PatternBuilder() { delete index_; }
+
+void PatternBuilder::add_row(const std::vector<double>& xi2, const std::vector<double>& measure, double horizon) {
+  const std::size_t n = xi2.size();
+  thread_local std::vector<double> rounded;
+  rounded.resize(n);
+  std::uint64_t h = 1469598103934665603ull ^ n;  // FNV-1a over the slots' bits
+  auto mix = [&h](double v) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    h = (h ^ bits) * 1099511628211ull;
+  };
+  for (std::size_t k = 0; k < n; ++k) {
+    rounded[k] = rounded_xi2(xi2[k], horizon);
+    mix(rounded[k]);
+    mix(measure[k]);
+  }
+  auto [lo, hi] = index_->by_hash.equal_range(h);
+  for (auto it = lo; it != hi; ++it) {
+    const std::int32_t p = it->second;
+    const std::int64_t b = p_.begin[p];
+    if (p_.begin[p + 1] - b != static_cast<std::int64_t>(n)) continue;
+    bool same = true;
+    for (std::size_t k = 0; k < n && same; ++k)
+      same = p_.xi2[b + k] == rounded[k] && p_.measure[b + k] == measure[k];
+    if (same) {
+      p_.of_row.push_back(p);
+      return;
+    }
+  }
+  const auto p = static_cast<std::int32_t>(p_.patterns());
+  p_.xi2.insert(p_.xi2.end(), rounded.begin(), rounded.end());
+  p_.measure.insert(p_.measure.end(), measure.begin(), measure.end());
+  p_.begin.push_back(static_cast<std::int64_t>(p_.xi2.size()));
+  p_.of_row.push_back(p);
+  index_->by_hash.emplace(h, p);
+}
+
+FamilyPatterns PatternBuilder::finish() {
+  p_.xi2.shrink_to_fit();
+  p_.measure.shrink_to_fit();
+  index_->by_hash.clear();
+  return std::move(p_);
+}
+
 double BondFamilies::bytes_per_bond() const {
   if (neighbor.empty()) return 0;
   const double bytes = offsets.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) +
-                       broken.size() + weight.size() * sizeof(float);
+                       broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
+                       patterns.begin.size() * sizeof(std::int64_t) +
+                       patterns.xi2.size() * (sizeof(double) + sizeof(double));
   return bytes / static_cast<double>(neighbor.size());
 }
 

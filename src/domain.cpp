@@ -22,13 +22,11 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   std::vector<std::int64_t> ghost_globals;
   d.bonds.offsets.assign(1, 0);
   d.bonds.offsets.reserve(d.owned + 1);
-  bool any_partial = false;
   std::size_t compact_at = 4096;
   for (std::int64_t g = d.global_begin; g < end; ++g) {
     const std::int64_t i = partition.global_to_natural[g];
     neighbours_of(nodes, cells, i, ids, w);
     for (std::size_t k = 0; k < ids.size(); ++k) {
-      any_partial |= w[k] != 1.0;
       const std::int64_t gj = partition.natural_to_global[ids[k]];
       if (gj < d.global_begin || gj >= end) ghost_globals.push_back(gj);
     }
@@ -63,16 +61,19 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
     d.body[l] = nodes.body[i];
   }
 
-  // Pass 2: families again, neighbours mapped to local indices, weights to float, pre-cracks
-  // to broken flags.
+  // Pass 2: families again, neighbours mapped to local indices, reference geometry to shared
+  // family patterns, pre-cracks to broken flags.
   const std::int64_t nb = d.bonds.offsets.back();
   d.bonds.neighbor.resize(nb);
   d.bonds.broken.assign(nb, 0);
-  if (any_partial) d.bonds.weight.resize(nb);
+  PatternBuilder patterns;
+  std::vector<double> xi2, measure;
   for (std::int32_t r = 0; r < d.owned; ++r) {
     bool touches_ghost = false;
     const std::int64_t i = d.natural[r];
     neighbours_of(nodes, cells, i, ids, w);
+    xi2.clear();
+    measure.clear();
     for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
       const std::size_t k = static_cast<std::size_t>(b - d.bonds.offsets[r]);
       const std::int64_t j = ids[k];
@@ -85,7 +86,11 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         touches_ghost = true;
       }
       d.bonds.neighbor[b] = lj;
-      if (any_partial) d.bonds.weight[b] = static_cast<float>(w[k]);
+      double s2 = 0;
+      for (int c = 0; c < 3; ++c) s2 += (nodes.X[3 * j + c] - nodes.X[3 * i + c]) * (nodes.X[3 * j + c] - nodes.X[3 * i + c]);
+      xi2.push_back(s2);
+      // Weights are kept to float precision, as the per-bond weights they replace were.
+      measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);
       if (nodes.bodies[nodes.body[i]].kind != BodyKind::Solid) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
@@ -98,8 +103,10 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
           }
       }
     }
+    patterns.add_row(xi2, measure, nodes.bodies[nodes.body[i]].horizon);
     (touches_ghost ? d.boundary_rows : d.interior_rows).push_back(r);
   }
+  d.bonds.patterns = patterns.finish();
   return d;
 }
 

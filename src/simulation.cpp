@@ -193,6 +193,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     mass_[i] = density_[domain_.body[i]] * domain_.volume[i];
   }
   force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
+  positions_.assign(4 * static_cast<std::size_t>(domain_.local()), 0.0);
   prev_force_ = force_;
   damage_.assign(domain_.owned, 0.0);
   bc_.assign(domain_.owned, -1);
@@ -329,8 +330,8 @@ Simulation::~Simulation() = default;
 
 BondView Simulation::bond_view() {
   return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                  domain_.bonds.neighbor.data(), domain_.bonds.broken.data(),
-                  domain_.bonds.weight.empty() ? nullptr : domain_.bonds.weight.data()};
+                  domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
+                  positions_.data()};
 }
 
 std::vector<std::string> Simulation::derived_lines() const {
@@ -387,6 +388,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
   {
     LocalArray u(state_->displacement());
     view.u = u.data();
+    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b])
         bond_forces(laws[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
@@ -399,6 +401,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
   {
     LocalArray u(state_->displacement());
     view.u = u.data();
+    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b])
         bond_forces(laws[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
@@ -868,6 +871,7 @@ void Simulation::run_release(const Stage& stage) {
   LocalArray u(state_->displacement());
   std::int64_t released = 0;
   double energy = 0;
+  const BondView view = bond_view();
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const BondLaw& law = laws_[domain_.body[i]];
     const double* Xi = &domain_.X[3 * static_cast<std::size_t>(i)];
@@ -878,14 +882,12 @@ void Simulation::run_release(const Stage& stage) {
       bool cut = false;
       for (const Crack* c : cracks) cut = cut || crosses(Xi, Xj, *c);
       if (!cut) continue;
-      double xi2 = 0, y2 = 0;
+      double y2 = 0;
       for (int c = 0; c < 3; ++c) {
-        const double d = Xj[c] - Xi[c], e = d + u.data()[3 * j + c] - u.data()[3 * i + c];
-        xi2 += d * d;
+        const double e = Xj[c] - Xi[c] + u.data()[3 * j + c] - u.data()[3 * i + c];
         y2 += e * e;
       }
-      const double w = domain_.bonds.weight.empty() ? 1.0 : domain_.bonds.weight[b];
-      energy += 0.5 * domain_.volume[i] * w * domain_.volume[j] * law.energy(xi2, y2);  // eq. (5), one end
+      energy += 0.5 * domain_.volume[i] * view.measure(i, b) * law.energy(view.xi2(i, b), y2);  // eq. (5), one end
       domain_.bonds.broken[b] = 1;
       ++released;
     }

@@ -41,15 +41,11 @@ void row_tangent(const BondLaw& law, const BondView& view, std::int32_t row, std
     const std::int32_t j = view.neighbor[b];
     const double* Xj = view.X + 3 * static_cast<std::size_t>(j);
     const double* uj = view.u + 3 * static_cast<std::size_t>(j);
-    double xi[3], r[3];
-    for (int c = 0; c < 3; ++c) {
-      xi[c] = Xj[c] - Xi[c];
-      r[c] = xi[c] + uj[c] - ui[c];
-    }
-    const double xi2 = xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2];
+    double r[3];
+    for (int c = 0; c < 3; ++c) r[c] = Xj[c] - Xi[c] + uj[c] - ui[c];
+    const double xi2 = view.xi2(row, b);
     const double y2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-    const double w = view.weight ? view.weight[b] : 1.0;
-    const double scale = view.volume[row] * w * view.volume[j];
+    const double scale = view.volume[row] * view.measure(row, b);
     const double k = law.coefficient(xi2, y2), k2 = 2.0 * coefficient_slope(law, xi2, y2);
     for (int a = 0; a < 3; ++a)
       for (int c = 0; c < 3; ++c) {
@@ -66,14 +62,9 @@ double reference_stiffness_sum(const BondLaw& law, const BondView& view, const s
   double sum = 0;
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
-    const double* Xi = view.X + 3 * static_cast<std::size_t>(i);
     double row = 0;
-    for (std::int64_t b = view.offsets[i]; b < view.offsets[i + 1]; ++b) {
-      const double* Xj = view.X + 3 * static_cast<std::size_t>(view.neighbor[b]);
-      const double d[3] = {Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2]};
-      const double w = view.weight ? view.weight[b] : 1.0;
-      row += w * view.volume[view.neighbor[b]] * law.reference_stiffness(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    }
+    for (std::int64_t b = view.offsets[i]; b < view.offsets[i + 1]; ++b)
+      row += view.measure(i, b) * law.reference_stiffness(view.xi2(i, b));
     sum += view.volume[i] * row;
   }
   return sum;

@@ -6,8 +6,10 @@
 #include <random>
 
 #include "peri/bonds.hpp"
+#include "peri/domain.hpp"
 #include "peri/forces.hpp"
 #include "peri/model.hpp"
+#include "peri/scene.hpp"
 
 namespace peri {
 namespace {
@@ -249,8 +251,17 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   std::vector<std::int32_t> nbr;
   for (int j = 1; j < n; ++j) nbr.push_back(j);
   std::vector<std::uint8_t> broken(n - 1, 0);
-  std::vector<float> weight(n - 1);
-  for (auto& w : weight) w = static_cast<float>(0.5 + 0.5 * std::fabs(U(rng)));
+  // Family pattern of row 0: |xi|^2 and w_0j V_j with random quadrature weights.
+  std::vector<double> xi2(n - 1), measure(n - 1);
+  for (int j = 1; j < n; ++j) {
+    xi2[j - 1] = 0;
+    for (int c = 0; c < 3; ++c) xi2[j - 1] += (X[3 * j + c] - X[c]) * (X[3 * j + c] - X[c]);
+    measure[j - 1] = (0.5 + 0.5 * std::fabs(U(rng))) * V[j];
+  }
+  PatternBuilder builder;
+  builder.add_row(xi2, measure, 1.3);
+  const FamilyPatterns patterns = builder.finish();
+  std::vector<double> x(4 * n);
   std::vector<BondLaw> laws(4);
   for (auto& l : laws) {
     l.c = 2.0;
@@ -263,7 +274,8 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   laws[3].kind = ModelKind::PMB;
   const std::int32_t row = 0;
   for (const BondLaw& law : laws) {
-    BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), weight.data()};
+    BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), &patterns, x.data()};
+    current_positions(X.data(), u.data(), 0, n, x.data());
     std::vector<double> F(3 * n, 0.0);
     BondTally t;
     bond_forces(law, v, &row, 1, F.data(), true, t);
@@ -292,24 +304,109 @@ TEST(Forces, BreakingIsIrreversibleAndBooksEnergy) {
   law.horizon = 2;
   law.breaks = true;
   law.critical0 = law.critical_delta = 2.0;
-  BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), nullptr};
+  std::vector<double> x(8);
+  BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), nullptr, x.data()};
   std::vector<double> F(6);
   const std::int32_t row = 0;
   BondTally t;
+  current_positions(X.data(), u.data(), 0, 2, x.data());
   bond_forces(law, v, &row, 1, F.data(), false, t);
   EXPECT_EQ(broken[0], 0);
   EXPECT_GT(F[0], 0);
   u[3] = 1.0;  // stretch exactly lambda_0 = 2: breaks (eq. 11: intact only while lambda < lambda_0)
+  current_positions(X.data(), u.data(), 0, 2, x.data());
   bond_forces(law, v, &row, 1, F.data(), false, t);
   EXPECT_EQ(broken[0], 1);
   EXPECT_EQ(F[0], 0.0);
   EXPECT_EQ(t.newly_broken, 1);
   EXPECT_NEAR(t.dissipated, 0.5 * law.energy(1.0, 4.0), 1e-15);  // half per end
   u[3] = 0.0;  // back to the reference length: stays broken
+  current_positions(X.data(), u.data(), 0, 2, x.data());
   bond_forces(law, v, &row, 1, F.data(), false, t);
   EXPECT_EQ(broken[0], 1);
   EXPECT_EQ(F[0], 0.0);
   EXPECT_EQ(t.newly_broken, 1);
+}
+
+// The production kernel (family patterns, current positions, AVX-512 where the build has it)
+// against a direct evaluation of the law per bond from reference positions, measures and
+// quadrature weights, on a grid membrane and a cubic solid with random displacements, for every
+// law shape; and the same bonds broken.
+TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
+  const char* scenes[] = {
+      "name: k\nmaterials:\n  m: {model: membrane, density: 1200, bulk_modulus: 8.0e8, critical_stretch: 1.004}\n"
+      "bodies:\n  s: {material: m, origin: [0, 0, 0], size: [0.02, 0.015], thickness: 0.0005, spacing: 0.001, quadrature: partial_area}\n"
+      "stages:\n  - {name: r, steps: 1}\n",
+      "name: k\nmaterials:\n  m: {model: pmb, density: 2200, bulk_modulus: 1.49e10, critical_stretch: 0.005}\n"
+      "bodies:\n  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.008, 0.007, 0.006], spacing: 0.001, horizon: 0.003015, quadrature: taper}\n"
+      "stages:\n  - {name: r, steps: 1}\n"};
+  for (const char* text : scenes) {
+    const Scene scene = parse_scene(text, "kernel-test");
+    const Nodes nodes = discretize(scene);
+    const CellList cells(nodes, reach(nodes.bodies[0]));
+    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+    Domain d = build_domain(scene, nodes, cells, part, 0);
+    const BondLaw base = calibrate(scene.materials[0], nodes.bodies[0], "t");
+    std::vector<BondLaw> laws(4, base);
+    laws[1].conical = true;
+    laws[2].linear_critical = true;
+    laws[2].critical_delta = 1.0 + 0.5 * (base.critical0 - 1.0);
+    laws[3].conical = laws[3].linear_critical = true;
+    laws[3].critical_delta = laws[2].critical_delta;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> U(-1.0, 1.0);
+    std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(4 * static_cast<std::size_t>(d.local()));
+    for (double& c : u) c = 4e-6 * U(rng);  // strains up to about 1%: some bonds break
+    current_positions(d.X.data(), u.data(), 0, d.local(), x.data());
+    std::vector<std::int32_t> rows(d.owned);
+    for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
+    for (const BondLaw& law : laws) {
+      std::vector<std::uint8_t> broken(d.bonds.broken.size(), 0);
+      BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
+                 broken.data(), &d.bonds.patterns, x.data()};
+      std::vector<double> F(3 * static_cast<std::size_t>(d.owned));
+      BondTally t;
+      bond_forces(law, v, rows.data(), rows.size(), F.data(), true, t);
+      double worst = 0, energy = 0, rounding = 0;
+      std::int64_t mismatched = 0, broken_direct = 0;
+      for (std::int32_t i = 0; i < d.owned; ++i) {
+        double f[3] = {0, 0, 0}, scale = 0, w = 0;
+        for (std::int64_t b = d.bonds.offsets[i]; b < d.bonds.offsets[i + 1]; ++b) {
+          const std::int32_t j = d.bonds.neighbor[b];
+          double xi[3], r[3], raw_xi2 = 0, y2 = 0;
+          for (int c = 0; c < 3; ++c) {
+            xi[c] = d.X[3 * j + c] - d.X[3 * i + c];
+            r[c] = xi[c] + u[3 * j + c] - u[3 * i + c];
+            raw_xi2 += xi[c] * xi[c];
+            y2 += r[c] * r[c];
+          }
+          // The stored |xi|^2 is rounded to 2^-46 horizon^2 (bonds.hpp); the law is evaluated at it.
+          const double xi2 = rounded_xi2(raw_xi2, law.horizon);
+          rounding = std::max(rounding, std::fabs(xi2 - raw_xi2) / (law.horizon * law.horizon));
+          const bool breaks = law.broken_at(xi2, y2);
+          broken_direct += breaks;
+          mismatched += breaks != static_cast<bool>(broken[b] & 1);
+          if (breaks) continue;
+          const double m = static_cast<float>(quadrature_weight(nodes.bodies[0], xi)) * d.volume[j];
+          const double k = law.coefficient(xi2, y2) * m;
+          for (int c = 0; c < 3; ++c) {
+            f[c] += k * r[c];
+            scale += std::fabs(k * r[c]);
+          }
+          w += law.energy(xi2, y2) * m;
+        }
+        energy += 0.5 * d.volume[i] * w;
+        for (int c = 0; c < 3; ++c) worst = std::max(worst, std::fabs(F[3 * i + c] - f[c]) / scale);
+      }
+      std::printf("kernel vs direct: largest force difference %.2e, broken %lld\n", worst, static_cast<long long>(broken_direct));
+      EXPECT_LT(worst, 1e-12) << "largest force difference relative to the sum of |bond forces|";
+      EXPECT_LE(rounding, std::ldexp(1.0, -46));
+      EXPECT_EQ(mismatched, 0);
+      EXPECT_GT(broken_direct, 0);
+      EXPECT_EQ(t.newly_broken, broken_direct);
+      EXPECT_NEAR(t.strain_energy, energy, 1e-9 * energy);
+    }
+  }
 }
 
 }  // namespace

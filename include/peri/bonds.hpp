@@ -1,6 +1,9 @@
 // Bonds: reference families within the horizon, as full (both-direction) CSR lists built in O(N)
-// with a cell list. Structure of arrays: offsets, neighbour index (32-bit), a flag byte per bond
-// (broken), and an optional float quadrature weight per bond (partial areas).
+// with a cell list. Structure of arrays: offsets, neighbour index (32-bit) and a flag byte per bond
+// (broken). The reference geometry of a family (|xi|^2 and the quadrature measure w_ij V_j of each
+// bond) is stored once per distinct family ("pattern"): on a grid every interior row has the same
+// sequence, so the kernel reads it from a small table that stays in cache instead of gathering
+// reference positions, measures and weights per bond.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -53,13 +56,50 @@ double reach(const BodyGeometry& g);
 /// Canonical in (a, b): the caller passes the lower natural id first so both ends agree.
 bool crosses(const double* a, const double* b, const Crack& crack);
 
+/// Reference geometry of bond families, one copy per distinct family. Row r's bond b (CSR
+/// position) has slot `begin[of_row[r]] + (b - offsets[r])`. |xi|^2 is rounded to a multiple of
+/// 2^-46 of the horizon squared (below the round-off of the stored reference positions), so rows
+/// whose families differ only by round-off share a pattern, and both ends of a bond, on any
+/// rank, see the same |xi|^2 bit for bit.
+struct FamilyPatterns {
+  std::vector<std::int32_t> of_row;     ///< row -> pattern
+  std::vector<std::int64_t> begin{0};   ///< pattern -> first slot (patterns + 1)
+  std::vector<double> xi2;              ///< slot -> |xi|^2 [m^2]
+  std::vector<double> measure;          ///< slot -> w_ij V_j (quadrature weight x measure) [m^3]
+  std::int64_t patterns() const { return static_cast<std::int64_t>(begin.size()) - 1; }
+  std::int64_t slot(std::int32_t row, std::int64_t offset_in_family) const {
+    return begin[of_row[row]] + offset_in_family;
+  }
+};
+
+/// Builds FamilyPatterns row by row, sharing identical families.
+class PatternBuilder {
+ public:
+  PatternBuilder();
+  ~PatternBuilder();
+  PatternBuilder(const PatternBuilder&) = delete;
+  PatternBuilder& operator=(const PatternBuilder&) = delete;
+  /// Appends the next row: its bonds' raw |xi|^2 and measures w_ij V_j, in CSR order;
+  /// `horizon` sets the rounding of |xi|^2.
+  void add_row(const std::vector<double>& xi2, const std::vector<double>& measure, double horizon);
+  FamilyPatterns finish();
+
+ private:
+  struct Index;
+  FamilyPatterns p_;
+  Index* index_;
+};
+
+/// |xi|^2 rounded as FamilyPatterns stores it (see there).
+double rounded_xi2(double xi2, double horizon);
+
 /// Bond families of a set of rows in CSR form. Neighbour indices are whatever the builder maps
 /// natural ids to (local indices on a rank).
 struct BondFamilies {
   std::vector<std::int64_t> offsets{0};  ///< rows + 1
   std::vector<std::int32_t> neighbor;    ///< one per ordered bond
   std::vector<std::uint8_t> broken;      ///< 1 = broken (irreversible)
-  std::vector<float> weight;             ///< quadrature weight per bond; empty = all 1
+  FamilyPatterns patterns;               ///< reference |xi|^2 and w_ij V_j of every bond
   std::int64_t rows() const { return static_cast<std::int64_t>(offsets.size()) - 1; }
   std::int64_t size() const { return static_cast<std::int64_t>(neighbor.size()); }
   double bytes_per_bond() const;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "peri/bonds.hpp"
 #include "peri/domain.hpp"
 #include "peri/model.hpp"
 
@@ -18,8 +19,25 @@ struct BondView {
   const std::int64_t* offsets = nullptr;
   const std::int32_t* neighbor = nullptr;
   std::uint8_t* broken = nullptr;
-  const float* weight = nullptr;    ///< nullptr: all weights 1
+  const FamilyPatterns* patterns = nullptr;  ///< nullptr: |xi|^2 from X, measure V_j (weight 1)
+  const double* x = nullptr;        ///< 4 * local current positions (X + u, 0) (bond_forces only)
+
+  /// Reference |xi|^2 of bond b of row i.
+  double xi2(std::int32_t i, std::int64_t b) const noexcept {
+    if (patterns) return patterns->xi2[patterns->slot(i, b - offsets[i])];
+    double s2 = 0;
+    for (int c = 0; c < 3; ++c) s2 += (X[3 * neighbor[b] + c] - X[3 * i + c]) * (X[3 * neighbor[b] + c] - X[3 * i + c]);
+    return s2;
+  }
+  /// Quadrature measure w_ij V_j of bond b of row i [m^3].
+  double measure(std::int32_t i, std::int64_t b) const noexcept {
+    return patterns ? patterns->measure[patterns->slot(i, b - offsets[i])] : volume[neighbor[b]];
+  }
 };
+
+/// Current positions x = X + u of local nodes [begin, end), padded to four doubles per node
+/// (x, y, z, 0) so the kernel loads a neighbour with one vector load (what bond_forces reads).
+void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end, double* x);
 
 /// Sums a bond loop produces (this rank's owned rows).
 struct BondTally {
@@ -35,7 +53,8 @@ struct BondTally {
 };
 
 /// Force densities (N/m^3) on `rows`, written to force[3*row..]; bonds reaching the failure test
-/// are broken (irreversibly) first. With `with_energy`, strain energy is summed too.
+/// are broken (irreversibly) first. With `with_energy`, strain energy is summed too. Reads the
+/// current positions `view.x` (of the rows and their neighbours) and the family patterns.
 void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* rows,
                  std::size_t nrows, double* force, bool with_energy, BondTally& tally);
 

@@ -176,6 +176,7 @@ class Simulation : public EquilibriumModel {
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
   std::vector<double> inv_density_, mass_;  // per owned node
   std::vector<double> force_, prev_force_;  // force densities, 3 * owned
+  std::vector<double> positions_;           // current positions (X + u, 0), 4 * local (bond kernel input)
   std::vector<int> bc_;                     // per owned node: boundary index or -1
   std::vector<double> du_bc_, v_old_bc_;    // prescribed components: step increment, old velocity
   std::vector<double> damage_;
