@@ -222,4 +222,31 @@ WaveSpeeds mooney_rivlin_wave_speeds(double a, double b, double /*lambda_along*/
   return w;
 }
 
+WaveSpeeds marder_lattice_wave_speeds(const MarderLaw& law, double lambda_along, double lambda_across,
+                                      bool along_y) {
+  // F in the frame (wave axis, other axis); bond directions of the lattice in that frame.
+  const double pi = 3.14159265358979323846;
+  const double step = 1e-4;
+  auto energy = [&](double f11, double f21) {
+    double d[3 * 6];
+    std::uint8_t active[6];
+    for (int k = 0; k < 6; ++k) {
+      const double ang = k * pi / 3 + (along_y ? pi / 2 : 0);
+      const double n1 = std::cos(ang) * law.delta, n2 = std::sin(ang) * law.delta;
+      d[3 * k] = f11 * n1;
+      d[3 * k + 1] = f21 * n1 + lambda_across * n2;
+      d[3 * k + 2] = 0;
+      active[k] = 1;
+    }
+    return marder_node(law, 6, d, active, nullptr);
+  };
+  const double e0 = energy(lambda_along, 0);
+  const double q11 = (energy(lambda_along + step, 0) - 2 * e0 + energy(lambda_along - step, 0)) / (step * step);
+  const double q22 = (energy(lambda_along, step) - 2 * e0 + energy(lambda_along, -step)) / (step * step);
+  WaveSpeeds w;
+  w.longitudinal = std::sqrt(std::max(q11, 0.0) / law.mass);
+  w.shear = std::sqrt(std::max(q22, 0.0) / law.mass);
+  return w;
+}
+
 }  // namespace peri

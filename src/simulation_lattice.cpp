@@ -113,6 +113,13 @@ void Simulation::lattice_derived(std::size_t b) {
   summary_.derived.push_back({p + "longitudinal_wave_speed_x", along_x.longitudinal});
   summary_.derived.push_back({p + "longitudinal_wave_speed_y", along_y.longitudinal});
   summary_.derived.push_back({p + "shear_wave_speed", along_x.shear});
+  // The lattice's own long-wave speeds at that stretch (differ from the Mooney-Rivlin ones where
+  // bonds are near u_c or on the cutoff branch; README "Marder lattice").
+  const WaveSpeeds lat_x = marder_lattice_wave_speeds(law, lx, ly), lat_y = marder_lattice_wave_speeds(law, ly, lx, true);
+  summary_.derived.push_back({p + "lattice_longitudinal_speed_x", lat_x.longitudinal});
+  summary_.derived.push_back({p + "lattice_shear_speed_x", lat_x.shear});
+  summary_.derived.push_back({p + "lattice_longitudinal_speed_y", lat_y.longitudinal});
+  summary_.derived.push_back({p + "lattice_shear_speed_y", lat_y.shear});
   summary_.derived.push_back({p + "nodes", double(nodes_.bodies[b].count)});
 }
 

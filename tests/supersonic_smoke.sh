@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The supersonic-rubber scene at a coarse resolution (Delta = 1 mm, 1.2 ms), on 2 ranks, end to
-# end: run, crack-tip measurement, picture. The crack must run at a speed between 0.5 and 1.5 c_l.
+# end: run, crack-tip measurement, picture. The crack from the seed must run at a speed between 0.5
+# and 1.5 c_l (the lattice's long-wave c_l ahead of the tip; measured 0.98 here). It is not
+# supersonic (README "The supersonic crack"), so the test does not assert v > c_l.
 # usage: supersonic_smoke.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -eu
 peridrive=$1 src=$2 mpiexec=$3

@@ -4,11 +4,15 @@
 usage: /usr/bin/python3 tools/crack_tip_lattice.py OUTDIR [--band B] [--frame K]
 
 Reads OUTDIR/frames.h5 and OUTDIR/scene.resolved.yaml (derived constants as comments). The tip
-of each frame is the largest reference x among nodes with damage > 0 within B (default 3)
-lattice spacings of the seed crack's line. The crack speed is the least-squares slope of tip
+of each frame is the largest reference x of the run of damaged nodes within B (default 3)
+lattice spacings of the seed crack's line that is contiguous (gaps <= 2.5 spacings) with the seed;
+damage nucleated further ahead is counted (damaged_ahead_of_tip, the most over the measured
+frames) but is not the tip. The crack speed is the least-squares slope of tip
 position against time over the frames where the tip has left the seed and is still more than
 10 spacings from the far edge; it is a reference-frame speed, compared with the reference-frame
-wave speeds of the stretched sheet ahead of the tip (longitudinal_wave_speed_x, shear_wave_speed).
+long-wave speeds of the lattice in the stretched state ahead of the tip
+(lattice_longitudinal_speed_x, lattice_shear_speed_x of the derived constants; the Mooney-Rivlin
+formulas longitudinal_wave_speed_x, shear_wave_speed are reported beside them).
 Writes OUTDIR/crack_tip.csv, OUTDIR/crack_tip.json and OUTDIR/tip_region.png (frame K, default:
 the frame where the tip is nearest the middle of the measured run).
 Needs Debian's python3-h5py, python3-numpy and python3-matplotlib.
@@ -57,12 +61,20 @@ def main():
     with h5py.File(os.path.join(args.out, "frames.h5"), "r") as f:
         X = f["mesh/reference_position"][...]
         names = sorted(f["frames"].keys())
-        times, tips, frames = [], [], []
+        times, tips, frames, ahead = [], [], [], []
         for name in names:
             g = f["frames"][name]
             d = g["damage"][...]
             near = (np.abs(X[:, 1] - y_line) < args.band * delta) & (d > 0)
-            tips.append(X[near, 0].max() if near.any() else np.nan)
+            xs = np.sort(X[near, 0])
+            # The crack grown from the seed: damaged nodes on the line contiguous (gaps of at most
+            # 2.5 spacings) with the seed's end; damage nucleated further ahead is not its tip.
+            tip = np.nan
+            if xs.size and xs[0] <= seed_end + 2.5 * delta:
+                gaps = np.where(np.diff(xs) > 2.5 * delta)[0]
+                tip = xs[gaps[0]] if gaps.size else xs[-1]
+            tips.append(tip)
+            ahead.append(int((xs > tip + 2.5 * delta).sum()) if xs.size and tip == tip else 0)
             times.append(float(g.attrs["time"]))
             frames.append(name)
         times, tips = np.array(times), np.array(tips)
@@ -71,11 +83,17 @@ def main():
         if use.sum() < 3:
             sys.exit(f"{args.out}: the tip moved through fewer than 3 frames; no speed")
         v, x0 = np.polyfit(times[use], tips[use], 1)
-        cl = values.get(next(k for k in values if k.endswith("longitudinal_wave_speed_x")))
-        cs = values.get(next(k for k in values if k.endswith("shear_wave_speed")))
+        def first(suffix):
+            return next((values[k] for k in values if k.endswith(suffix)), None)
+        cl_mr, cs_mr = first(".longitudinal_wave_speed_x"), first(".shear_wave_speed")
+        # Compare with the lattice's own long-wave speeds at the far-field stretch where the run
+        # reports them (they differ from Mooney-Rivlin when bonds are near u_c or below Delta + u_s).
+        cl, cs = first(".lattice_longitudinal_speed_x") or cl_mr, first(".lattice_shear_speed_x") or cs_mr
         result = {"crack_speed": v, "longitudinal_wave_speed_x": cl, "shear_wave_speed": cs,
+                  "mooney_rivlin_longitudinal_x": cl_mr, "mooney_rivlin_shear": cs_mr,
                   "v_over_cl": v / cl, "v_over_cs": v / cs, "frames_used": int(use.sum()),
-                  "tip_start": float(tips[use][0]), "tip_end": float(tips[use][-1])}
+                  "tip_start": float(tips[use][0]), "tip_end": float(tips[use][-1]),
+                  "damaged_ahead_of_tip": int(max(np.array(ahead)[use]))}
         with open(os.path.join(args.out, "crack_tip.csv"), "w") as o:
             o.write("time,tip_x\n")
             for t, x in zip(times, tips):

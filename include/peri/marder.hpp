@@ -137,4 +137,16 @@ struct WaveSpeeds {
 };
 WaveSpeeds mooney_rivlin_wave_speeds(double a, double b, double lambda_along, double lambda_across);
 
+/// Small-amplitude long-wave speeds of the lattice itself about the homogeneous stretch
+/// diag(lambda_along, lambda_across), for propagation along the first axis, in the reference
+/// frame. The triangular lattice is a Bravais lattice, so a long wave sees the energy per node of
+/// the homogeneous deformation U(F) (all six pair terms and all three-body terms, the switch h
+/// included): c_l^2 = (d^2 U / dF_11^2) / m and c_s^2 = (d^2 U / dF_21^2) / m (central
+/// differences). Equal to mooney_rivlin_wave_speeds only where every bond is on the
+/// Mooney-Rivlin branch (Delta + u_s < u) and h = 1; near u_c (h < 1, the quartic pair term no
+/// longer cancelled) or on the cutoff branch the lattice is stiffer. `along_y` rotates the
+/// lattice's bond directions by 90 degrees relative to the wave (propagation along y).
+WaveSpeeds marder_lattice_wave_speeds(const MarderLaw& law, double lambda_along, double lambda_across,
+                                      bool along_y = false);
+
 }  // namespace peri
