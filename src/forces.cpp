@@ -86,11 +86,11 @@ void loop_scalar(const BondLaw& law_in, const BondView& v, const std::int32_t* r
 // gathers of the three coordinates cost more than the rest of the bond on Zen 4: 3.3e8 against
 // 8.6e8 bond updates/s with the positions loaded contiguously, in a test of the kernel.)
 // Membrane (eq. 15): f_hat / y = 2 c g (y^4 - xi^4) / (xi^2 y^4), one division, no square root.
-// PMB: f_hat / y = c g (1/xi - 1/y), two reciprocal square roots. Each row's eight lane sums are reduced in a fixed order,
+// PMB: f_hat / y = c g (1/xi - 1/y), one reciprocal square root. Each row's eight lane sums are reduced in a fixed order,
 // so a node's force does not depend on which rank computes it.
 // 1/sqrt(d) from the 14-bit hardware estimate and two Newton steps (relative error about 2^-52,
-// within an ulp or two of the correctly rounded value), for the PMB law's two square roots and a
-// division. (The same trick for the membrane's single division was slower than vdivpd: 5.0-5.3e8
+// within an ulp or two of the correctly rounded value), for the PMB law's 1/y (1/xi is stored per
+// pattern slot): replaces a square root and a division. (The same trick for the membrane's single division was slower than vdivpd: 5.0-5.3e8
 // against 5.4-7.2e8 bond updates/s in alternating runs of bench_kernels.)
 inline __m512d reciprocal_sqrt(__m512d d) {
   const __m512d half = _mm512_set1_pd(0.5), three_halves = _mm512_set1_pd(1.5);
@@ -108,7 +108,6 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
   std::uint8_t* __restrict flag = v.broken;
   const FamilyPatterns& P = *v.patterns;
   const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
-  const __m512d c_law = _mm512_set1_pd(K == ModelKind::Membrane ? 2.0 * L.c : L.c);
   const __m512d c_energy = _mm512_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c);
   const __m512d tiny = _mm512_set1_pd(1e-12);
   const __m512d crit0 = _mm512_set1_pd(L.critical0), crit0_sq = _mm512_set1_pd(L.critical0 * L.critical0);
@@ -122,6 +121,7 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
     const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
     const double* sx = P.xi2.data() + P.begin[P.of_row[i]];
     const double* sm = P.measure.data() + P.begin[P.of_row[i]];
+    const double* sr = P.inv_xi.data() + P.begin[P.of_row[i]];
     __m512d f0 = zero, f1 = zero, f2 = zero, w = zero;
     int newly = 0;
     for (std::int64_t k = 0; k < n; k += 8) {
@@ -167,7 +167,7 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
         newly += __builtin_popcount(fresh);
       }
       const __mmask8 intact = m & static_cast<__mmask8>(~(was | reached));
-      const __m512d gm = _mm512_mul_pd(c_law, Conical ? _mm512_mul_pd(g, meas) : meas);
+      const __m512d gm = Conical ? _mm512_mul_pd(g, meas) : meas;  // times c_law once per row
       __m512d coef;
       if constexpr (K == ModelKind::Membrane) {
         const __m512d y4 = _mm512_mul_pd(y2, y2);
@@ -179,7 +179,7 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
           w = _mm512_mask_add_pd(w, intact, w, _mm512_div_pd(_mm512_mul_pd(ge, _mm512_mul_pd(e, e)), _mm512_mul_pd(s2, y2)));
         }
       } else {
-        const __m512d inv_y = reciprocal_sqrt(y2), inv_xi = reciprocal_sqrt(s2);
+        const __m512d inv_y = reciprocal_sqrt(y2), inv_xi = _mm512_mask_loadu_pd(one, m, sr + k);
         coef = _mm512_maskz_mul_pd(intact, gm, _mm512_sub_pd(inv_xi, inv_y));  // c g (1/xi - 1/y)
         if constexpr (Energy) {  // w = c s^2 |xi| g / 2 = (c/2) g (y - xi)^2 / xi
           const __m512d stretch = _mm512_sub_pd(_mm512_sqrt_pd(y2), xi);
@@ -191,9 +191,10 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
       f1 = _mm512_fmadd_pd(coef, d1, f1);
       f2 = _mm512_fmadd_pd(coef, d2, f2);
     }
-    force[3 * i] = _mm512_reduce_add_pd(f0);
-    force[3 * i + 1] = _mm512_reduce_add_pd(f1);
-    force[3 * i + 2] = _mm512_reduce_add_pd(f2);
+    const double c = K == ModelKind::Membrane ? 2.0 * L.c : L.c;
+    force[3 * i] = c * _mm512_reduce_add_pd(f0);
+    force[3 * i + 1] = c * _mm512_reduce_add_pd(f1);
+    force[3 * i + 2] = c * _mm512_reduce_add_pd(f2);
     if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * _mm512_reduce_add_pd(w);
     if (newly) book_breaks(L, v, i, newly, tally);
   }

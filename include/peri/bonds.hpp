@@ -65,6 +65,7 @@ struct FamilyPatterns {
   std::vector<std::int32_t> of_row;     ///< row -> pattern
   std::vector<std::int64_t> begin{0};   ///< pattern -> first slot (patterns + 1)
   std::vector<double> xi2;              ///< slot -> |xi|^2 [m^2]
+  std::vector<double> inv_xi;           ///< slot -> 1 / |xi| [1/m] (from the rounded |xi|^2)
   std::vector<double> measure;          ///< slot -> w_ij V_j (quadrature weight x measure) [m^3]
   std::int64_t patterns() const { return static_cast<std::int64_t>(begin.size()) - 1; }
   std::int64_t slot(std::int32_t row, std::int64_t offset_in_family) const {
