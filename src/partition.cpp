@@ -117,6 +117,9 @@ double cell_size_for(const Nodes& nodes, int parts, int cells_per_part) {
     spacing = std::max(spacing, g.spacing);
   }
   if (!(h > 0)) h = spacing > 0 ? spacing : 1.0;
+  // Not below half the horizon (nor the spacing): smaller cells have (2 delta / h + 1)^3 cell
+  // neighbours each and the cell graph would outgrow the bond graph it replaces.
+  const double floor = std::max(spacing, 0.5 * h);
   const Box box = bounding_box(nodes);
   const double want = static_cast<double>(cells_per_part) * parts;
   const double limit = 4.0 * static_cast<double>(nodes.size()) + 64;
@@ -124,8 +127,8 @@ double cell_size_for(const Nodes& nodes, int parts, int cells_per_part) {
     std::array<std::int64_t, 3> dims{};
     const std::vector<std::int64_t> lin = linear_cells(nodes, box, h, limit, dims);
     if (lin.empty()) return h / 0.8;  // the previous size: a sparse box has enough cells
-    if (static_cast<double>(occupied(lin, dims)) >= want || h <= spacing) return h;
-    h = std::max(0.8 * h, spacing);
+    if (static_cast<double>(occupied(lin, dims)) >= want || h <= floor) return h;
+    h = std::max(0.8 * h, floor);
   }
 }
 

@@ -2,7 +2,7 @@
 // contiguous (natural order kept inside a part). Three partitioners fill the same `part` array
 // (option -partition_method):
 //   cells  (default) METIS k-way on a coarse graph: nodes binned into cubic cells of about the
-//          horizon (smaller where needed for at least 64 cells per part), vertex weight = ordered
+//          horizon (down to half of it where needed for 64 cells per part), vertex weight = ordered
 //          bonds of the cell's nodes, edge weight = bonds between two cells; nodes inherit their
 //          cell's part. Serial on rank 0, memory O(cells) besides a 4-byte cell id per node.
 //   bonds  METIS k-way on the full bond graph (vertex weight = bond count + 1), serial on rank 0;
@@ -83,8 +83,8 @@ struct CellGraph {
 CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, std::int64_t row_begin = 0,
                      std::int64_t row_end = -1);
 
-/// Cell size for `parts` parts: the largest horizon, shrunk by factors of 0.8 (not below the
-/// largest spacing) until at least cells_per_part * parts cells are occupied.
+/// Cell size for `parts` parts: the largest horizon, shrunk by factors of 0.8 (not below half the
+/// horizon nor the largest spacing) until at least cells_per_part * parts cells are occupied.
 double cell_size_for(const Nodes& nodes, int parts, int cells_per_part);
 
 /// METIS k-way on a cell graph (all rows); returns a part per cell. Weights are scaled down if
