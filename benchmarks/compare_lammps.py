@@ -116,8 +116,12 @@ def run_peridrive(exe, n, steps, ranks, work, mpirun):
     with open(os.path.join(out, "series.csv")) as f:
         for row in csv.DictReader(f):
             ke[int(row["step"])] = float(row["kinetic_energy"])
+    # Peak memory after each setup phase, summed over ranks (summary.json "memory"), bytes/bond.
+    phases = " ".join(f"{m['phase']}:{m['peak_bytes'] / s['ordered_bonds']:.2f}" for m in s.get("memory", []))
     return dict(seconds=s["step_seconds"] / s["steps"], rss=rss, bonds=s["ordered_bonds"],
-                broken=2 * s["broken_bonds"], ke=ke, nodes=s["nodes"])
+                broken=2 * s["broken_bonds"], ke=ke, nodes=s["nodes"], phases=phases,
+                partition=f"{s.get('partition_method', '?')} cut {s.get('edge_cut', 0)} balance {s.get('partition_balance', 1):.4f} "
+                          f"{s.get('partition_seconds', 0):.2f} s")
 
 
 def neighbour_counts(n):
@@ -196,6 +200,8 @@ def main():
             row["pd_updates_per_s_per_core"] = bonds / row["pd_s_per_step"] / ranks
             row["pd_bytes_per_bond"] = med(pd, "rss") / bonds
             row["pd_broken_ordered"] = pd[0]["broken"]
+            row["pd_memory_phases"] = pd[0]["phases"]
+            row["pd_partition"] = pd[0]["partition"]
             if lm:
                 row["lmp_s_per_step"] = med(lm, "seconds")
                 row["lmp_rss_MB"] = med(lm, "rss") / 1e6
@@ -219,6 +225,9 @@ def main():
         if "lmp_s_per_step" in r:
             print(f"| | | | | LAMMPS | {r['lmp_s_per_step']:.4g} | {r['lmp_updates_per_s_per_core']:.3g} | "
                   f"{r['lmp_rss_MB']:.1f} | {r['lmp_bytes_per_bond']:.1f} | **{r['speedup']:.2f}** |")
+    print("\nperidrive peak memory (summed over ranks) after each setup phase, bytes per ordered bond; partitioner:")
+    for r in rows:
+        print(f"  N={r['N']} ranks={r['ranks']}: {r['pd_memory_phases']}; {r['pd_partition']}")
     if any("lmp_s_per_step" in r for r in rows):
         print("\nPhysical cross-check (kinetic energy relative to its initial value; broken ordered bonds at the end):")
         for r in rows:

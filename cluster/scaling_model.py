@@ -33,8 +33,10 @@ def main():
     ap.add_argument("--latency", type=float, default=2e-6, help="message latency [s] (default 2e-6)")
     ap.add_argument("--bandwidth", type=float, default=5e9, help="bytes/s per rank (default 5e9)")
     ap.add_argument("--out", default=None, help="write OUT.csv and OUT.png")
+    ap.add_argument("--method", default="cells",
+                    help="partitioner rows to model when the report has several (cells or bonds; default cells)")
     a = ap.parse_args()
-    rows = list(csv.DictReader(open(a.report)))
+    rows = [r for r in csv.DictReader(open(a.report)) if r.get("method", a.method) == a.method]
     if not rows:
         sys.exit(f"{a.report}: no rows")
     bonds = float(rows[0]["ordered_bonds"])

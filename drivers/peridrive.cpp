@@ -41,7 +41,17 @@ options:
   --quiet            no progress lines
   --version          print the version and exit
   --help             this text
-PETSc options (single dash, e.g. -log_view) pass through to PETSc.
+PETSc options (single dash, e.g. -log_view) pass through to PETSc. Partitioner (which rank owns
+which node; results do not depend on it):
+  -partition_method cells   METIS k-way on a coarse graph of cells of about the horizon (the
+                            default; serial on rank 0, memory O(cells), >= 64 cells per rank)
+  -partition_method bonds   METIS k-way on the full bond graph (serial on rank 0, about 20 bytes
+                            per ordered bond on rank 0 during setup)
+  -partition_method petsc   PETSc MatPartitioning on the cell graph, in parallel; type by
+                            -partition_mat_partitioning_type (default ptscotch)
+  -partition_cells_per_part N   cells per rank at least (default 64; cells shrink to the spacing)
+summary.json reports the method, edge cut, balance (largest rank's bonds / mean), partitioner
+time, and the peak memory summed over ranks after each setup phase ("memory").
 
 outputs (in DIR): frames.h5 + frames.xdmf (open in ParaView), series.csv (energies),
 scene.resolved.yaml, summary.json (written last: its presence marks a complete run),

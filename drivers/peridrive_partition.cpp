@@ -1,12 +1,18 @@
 // peridrive-partition: partition a scene into P parts without running it, and report what a
-// P-rank run would carry per rank (owned nodes and bonds, ghosts, neighbour ranks) and what the
-// partitioner costs (time, memory). Feeds cluster/scaling_model.py.
+// P-rank run would carry per rank (owned nodes and bonds, ghosts, neighbour ranks), the quality
+// (edge cut, balance = largest part's bonds / mean) and what the partitioner costs (time, peak
+// memory above its input). Feeds cluster/scaling_model.py.
 //
-//   peridrive-partition scene.yaml [--set KEY=VALUE ...] --parts 2,4,8,...,4096 [--csv FILE]
+//   peridrive-partition scene.yaml [--set KEY=VALUE ...] --parts 2,4,8,...,4096
+//                       [--method cells,bonds] [--cells-per-part 64] [--csv FILE]
 //
-// One process, no MPI ranks needed: METIS k-way runs serially here exactly as on rank 0 of a run.
+// One process, no MPI ranks needed: each partitioner runs serially, exactly as on rank 0 of a run
+// (cells: METIS on the coarse cell graph; bonds: METIS on the full bond graph, built inside the
+// measurement), in a forked child so that its peak memory is its own.
 #include <mpi.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -18,6 +24,7 @@
 #include <vector>
 
 #include "peri/partition.hpp"
+#include "peri/resources.hpp"
 
 namespace {
 
@@ -25,6 +32,87 @@ long peak_rss_kb() {
   rusage r{};
   getrusage(RUSAGE_SELF, &r);
   return r.ru_maxrss;
+}
+
+struct Measured {
+  std::vector<int> part;
+  double seconds = 0, peak_bytes = 0;
+  long long graph_vertices = 0;
+};
+
+bool read_all(int fd, void* data, std::size_t bytes) {
+  auto* p = static_cast<char*>(data);
+  while (bytes > 0) {
+    const ssize_t r = read(fd, p, bytes);
+    if (r <= 0) return false;
+    p += r;
+    bytes -= static_cast<std::size_t>(r);
+  }
+  return true;
+}
+
+bool write_all(int fd, const void* data, std::size_t bytes) {
+  const auto* p = static_cast<const char*>(data);
+  while (bytes > 0) {
+    const ssize_t r = write(fd, p, bytes);
+    if (r <= 0) return false;
+    p += r;
+    bytes -= static_cast<std::size_t>(r);
+  }
+  return true;
+}
+
+// Run one partitioner in a forked child: its time, its peak resident memory above the memory at
+// the fork (the scene's nodes and cell list are its input, shared), and the parts.
+Measured measure(const peri::Nodes& nodes, const peri::CellList& cells, int parts, peri::PartitionMethod method,
+                 int cells_per_part) {
+  int fds[2];
+  if (pipe(fds) != 0) throw peri::Error("pipe failed");
+  const std::int64_t n = nodes.size();
+  const pid_t pid = fork();
+  if (pid < 0) throw peri::Error("fork failed");
+  if (pid == 0) {
+    close(fds[0]);
+    const double base = peri::process_memory().current;
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<int> part(n);
+    long long vertices = n;
+    int status = 0;
+    try {
+      if (method == peri::PartitionMethod::Cells) {
+        const peri::CellGraph g = peri::cell_graph(nodes, cells, peri::cell_size_for(nodes, parts, cells_per_part));
+        const std::vector<int> cp = peri::metis_kway(g, parts);
+        for (std::int64_t i = 0; i < n; ++i) part[i] = cp[g.cell_of[i]];
+        vertices = g.cells;
+      } else {
+        std::int64_t cut = 0;
+        part = peri::metis_kway(peri::bond_graph(nodes, cells), parts, cut);
+      }
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "peridrive-partition: error: %s\n", e.what());
+      status = 1;
+    }
+    double head[2] = {std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                      peri::process_memory().peak - base};
+    const bool ok = status == 0 && write_all(fds[1], head, sizeof head) && write_all(fds[1], &vertices, sizeof vertices) &&
+                    write_all(fds[1], part.data(), part.size() * sizeof(int));
+    close(fds[1]);
+    _exit(ok ? 0 : 1);
+  }
+  close(fds[1]);
+  Measured m;
+  double head[2];
+  m.part.resize(n);
+  const bool ok = read_all(fds[0], head, sizeof head) && read_all(fds[0], &m.graph_vertices, sizeof m.graph_vertices) &&
+                  read_all(fds[0], m.part.data(), m.part.size() * sizeof(int));
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  if (!ok || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw peri::Error(std::string("the ") + peri::to_string(method) + " partitioner failed for " + std::to_string(parts) + " parts");
+  m.seconds = head[0];
+  m.peak_bytes = head[1];
+  return m;
 }
 
 std::vector<int> parse_parts(const std::string& text) {
@@ -47,6 +135,8 @@ std::vector<int> parse_parts(const std::string& text) {
 
 int run(int argc, char** argv) {
   std::string scene_path, csv_path;
+  std::vector<peri::PartitionMethod> methods{peri::PartitionMethod::Cells, peri::PartitionMethod::Bonds};
+  int cells_per_part = 64;
   std::vector<peri::Override> overrides;
   std::vector<int> parts{2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096};
   for (int k = 1; k < argc; ++k) {
@@ -57,13 +147,37 @@ int run(int argc, char** argv) {
     };
     if (a == "--parts") parts = parse_parts(value());
     else if (a == "--csv") csv_path = value();
+    else if (a == "--cells-per-part") {
+      const std::string v = value();
+      try {
+        cells_per_part = std::stoi(v);
+      } catch (const std::exception&) {
+        cells_per_part = 0;
+      }
+      if (cells_per_part < 1) throw peri::InputError("--cells-per-part " + v + ": expected an integer >= 1");
+    } else if (a == "--method") {
+      methods.clear();
+      std::stringstream list(value());
+      std::string item;
+      while (std::getline(list, item, ',')) {
+        if (item == "petsc") throw peri::InputError("--method petsc: this serial tool measures cells and bonds; "
+                                                    "PETSc MatPartitioning runs inside peridrive (-partition_method petsc)");
+        methods.push_back(peri::partition_method(item));
+      }
+      if (methods.empty()) throw peri::InputError("--method: expected cells, bonds or cells,bonds");
+    }
     else if (a == "--set") {
       const std::string kv = value();
       const auto eq = kv.find('=');
       if (eq == std::string::npos || eq == 0) throw peri::InputError("--set " + kv + ": expected KEY=VALUE");
       overrides.push_back({kv.substr(0, eq), kv.substr(eq + 1)});
     } else if (a == "--help" || a == "-h") {
-      std::puts("usage: peridrive-partition scene.yaml [--set KEY=VALUE ...] [--parts 2,4,...] [--csv FILE]");
+      std::puts(
+          "usage: peridrive-partition scene.yaml [--set KEY=VALUE ...] [--parts 2,4,...] [--method cells,bonds]\n"
+          "                           [--cells-per-part 64] [--csv FILE]\n"
+          "Partitions the scene for each P with each method (cells: METIS on the coarse cell graph, the default\n"
+          "of peridrive; bonds: METIS on the full bond graph) and prints per P and method: largest part's nodes\n"
+          "and bonds, ghosts, neighbour parts, edge cut, balance, the partitioner's time and its peak memory.");
       return 0;
     } else if (scene_path.empty() && a[0] != '-') scene_path = a;
     else throw peri::InputError("unknown argument " + a + "; see --help");
@@ -81,14 +195,16 @@ int run(int argc, char** argv) {
   std::printf("# %lld nodes, %lld ordered bonds; nodes + bond graph built in %.3g s, peak RSS %.1f MB\n",
               static_cast<long long>(n), static_cast<long long>(bonds), graph_seconds, peak_rss_kb() / 1024.0);
   std::ostringstream csv;
-  csv << "parts,nodes,ordered_bonds,max_owned_nodes,max_owned_bonds,mean_owned_bonds,max_ghosts,mean_ghosts,"
-         "max_neighbour_parts,mean_neighbour_parts,edge_cut,metis_seconds,peak_rss_mb\n";
-  for (int P : parts) {
+  csv << "parts,method,nodes,ordered_bonds,max_owned_nodes,max_owned_bonds,mean_owned_bonds,max_ghosts,mean_ghosts,"
+         "max_neighbour_parts,mean_neighbour_parts,edge_cut,balance,graph_vertices,metis_seconds,partitioner_peak_mb\n";
+  for (int P : parts)
+  for (peri::PartitionMethod method : methods) {
     if (P > n) continue;
-    const auto m0 = std::chrono::steady_clock::now();
-    std::int64_t cut = 0;
-    const std::vector<int> part = peri::metis_kway(graph, P, cut);
-    const double metis_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - m0).count();
+    const Measured measured = measure(nodes, cells, P, method, cells_per_part);
+    const std::vector<int>& part = measured.part;
+    const double metis_seconds = measured.seconds;
+    const peri::PartitionQuality quality = peri::quality(graph, part, P);
+    const std::int64_t cut = quality.edge_cut;
     // Per part: owned nodes and bonds; ghosts = distinct off-part neighbours; neighbour parts.
     std::vector<std::int64_t> owned(P, 0), owned_bonds(P, 0), ghosts(P, 0);
     std::vector<std::vector<int>> neighbour_parts(P);
@@ -120,12 +236,14 @@ int run(int argc, char** argv) {
     };
     std::vector<std::int64_t> nq(P);
     for (int p = 0; p < P; ++p) nq[p] = static_cast<std::int64_t>(neighbour_parts[p].size());
-    csv << P << "," << n << "," << bonds << "," << max_of(owned) << "," << max_of(owned_bonds) << ","
+    csv << P << "," << peri::to_string(method) << "," << n << "," << bonds << "," << max_of(owned) << "," << max_of(owned_bonds) << ","
         << mean_of(owned_bonds) << "," << max_of(ghosts) << "," << mean_of(ghosts) << "," << max_of(nq) << ","
-        << mean_of(nq) << "," << cut << "," << metis_seconds << "," << peak_rss_kb() / 1024.0 << "\n";
-    std::fprintf(stderr, "P = %d: METIS %.3g s, load imbalance %.3f, max ghosts %lld, edge cut %lld\n", P,
-                 metis_seconds, max_of(owned_bonds) / mean_of(owned_bonds), static_cast<long long>(max_of(ghosts)),
-                 static_cast<long long>(cut));
+        << mean_of(nq) << "," << cut << "," << quality.balance << "," << measured.graph_vertices << ","
+        << metis_seconds << "," << measured.peak_bytes / 1e6 << "\n";
+    std::fprintf(stderr, "P = %d, %s: %.3g s, %.1f MB, balance %.4f, max ghosts %lld, edge cut %lld (%lld graph vertices)\n",
+                 P, peri::to_string(method), metis_seconds, measured.peak_bytes / 1e6, quality.balance,
+                 static_cast<long long>(max_of(ghosts)), static_cast<long long>(cut),
+                 static_cast<long long>(measured.graph_vertices));
   }
   std::fputs(csv.str().c_str(), stdout);
   if (!csv_path.empty()) {

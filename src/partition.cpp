@@ -1,14 +1,257 @@
 #include "peri/partition.hpp"
 
 #include <metis.h>
+#include <petscmat.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <limits>
 #include <numeric>
 
 #include "peri/error.hpp"
 
 namespace peri {
+
+PartitionMethod partition_method(const std::string& name) {
+  if (name == "cells") return PartitionMethod::Cells;
+  if (name == "bonds") return PartitionMethod::Bonds;
+  if (name == "petsc") return PartitionMethod::Petsc;
+  throw InputError("-partition_method " + name + ": expected cells (coarse cell graph, METIS; the default), "
+                   "bonds (full bond graph, METIS) or petsc (MatPartitioning on the cell graph)");
+}
+
+const char* to_string(PartitionMethod m) {
+  switch (m) {
+    case PartitionMethod::Cells: return "cells";
+    case PartitionMethod::Bonds: return "bonds";
+    case PartitionMethod::Petsc: return "petsc";
+  }
+  return "?";
+}
+
+PartitionSettings partition_settings_from_options() {
+  PartitionSettings s;
+  char name[64] = "";
+  PetscBool set = PETSC_FALSE;
+  PERI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-partition_method", name, sizeof name, &set));
+  if (set) s.method = partition_method(name);
+  PetscInt per_part = s.cells_per_part;
+  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-partition_cells_per_part", &per_part, &set));
+  if (set && (per_part < 1 || per_part > 1000000))
+    throw InputError("-partition_cells_per_part " + std::to_string(per_part) + ": expected an integer in [1, 1000000]");
+  s.cells_per_part = static_cast<int>(per_part);
+  return s;
+}
+
+void Partition::release_maps() {
+  std::vector<int>().swap(part);
+  std::vector<std::int64_t>().swap(natural_to_global);
+  std::vector<std::int64_t>().swap(global_to_natural);
+}
+
+namespace {
+
+struct Box {
+  std::array<double, 3> lo{}, hi{};
+};
+
+Box bounding_box(const Nodes& nodes) {
+  Box b;
+  const std::int64_t n = nodes.size();
+  if (n == 0) return b;
+  for (int d = 0; d < 3; ++d) b.lo[d] = b.hi[d] = nodes.X[d];
+  for (std::int64_t i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) {
+      b.lo[d] = std::min(b.lo[d], nodes.X[3 * i + d]);
+      b.hi[d] = std::max(b.hi[d], nodes.X[3 * i + d]);
+    }
+  return b;
+}
+
+// Linear cell index of every node for cubic cells of size h; dims returned. Empty when the box
+// would need more than `limit` cells.
+std::vector<std::int64_t> linear_cells(const Nodes& nodes, const Box& box, double h, double limit,
+                                       std::array<std::int64_t, 3>& dims) {
+  double total = 1;
+  for (int d = 0; d < 3; ++d) {
+    dims[d] = static_cast<std::int64_t>(std::floor((box.hi[d] - box.lo[d]) / h)) + 1;
+    total *= static_cast<double>(dims[d]);
+  }
+  if (total > limit) return {};
+  const std::int64_t n = nodes.size();
+  std::vector<std::int64_t> lin(n);
+  for (std::int64_t i = 0; i < n; ++i) {
+    std::int64_t c[3];
+    for (int d = 0; d < 3; ++d)
+      c[d] = std::clamp<std::int64_t>(static_cast<std::int64_t>((nodes.X[3 * i + d] - box.lo[d]) / h), 0, dims[d] - 1);
+    lin[i] = (c[2] * dims[1] + c[1]) * dims[0] + c[0];
+  }
+  return lin;
+}
+
+std::int64_t occupied(const std::vector<std::int64_t>& lin, const std::array<std::int64_t, 3>& dims) {
+  std::vector<std::uint8_t> used(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]), 0);
+  std::int64_t count = 0;
+  for (std::int64_t c : lin)
+    if (!used[c]) {
+      used[c] = 1;
+      ++count;
+    }
+  return count;
+}
+
+// Scale factor that keeps a sum of weights within 32-bit METIS/PETSc indices.
+std::int64_t weight_divisor(std::int64_t total) {
+  const std::int64_t limit = std::int64_t(1) << 29;
+  return total > limit ? (total + limit - 1) / limit : 1;
+}
+
+}  // namespace
+
+double cell_size_for(const Nodes& nodes, int parts, int cells_per_part) {
+  double h = 0, spacing = 0;
+  for (const BodyGeometry& g : nodes.bodies) {
+    h = std::max(h, g.horizon);
+    spacing = std::max(spacing, g.spacing);
+  }
+  if (!(h > 0)) h = spacing > 0 ? spacing : 1.0;
+  // Not below half the horizon (nor the spacing): smaller cells have (2 delta / h + 1)^3 cell
+  // neighbours each and the cell graph would outgrow the bond graph it replaces.
+  const double floor = std::max(spacing, 0.5 * h);
+  const Box box = bounding_box(nodes);
+  const double want = static_cast<double>(cells_per_part) * parts;
+  const double limit = 4.0 * static_cast<double>(nodes.size()) + 64;
+  for (;;) {
+    std::array<std::int64_t, 3> dims{};
+    const std::vector<std::int64_t> lin = linear_cells(nodes, box, h, limit, dims);
+    if (lin.empty()) return h / 0.8;  // the previous size: a sparse box has enough cells
+    if (static_cast<double>(occupied(lin, dims)) >= want || h <= floor) return h;
+    h = std::max(0.8 * h, floor);
+  }
+}
+
+CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, std::int64_t row_begin,
+                     std::int64_t row_end) {
+  CellGraph g;
+  g.cell_size = size;
+  const std::int64_t n = nodes.size();
+  const Box box = bounding_box(nodes);
+  std::array<std::int64_t, 3> dims{};
+  std::vector<std::int64_t> lin = linear_cells(nodes, box, size, HUGE_VAL, dims);
+  // Occupied cells, numbered in linear (z, y, x) order: neighbouring ids are neighbouring cells.
+  {
+    std::vector<std::int64_t> sorted(lin);
+    std::sort(sorted.begin(), sorted.end());
+    sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+    g.cells = static_cast<std::int64_t>(sorted.size());
+    if (g.cells > std::numeric_limits<std::int32_t>::max()) throw Error("too many partition cells");
+    g.cell_of.resize(n);
+    for (std::int64_t i = 0; i < n; ++i)
+      g.cell_of[i] = static_cast<std::int32_t>(std::lower_bound(sorted.begin(), sorted.end(), lin[i]) - sorted.begin());
+  }
+  std::vector<std::int64_t>().swap(lin);
+  if (row_end < 0) row_end = g.cells;
+  g.row_begin = row_begin;
+  // Nodes of the rows built, grouped by cell (natural order inside a cell).
+  std::vector<std::int64_t> start(row_end - row_begin + 1, 0);
+  for (std::int64_t i = 0; i < n; ++i)
+    if (g.cell_of[i] >= row_begin && g.cell_of[i] < row_end) ++start[g.cell_of[i] - row_begin + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<std::int32_t> members(static_cast<std::size_t>(start.back()));
+  {
+    std::vector<std::int64_t> fill(start.begin(), start.end() - 1);
+    for (std::int64_t i = 0; i < n; ++i)
+      if (g.cell_of[i] >= row_begin && g.cell_of[i] < row_end)
+        members[fill[g.cell_of[i] - row_begin]++] = static_cast<std::int32_t>(i);
+  }
+  std::vector<std::int64_t> acc(g.cells, 0);
+  std::vector<std::int32_t> touched;
+  std::vector<std::int64_t> ids;
+  std::vector<double> w;
+  g.vertex_weight.assign(row_end - row_begin, 0);
+  g.offsets.assign(1, 0);
+  for (std::int64_t c = row_begin; c < row_end; ++c) {
+    for (std::int64_t m = start[c - row_begin]; m < start[c - row_begin + 1]; ++m) {
+      neighbours_of(nodes, cells, members[m], ids, w);
+      g.vertex_weight[c - row_begin] += static_cast<std::int64_t>(ids.size());
+      for (std::int64_t j : ids) {
+        const std::int32_t d = g.cell_of[j];
+        if (d == c) continue;
+        if (acc[d]++ == 0) touched.push_back(d);
+      }
+    }
+    std::sort(touched.begin(), touched.end());
+    for (std::int32_t d : touched) {
+      g.adjacency.push_back(d);
+      g.edge_weight.push_back(acc[d]);
+      acc[d] = 0;
+    }
+    touched.clear();
+    g.offsets.push_back(static_cast<std::int64_t>(g.adjacency.size()));
+  }
+  return g;
+}
+
+std::vector<int> metis_kway(const CellGraph& graph, int parts) {
+  static_assert(sizeof(idx_t) == sizeof(std::int32_t), "METIS built with 32-bit idx_t expected");
+  const std::int64_t n = graph.cells;
+  if (graph.row_begin != 0 || static_cast<std::int64_t>(graph.vertex_weight.size()) != n)
+    throw Error("metis_kway: the cell graph must hold all rows");
+  if (graph.offsets[n] > std::numeric_limits<idx_t>::max()) throw Error("the cell graph is too large for 32-bit METIS");
+  std::int64_t vsum = 0, esum = 0;
+  for (std::int64_t v : graph.vertex_weight) vsum += v + 1;
+  for (std::int64_t e : graph.edge_weight) esum += e;
+  const std::int64_t vdiv = weight_divisor(vsum), ediv = weight_divisor(esum);
+  std::vector<idx_t> xadj(n + 1), adjncy(graph.adjacency.begin(), graph.adjacency.end()), vwgt(n),
+      adjwgt(graph.edge_weight.size());
+  for (std::int64_t i = 0; i <= n; ++i) xadj[i] = static_cast<idx_t>(graph.offsets[i]);
+  for (std::int64_t i = 0; i < n; ++i) vwgt[i] = static_cast<idx_t>(std::max<std::int64_t>(1, (graph.vertex_weight[i] + 1) / vdiv));
+  for (std::size_t k = 0; k < adjwgt.size(); ++k)
+    adjwgt[k] = static_cast<idx_t>(std::max<std::int64_t>(1, graph.edge_weight[k] / ediv));
+  idx_t nv = static_cast<idx_t>(n), ncon = 1, np = parts, objval = 0;
+  idx_t options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(options);
+  options[METIS_OPTION_SEED] = 1;
+  options[METIS_OPTION_UFACTOR] = 5;  // 0.5% imbalance allowed (default 3%): cells are coarse, bonds the work
+  std::vector<idx_t> mpart(n);
+  const int status = METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), vwgt.data(), nullptr,
+                                         adjwgt.data(), &np, nullptr, nullptr, options, &objval, mpart.data());
+  if (status != METIS_OK) throw Error("METIS_PartGraphKway failed with status " + std::to_string(status));
+  return {mpart.begin(), mpart.end()};
+}
+
+PartitionQuality quality(const CellGraph& graph, const std::vector<int>& cell_part, int parts) {
+  PartitionQuality q;
+  std::vector<std::int64_t> load(parts, 0);
+  std::int64_t cut2 = 0, total = 0;
+  for (std::int64_t c = 0; c < static_cast<std::int64_t>(graph.vertex_weight.size()); ++c) {
+    const std::int64_t gc = graph.row_begin + c;
+    load[cell_part[gc]] += graph.vertex_weight[c];
+    total += graph.vertex_weight[c];
+    for (std::int64_t k = graph.offsets[c]; k < graph.offsets[c + 1]; ++k)
+      if (cell_part[graph.adjacency[k]] != cell_part[gc]) cut2 += graph.edge_weight[k];
+  }
+  q.edge_cut = cut2 / 2;
+  q.balance = total > 0 ? static_cast<double>(*std::max_element(load.begin(), load.end())) * parts / static_cast<double>(total) : 1.0;
+  return q;
+}
+
+PartitionQuality quality(const BondGraph& graph, const std::vector<int>& part, int parts) {
+  PartitionQuality q;
+  std::vector<std::int64_t> load(parts, 0);
+  std::int64_t cut2 = 0;
+  const std::int64_t n = static_cast<std::int64_t>(graph.offsets.size()) - 1;
+  for (std::int64_t i = 0; i < n; ++i) {
+    load[part[i]] += graph.offsets[i + 1] - graph.offsets[i];
+    for (std::int64_t b = graph.offsets[i]; b < graph.offsets[i + 1]; ++b) cut2 += part[graph.adjacency[b]] != part[i];
+  }
+  q.edge_cut = cut2 / 2;
+  const std::int64_t total = graph.offsets[n];
+  q.balance = total > 0 ? static_cast<double>(*std::max_element(load.begin(), load.end())) * parts / static_cast<double>(total) : 1.0;
+  return q;
+}
 
 Partition partition_from_parts(std::vector<int> part, int parts) {
   Partition p;
@@ -70,38 +313,185 @@ std::vector<int> metis_kway(const BondGraph& graph, int parts, std::int64_t& edg
   return {mpart.begin(), mpart.end()};
 }
 
-Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm) {
+namespace {
+
+// Rows [rank's share) of the cell graph on every rank; the whole graph gathered on rank 0 (the
+// per-node neighbour search, the costly part, is split over the ranks).
+CellGraph cell_graph_on_root(const Nodes& nodes, const CellList& cells, double size, MPI_Comm comm) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  const std::int64_t total = cell_graph(nodes, cells, size, 0, 0).cells;
+  CellGraph g = cell_graph(nodes, cells, size, total * rank / ranks, total * (rank + 1) / ranks);
+  if (ranks == 1) return g;
+  const int rows = static_cast<int>(g.vertex_weight.size()), edges = static_cast<int>(g.adjacency.size());
+  std::vector<int> row_counts(ranks), edge_counts(ranks), row_displs(ranks, 0), edge_displs(ranks, 0);
+  MPI_Gather(&rows, 1, MPI_INT, row_counts.data(), 1, MPI_INT, 0, comm);
+  MPI_Gather(&edges, 1, MPI_INT, edge_counts.data(), 1, MPI_INT, 0, comm);
+  std::int64_t all_edges = 0;
+  for (int r = 1; r < ranks; ++r) {
+    row_displs[r] = row_displs[r - 1] + row_counts[r - 1];
+    edge_displs[r] = edge_displs[r - 1] + edge_counts[r - 1];
+  }
+  if (rank == 0) all_edges = static_cast<std::int64_t>(edge_displs[ranks - 1]) + edge_counts[ranks - 1];
+  if (all_edges > std::numeric_limits<int>::max()) throw Error("the cell graph is too large to gather");
+  std::vector<std::int64_t> degree(rows), all_degree(rank == 0 ? total : 0), vw(rank == 0 ? total : 0),
+      ew(rank == 0 ? all_edges : 0);
+  std::vector<std::int32_t> adj(rank == 0 ? all_edges : 0);
+  for (int r = 0; r < rows; ++r) degree[r] = g.offsets[r + 1] - g.offsets[r];
+  MPI_Gatherv(degree.data(), rows, MPI_INT64_T, all_degree.data(), row_counts.data(), row_displs.data(), MPI_INT64_T, 0, comm);
+  MPI_Gatherv(g.vertex_weight.data(), rows, MPI_INT64_T, vw.data(), row_counts.data(), row_displs.data(), MPI_INT64_T, 0, comm);
+  MPI_Gatherv(g.adjacency.data(), edges, MPI_INT32_T, adj.data(), edge_counts.data(), edge_displs.data(), MPI_INT32_T, 0, comm);
+  MPI_Gatherv(g.edge_weight.data(), edges, MPI_INT64_T, ew.data(), edge_counts.data(), edge_displs.data(), MPI_INT64_T, 0, comm);
+  if (rank != 0) return g;
+  g.row_begin = 0;
+  g.offsets.assign(total + 1, 0);
+  for (std::int64_t c = 0; c < total; ++c) g.offsets[c + 1] = g.offsets[c] + all_degree[c];
+  g.vertex_weight = std::move(vw);
+  g.adjacency = std::move(adj);
+  g.edge_weight = std::move(ew);
+  return g;
+}
+
+// MatPartitioning on the cell graph, rows spread evenly over the ranks of comm; every rank gets
+// the part of every cell.
+std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, double size, int parts, MPI_Comm comm,
+                                  CellGraph& local, std::string& type_used) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  // Cell count first (cheap, no rows), then this rank's rows.
+  const std::int64_t total = cell_graph(nodes, cells, size, 0, 0).cells;
+  const std::int64_t lo = total * rank / ranks, hi = total * (rank + 1) / ranks;
+  local = cell_graph(nodes, cells, size, lo, hi);
+  const PetscInt m = static_cast<PetscInt>(hi - lo);
+  long long sums[2] = {0, 0}, global_sums[2];
+  for (std::int64_t v : local.vertex_weight) sums[0] += v + 1;
+  for (std::int64_t e : local.edge_weight) sums[1] += e;
+  MPI_Allreduce(sums, global_sums, 2, MPI_LONG_LONG, MPI_SUM, comm);
+  const std::int64_t vdiv = weight_divisor(global_sums[0]), ediv = weight_divisor(global_sums[1]);
+  PetscInt *ia, *ja, *values, *vwgt;
+  PERI_PETSC(PetscMalloc1(m + 1, &ia));
+  PERI_PETSC(PetscMalloc1(local.adjacency.size(), &ja));
+  PERI_PETSC(PetscMalloc1(local.adjacency.size(), &values));
+  PERI_PETSC(PetscMalloc1(m, &vwgt));
+  for (PetscInt r = 0; r <= m; ++r) ia[r] = static_cast<PetscInt>(local.offsets[r]);
+  for (std::size_t k = 0; k < local.adjacency.size(); ++k) {
+    ja[k] = local.adjacency[k];
+    values[k] = static_cast<PetscInt>(std::max<std::int64_t>(1, local.edge_weight[k] / ediv));
+  }
+  for (PetscInt r = 0; r < m; ++r)
+    vwgt[r] = static_cast<PetscInt>(std::max<std::int64_t>(1, (local.vertex_weight[r] + 1) / vdiv));
+  Mat adj;
+  PERI_PETSC(MatCreateMPIAdj(comm, m, static_cast<PetscInt>(total), ia, ja, values, &adj));  // owns ia, ja, values
+  MatPartitioning mp;
+  PERI_PETSC(MatPartitioningCreate(comm, &mp));
+  PERI_PETSC(PetscObjectSetOptionsPrefix(reinterpret_cast<PetscObject>(mp), "partition_"));
+  PERI_PETSC(MatPartitioningSetAdjacency(mp, adj));
+  PERI_PETSC(MatPartitioningSetNParts(mp, parts));
+  PERI_PETSC(MatPartitioningSetVertexWeights(mp, vwgt));  // owns vwgt
+  PERI_PETSC(MatPartitioningSetUseEdgeWeights(mp, PETSC_TRUE));
+#if defined(PETSC_HAVE_PTSCOTCH)
+  PERI_PETSC(MatPartitioningSetType(mp, MATPARTITIONINGPTSCOTCH));
+#elif defined(PETSC_HAVE_PARMETIS)
+  PERI_PETSC(MatPartitioningSetType(mp, MATPARTITIONINGPARMETIS));
+#endif
+  PERI_PETSC(MatPartitioningSetFromOptions(mp));
+  MatPartitioningType type;
+  PERI_PETSC(MatPartitioningGetType(mp, &type));
+  type_used = type;
+  IS is, all;
+  PERI_PETSC(MatPartitioningApply(mp, &is));
+  PERI_PETSC(ISAllGather(is, &all));
+  const PetscInt* p;
+  PERI_PETSC(ISGetIndices(all, &p));
+  std::vector<int> cell_part(p, p + total);
+  PERI_PETSC(ISRestoreIndices(all, &p));
+  ISDestroy(&all);
+  ISDestroy(&is);
+  MatPartitioningDestroy(&mp);
+  MatDestroy(&adj);
+  return cell_part;
+}
+
+}  // namespace
+
+Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm,
+                          const PartitionSettings& settings) {
   const std::int64_t n = nodes.size();
   std::vector<int> part(n, 0);
-  if (parts <= 1) {
-    Partition p = partition_from_parts(std::move(part), 1);
-    return p;
-  }
+  if (parts <= 1) return partition_from_parts(std::move(part), 1);
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   if (n < parts) throw InputError("the scene has " + std::to_string(n) + " nodes, fewer than the " +
                                   std::to_string(parts) + " ranks; use fewer ranks");
   const auto t0 = std::chrono::steady_clock::now();
-  long long cut = 0;
-  int status = METIS_OK;
-  std::string failure;
-  if (rank == 0) {
-    try {
-      std::int64_t edge_cut = 0;
-      part = metis_kway(bond_graph(nodes, cells), parts, edge_cut);
-      cut = edge_cut;
-    } catch (const Error& e) {
-      status = METIS_ERROR;
-      failure = e.what();
+  long long figures[2] = {0, 0};  // edge cut, graph vertices
+  double balance = 1;
+  std::string method;
+  const CellGraph graph = settings.method == PartitionMethod::Cells
+                              ? cell_graph_on_root(nodes, cells, cell_size_for(nodes, parts, settings.cells_per_part), comm)
+                              : CellGraph{};
+  if (settings.method == PartitionMethod::Petsc) {
+    const double size = cell_size_for(nodes, parts, settings.cells_per_part);
+    CellGraph local;
+    std::string type;
+    const std::vector<int> cell_part = petsc_cell_parts(nodes, cells, size, parts, comm, local, type);
+    for (std::int64_t i = 0; i < n; ++i) part[i] = cell_part[local.cell_of[i]];
+    // Quality from the rows each rank built.
+    std::vector<long long> load(parts + 1, 0), sum(parts + 1);
+    for (std::size_t c = 0; c < local.vertex_weight.size(); ++c) {
+      const std::int64_t gc = local.row_begin + static_cast<std::int64_t>(c);
+      load[cell_part[gc]] += local.vertex_weight[c];
+      for (std::int64_t k = local.offsets[c]; k < local.offsets[c + 1]; ++k)
+        if (cell_part[local.adjacency[k]] != cell_part[gc]) load[parts] += local.edge_weight[k];
     }
+    MPI_Allreduce(load.data(), sum.data(), parts + 1, MPI_LONG_LONG, MPI_SUM, comm);
+    long long total = 0;
+    for (int k = 0; k < parts; ++k) total += sum[k];
+    balance = total > 0 ? double(*std::max_element(sum.begin(), sum.end() - 1)) * parts / double(total) : 1.0;
+    figures[0] = sum[parts] / 2;
+    figures[1] = local.cells;
+    method = "petsc-" + type + "-cell-graph";
+  } else {
+    int status = METIS_OK;
+    std::string failure;
+    if (rank == 0) {
+      try {
+        if (settings.method == PartitionMethod::Cells) {
+          const CellGraph& g = graph;
+          const std::vector<int> cell_part = metis_kway(g, parts);
+          for (std::int64_t i = 0; i < n; ++i) part[i] = cell_part[g.cell_of[i]];
+          const PartitionQuality q = quality(g, cell_part, parts);
+          figures[0] = q.edge_cut;
+          figures[1] = g.cells;
+          balance = q.balance;
+        } else {
+          const BondGraph g = bond_graph(nodes, cells);
+          std::int64_t cut = 0;
+          part = metis_kway(g, parts, cut);
+          const PartitionQuality q = quality(g, part, parts);
+          figures[0] = q.edge_cut;
+          figures[1] = n;
+          balance = q.balance;
+        }
+      } catch (const Error& e) {
+        status = METIS_ERROR;
+        failure = e.what();
+      }
+    }
+    MPI_Bcast(&status, 1, MPI_INT, 0, comm);
+    if (status != METIS_OK) throw Error(rank == 0 ? failure : "METIS_PartGraphKway failed on rank 0");
+    MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
+    MPI_Bcast(figures, 2, MPI_LONG_LONG, 0, comm);
+    MPI_Bcast(&balance, 1, MPI_DOUBLE, 0, comm);
+    method = settings.method == PartitionMethod::Cells ? "metis-kway-cell-graph" : "metis-kway-bond-graph";
   }
-  MPI_Bcast(&status, 1, MPI_INT, 0, comm);
-  if (status != METIS_OK) throw Error(rank == 0 ? failure : "METIS_PartGraphKway failed on rank 0");
-  MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
-  MPI_Bcast(&cut, 1, MPI_LONG_LONG, 0, comm);
   Partition p = partition_from_parts(std::move(part), parts);
-  p.edge_cut = cut;
-  p.method = "metis-kway-bond-graph";
+  p.edge_cut = figures[0];
+  p.graph_vertices = figures[1];
+  p.balance = balance;
+  p.method = method;
   p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return p;
 }

@@ -34,10 +34,10 @@ std::string gb(double bytes) { return num(bytes / 1e9, " GB"); }
 
 }  // namespace
 
-MemoryNeed memory_need(const SizeEstimate& e, int ranks) {
+MemoryNeed memory_need(const SizeEstimate& e, int ranks, bool full_bond_graph) {
   MemoryNeed m;
-  m.per_rank = e.bytes / std::max(ranks, 1) + 64.0 * e.nodes;
-  m.rank0 = m.per_rank + (ranks > 1 ? 24.0 * e.bonds : 0.0);
+  m.per_rank = e.bytes / std::max(ranks, 1) + 72.0 * e.nodes;
+  m.rank0 = m.per_rank + (ranks > 1 && full_bond_graph ? 24.0 * e.bonds : 0.0);
   return m;
 }
 
@@ -58,11 +58,26 @@ double available_memory() {
   return available;
 }
 
+ProcessMemory process_memory() {
+  ProcessMemory m;
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  double kb = 0;
+  std::string line;
+  while (std::getline(status, line)) {
+    std::istringstream s(line);
+    if (!(s >> key >> kb)) continue;
+    if (key == "VmHWM:") m.peak = kb * 1024.0;
+    else if (key == "VmRSS:") m.current = kb * 1024.0;
+  }
+  return m;
+}
+
 std::string describe(const SizeEstimate& e) {
   return "about " + num(e.nodes) + " nodes, " + num(e.bonds / 2) + " bonds, " + gb(e.bytes) + " in all";
 }
 
-void check_fits(const Scene& scene, MPI_Comm comm) {
+void check_fits(const Scene& scene, MPI_Comm comm, bool full_bond_graph) {
   int rank = 0, ranks = 1, host_ranks = 1, host_rank = 0;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
@@ -70,14 +85,14 @@ void check_fits(const Scene& scene, MPI_Comm comm) {
   MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, &host);
   MPI_Comm_size(host, &host_ranks);
   MPI_Comm_rank(host, &host_rank);
-  // Rank 0's host carries the partitioner's graph as well.
+  // Rank 0's host carries the partitioner's bond graph as well (-partition_method bonds).
   int has_rank0 = rank == 0, host_has_rank0 = 0;
   MPI_Allreduce(&has_rank0, &host_has_rank0, 1, MPI_INT, MPI_MAX, host);
   MPI_Comm_free(&host);
 
   const SizeEstimate e = estimate_size(scene);
-  const MemoryNeed m = memory_need(e, ranks);
-  double need = m.per_rank * host_ranks + (host_has_rank0 && ranks > 1 ? 24.0 * e.bonds : 0.0);
+  const MemoryNeed m = memory_need(e, ranks, full_bond_graph);
+  double need = m.per_rank * host_ranks + (host_has_rank0 ? m.rank0 - m.per_rank : 0.0);
   if (!(need <= 1e300)) need = HUGE_VAL;  // an overflowed estimate (huge sizes) must still refuse
   const double have = available_memory();
   // The worst host decides, the same way on every rank.

@@ -104,6 +104,15 @@ std::string RunSummary::to_json() const {
     << "  \"bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
     << "  \"partition_seconds\": " << json_number(partition_seconds) << ",\n"
     << "  \"edge_cut\": " << edge_cut << ",\n"
+    << "  \"partition_method\": " << json_string(partition_method) << ",\n"
+    << "  \"partition_balance\": " << json_number(partition_balance) << ",\n"
+    << "  \"memory\": [";
+  for (std::size_t k = 0; k < memory.size(); ++k)
+    j << (k ? ", " : "") << "{\"phase\": " << json_string(memory[k].phase) << ", \"peak_bytes\": "
+      << json_number(memory[k].peak) << ", \"rss_bytes\": " << json_number(memory[k].current)
+      << ", \"peak_bytes_per_bond\": " << json_number(ordered_bonds > 0 ? memory[k].peak / double(ordered_bonds) : 0)
+      << "}";
+  j << "],\n"
     << "  \"precrack_bonds\": " << precrack_bonds << ",\n"
     << "  \"broken_bonds\": " << final_energy.broken_bonds << ",\n"
     << "  \"final\": {\"kinetic_energy\": " << json_number(final_energy.kinetic)
@@ -146,9 +155,11 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   PetscLogEventBegin(events().setup, 0, 0, 0, 0);
   MPI_Comm_rank(comm_, &rank_);
   MPI_Comm_size(comm_, &ranks_);
+  mark_memory("start");
 
   // Nodes, and every check that needs them, before anything is allocated per rank.
-  check_fits(scene_, comm_);
+  const PartitionSettings partition_settings = partition_settings_from_options();
+  check_fits(scene_, comm_, partition_settings.method == PartitionMethod::Bonds);
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
   for (const Boundary& b : scene_.boundaries)
@@ -169,16 +180,34 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
 
   // Bonds, partition, this rank's domain and state.
-  double max_reach = 0;
-  for (const BodyGeometry& g : nodes_.bodies) max_reach = std::max(max_reach, reach(g));
-  CellList cells(nodes_, max_reach);
-  partition_ = partition_nodes(nodes_, cells, ranks_, comm_);
   {
+    double max_reach = 0;
+    for (const BodyGeometry& g : nodes_.bodies) max_reach = std::max(max_reach, reach(g));
+    const CellList cells(nodes_, max_reach);
+    mark_memory("nodes");
+    partition_ = partition_nodes(nodes_, cells, ranks_, comm_, partition_settings);
+    mark_memory("partition");
     Scene initial_cracks = scene_;  // cracks named by release stages break later
     std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
     domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_);
   }
+  mark_memory("domain");
+  bc_.assign(domain_.owned, -1);
+  {
+    std::vector<int> bc_natural(nodes_.size(), -1);  // later regions win where they overlap
+    for (std::size_t b = 0; b < bc_nodes.size(); ++b)
+      for (std::int64_t i : bc_nodes[b]) bc_natural[i] = static_cast<int>(b);
+    for (std::int32_t i = 0; i < domain_.owned; ++i) bc_[i] = bc_natural[domain_.natural[i]];
+  }
+  // The global node arrays and maps end here: every rank keeps its own nodes (owned and ghosts)
+  // in domain_, which is all that the stages, output, checkpoints and crack tips read.
+  decltype(bc_nodes)().swap(bc_nodes);
+  partition_.release_maps();
+  std::vector<double>().swap(nodes_.X);
+  std::vector<double>().swap(nodes_.volume);
+  std::vector<int>().swap(nodes_.body);
   state_ = std::make_unique<State>(domain_, comm_);
+  mark_memory("state");
 
   const std::size_t nb = scene_.bodies.size();
   interior_by_body_.resize(nb);
@@ -196,15 +225,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   positions_.assign(4 * static_cast<std::size_t>(domain_.local()), 0.0);
   prev_force_ = force_;
   damage_.assign(domain_.owned, 0.0);
-  bc_.assign(domain_.owned, -1);
   du_bc_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
   v_old_bc_ = du_bc_;
-  {
-    std::vector<int> bc_natural(nodes_.size(), -1);  // later regions win where they overlap
-    for (std::size_t b = 0; b < bc_nodes.size(); ++b)
-      for (std::int64_t i : bc_nodes[b]) bc_natural[i] = static_cast<int>(b);
-    for (std::int32_t i = 0; i < domain_.owned; ++i) bc_[i] = bc_natural[domain_.natural[i]];
-  }
 
   // Stable time step (collective) and each stage's step.
   BondView view = bond_view();
@@ -266,6 +288,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   summary_.bytes_per_bond = bpb_max;
   summary_.partition_seconds = partition_.seconds;
   summary_.edge_cut = partition_.edge_cut;
+  summary_.partition_method = to_string(partition_settings.method);
+  {
+    // Balance of the bonds each rank actually holds (any partitioner).
+    const double mine = static_cast<double>(domain_.bonds.size());
+    double most = 0;
+    MPI_Allreduce(&mine, &most, 1, MPI_DOUBLE, MPI_MAX, comm_);
+    summary_.partition_balance = summary_.ordered_bonds > 0 ? most * ranks_ / double(summary_.ordered_bonds) : 1.0;
+  }
   for (std::size_t b = 0; b < nb; ++b) {
     if (marder_[b]) {
       lattice_derived(b);
@@ -293,6 +323,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   resolved_ = emit_scene(scene_, derived_lines());
   if (options_.restart) check_restart(*options_.restart);
   setup_crack_tips();
+  mark_memory("setup");
   PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
   // Output last: nothing is written unless every check above passed.
@@ -557,6 +588,22 @@ void Simulation::write_series_row() {
   summary_.final_energy = row;
 }
 
+std::array<double, 3> Simulation::reference_position(std::int64_t natural) {
+  double local[3] = {0, 0, 0}, x[3];
+  for (std::int32_t i = 0; i < domain_.owned; ++i)
+    if (domain_.natural[i] == natural)
+      for (int c = 0; c < 3; ++c) local[c] = domain_.X[3 * static_cast<std::size_t>(i) + c];
+  MPI_Allreduce(local, x, 3, MPI_DOUBLE, MPI_SUM, comm_);  // one rank owns it
+  return {x[0], x[1], x[2]};
+}
+
+void Simulation::mark_memory(const char* phase) {
+  const ProcessMemory m = process_memory();
+  double local[2] = {m.peak, m.current}, sum[2];
+  MPI_Allreduce(local, sum, 2, MPI_DOUBLE, MPI_SUM, comm_);
+  summary_.memory.push_back({phase, sum[0], sum[1]});
+}
+
 void Simulation::setup_crack_tips() {
   // Tracking runs when some material breaks. Lengths from the breaking bodies (crack_tips.hpp):
   // link 2 dx, tip separation 2 delta, window 10 delta / c_l, jumps up to 2 delta + 2 c_l x the
@@ -718,7 +765,7 @@ void Simulation::check_health(std::int64_t step, double time) {
     const long long node = global[1];
     double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
     MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
-    const double* X = &nodes_.X[3 * node];
+    const std::array<double, 3> X = reference_position(node);
     std::ostringstream msg;
     msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
         << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
@@ -736,7 +783,7 @@ void Simulation::check_health(std::int64_t step, double time) {
     throw RuntimeFailure(msg.str());
   }
   if (bad_global != none) {
-    const double* X = &nodes_.X[3 * bad_global];
+    const std::array<double, 3> X = reference_position(bad_global);
     std::ostringstream msg;
     msg << "non-finite displacement or velocity at step " << step << " (t = " << fmt(time)
         << " s), node " << bad_global << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1])
@@ -1037,6 +1084,7 @@ void Simulation::finish() {
   summary_.step_seconds = tmax[0];
   summary_.output_seconds = tmax[1];
   summary_.wall_seconds = tmax[2];
+  mark_memory("end");
   if (!options_.out_dir.empty() && rank_ == 0)
     write_text_file(options_.out_dir + "/summary.json", summary_.to_json());
 }

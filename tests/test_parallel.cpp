@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "peri/partition.hpp"
 #include "peri/simulation.hpp"
 #include "mpi_test.hpp"
 
@@ -32,6 +33,90 @@ stages:
   - {name: pull, duration: 6.0e-5}
 output: {frames: 1, series_every: 10}
 )";
+
+// A small free PMB block (3D), the shape of benchmarks/compare_lammps.py.
+const char* kBlockScene = R"(
+name: small-block
+materials:
+  glass: {model: pmb, density: 2200, micromodulus: 1.0e19, critical_stretch: 0.0005}
+bodies:
+  block: {kind: solid, material: glass, origin: [0, 0, 0], size: [0.016, 0.016, 0.016], spacing: 0.001, horizon: 0.003015, quadrature: taper}
+stages:
+  - {name: still, steps: 1, dt: 1.0e-9}
+output: {frames: 1, series_every: 1}
+)";
+
+// The coarse cell-graph partitioner (the default) against METIS on the full bond graph: every
+// node in exactly one part, bonds balanced within 2%, edge cut within 1.35x of the full graph's.
+// PETSc MatPartitioning on the same cell graph: every node once, balance within 10%.
+TEST(Partitioner, CellGraphCoversBalancesAndCutsNearTheFullGraph) {
+  for (const char* text : {kFractureScene, kBlockScene}) {
+    const Scene scene = parse_scene(text, "partition-test");
+    const Nodes nodes = discretize(scene);
+    double max_reach = 0;
+    for (const BodyGeometry& g : nodes.bodies) max_reach = std::max(max_reach, reach(g));
+    const CellList cells(nodes, max_reach);
+    const BondGraph graph = bond_graph(nodes, cells);
+    for (int parts : {2, 4, 8}) {
+      PartitionSettings bonds_settings, cells_settings, petsc_settings;
+      bonds_settings.method = PartitionMethod::Bonds;
+      petsc_settings.method = PartitionMethod::Petsc;
+      const Partition full = partition_nodes(nodes, cells, parts, PETSC_COMM_WORLD, bonds_settings);
+      const Partition coarse = partition_nodes(nodes, cells, parts, PETSC_COMM_WORLD, cells_settings);
+      const Partition petsc = partition_nodes(nodes, cells, parts, PETSC_COMM_WORLD, petsc_settings);
+      for (const Partition* p : {&full, &coarse, &petsc}) {
+        ASSERT_EQ(p->part.size(), static_cast<std::size_t>(nodes.size()));
+        std::vector<int> seen(nodes.size(), 0);
+        for (std::int64_t i = 0; i < nodes.size(); ++i) {
+          ASSERT_GE(p->part[i], 0);
+          ASSERT_LT(p->part[i], parts);
+          const std::int64_t g = p->natural_to_global[i];
+          ASSERT_GE(g, p->part_begin[p->part[i]]);  // inside its part's global range
+          ASSERT_LT(g, p->part_begin[p->part[i] + 1]);
+          ++seen[g];
+        }
+        EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), nodes.size()) << p->method;
+        // The figures reported are those of the parts.
+        const PartitionQuality q = quality(graph, p->part, parts);
+        EXPECT_EQ(q.edge_cut, p->edge_cut) << p->method;
+        EXPECT_NEAR(q.balance, p->balance, 1e-12) << p->method;
+      }
+      if (world_rank() == 0)
+        std::printf("%s, %d parts, %lld nodes: edge cut / balance: bonds %lld / %.4f, cells %lld / %.4f (%lld cells), "
+                    "%s %lld / %.4f\n", scene.name.c_str(), parts, static_cast<long long>(nodes.size()),
+                    static_cast<long long>(full.edge_cut), full.balance, static_cast<long long>(coarse.edge_cut),
+                    coarse.balance, static_cast<long long>(coarse.graph_vertices), petsc.method.c_str(),
+                    static_cast<long long>(petsc.edge_cut), petsc.balance);
+      EXPECT_LE(coarse.balance, 1.02);
+      EXPECT_LE(coarse.edge_cut, 1.35 * full.edge_cut);
+      EXPECT_LT(coarse.graph_vertices, nodes.size());  // a coarser graph than the nodes'
+      EXPECT_LE(petsc.balance, 1.10);
+    }
+  }
+}
+
+TEST(Partitioner, MethodFromOptions) {
+  EXPECT_EQ(partition_settings_from_options().method, PartitionMethod::Cells);  // the default
+  PetscOptionsSetValue(nullptr, "-partition_method", "bonds");
+  EXPECT_EQ(partition_settings_from_options().method, PartitionMethod::Bonds);
+  const Scene scene = parse_scene(kBlockScene, "small-block");
+  RunOptions quiet;
+  quiet.quiet = true;
+  {
+    Simulation sim(scene, PETSC_COMM_WORLD, quiet);
+    EXPECT_EQ(sim.summary().partition_method, "bonds");
+    EXPECT_FALSE(sim.summary().memory.empty());
+  }
+  PetscOptionsSetValue(nullptr, "-partition_method", "metis");
+  std::string message;
+  try {
+    partition_settings_from_options();
+  } catch (const InputError& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("-partition_method metis: expected cells"), std::string::npos) << message;
+  PetscOptionsClearValue(nullptr, "-partition_method");
+}
 
 TEST(Decomposition, SameResultOnOneAndManyRanks) {
   const Scene scene = parse_scene(kFractureScene, "small-slit");

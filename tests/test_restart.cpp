@@ -421,11 +421,12 @@ TEST(Resources, MemoryModelAndRefusal) {
   e.nodes = 1e6;
   e.bonds = 4e7;
   e.bytes = 9 * e.bonds + 200 * e.nodes;
-  const MemoryNeed one = memory_need(e, 1), two = memory_need(e, 2);
-  EXPECT_DOUBLE_EQ(one.per_rank, e.bytes + 64 * e.nodes);
+  const MemoryNeed one = memory_need(e, 1, true), two = memory_need(e, 2, true), cells = memory_need(e, 2);
+  EXPECT_DOUBLE_EQ(one.per_rank, e.bytes + 72 * e.nodes);
   EXPECT_DOUBLE_EQ(one.rank0, one.per_rank);  // no partitioner graph on one rank
-  EXPECT_DOUBLE_EQ(two.per_rank, e.bytes / 2 + 64 * e.nodes);
-  EXPECT_DOUBLE_EQ(two.rank0, two.per_rank + 24 * e.bonds);
+  EXPECT_DOUBLE_EQ(two.per_rank, e.bytes / 2 + 72 * e.nodes);
+  EXPECT_DOUBLE_EQ(two.rank0, two.per_rank + 24 * e.bonds);  // the full bond graph on rank 0
+  EXPECT_DOUBLE_EQ(cells.rank0, cells.per_rank);  // the cell graph is O(cells)
   EXPECT_GT(available_memory(), 1e8);  // /proc/meminfo is readable here
 
   EXPECT_NO_THROW(check_fits(parse_scene(kScene, "small-slit"), PETSC_COMM_WORLD));

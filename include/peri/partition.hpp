@@ -1,7 +1,14 @@
-// Partition: which rank owns which node. METIS k-way on the bond graph (vertex weight = bond
-// count), computed once on rank 0 and broadcast; nodes are renumbered so each rank's owned nodes
-// are contiguous (natural order kept inside a part). Another partitioner plugs in by filling the
-// same `part` array.
+// Partition: which rank owns which node; nodes are renumbered so each rank's owned nodes are
+// contiguous (natural order kept inside a part). Three partitioners fill the same `part` array
+// (option -partition_method):
+//   cells  (default) METIS k-way on a coarse graph: nodes binned into cubic cells of about the
+//          horizon (down to half of it where needed for 64 cells per part), vertex weight = ordered
+//          bonds of the cell's nodes, edge weight = bonds between two cells; nodes inherit their
+//          cell's part. Serial on rank 0, memory O(cells) besides a 4-byte cell id per node.
+//   bonds  METIS k-way on the full bond graph (vertex weight = bond count + 1), serial on rank 0;
+//          about 17-21 bytes per ordered bond on rank 0 at 1M nodes.
+//   petsc  PETSc MatPartitioning (type from -partition_mat_partitioning_type, default ptscotch
+//          where PETSc has it) on the same coarse cell graph, its rows spread over the ranks.
 #pragma once
 #include <mpi.h>
 
@@ -20,9 +27,28 @@ struct Partition {
   std::vector<std::int64_t> global_to_natural;   ///< global index -> natural id
   std::vector<std::int64_t> part_begin;          ///< parts + 1 offsets in global numbering
   std::int64_t edge_cut = 0;                     ///< bonds between parts (METIS objective)
+  double balance = 1;                            ///< largest part's ordered bonds / mean
   double seconds = 0;                            ///< wall time of the partitioner
+  std::int64_t graph_vertices = 0;               ///< vertices of the graph partitioned (cells or nodes)
   std::string method = "none";
+  /// Release the per-node maps (part, natural_to_global, global_to_natural) once the domain is
+  /// built; parts, part_begin and the figures stay.
+  void release_maps();
 };
+
+enum class PartitionMethod { Cells, Bonds, Petsc };
+/// "cells", "bonds" or "petsc"; InputError naming the option otherwise.
+PartitionMethod partition_method(const std::string& name);
+const char* to_string(PartitionMethod m);
+
+struct PartitionSettings {
+  PartitionMethod method = PartitionMethod::Cells;
+  int cells_per_part = 64;  ///< cells: shrink cells (down to the spacing) until this many per part
+};
+
+/// Partition settings from the PETSc options database: -partition_method cells|bonds|petsc,
+/// -partition_cells_per_part N. InputError (identical on every rank) for bad values.
+PartitionSettings partition_settings_from_options();
 
 /// Assign parts from a given natural-id -> part array (any partitioner), renumbering nodes.
 Partition partition_from_parts(std::vector<int> part, int parts);
@@ -38,7 +64,44 @@ BondGraph bond_graph(const Nodes& nodes, const CellList& cells);
 /// edge cut. Serial. Throws Error if METIS fails.
 std::vector<int> metis_kway(const BondGraph& graph, int parts, std::int64_t& edge_cut);
 
-/// METIS k-way on the bond graph into `parts` parts, computed on rank 0 of comm and broadcast.
-Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm);
+/// Coarse graph of cubic cells (natural ids binned by reference position). Symmetric CSR without
+/// self loops; edge_weight = number of bonds between the two cells' nodes (each bond once), so
+/// the cut of a cell partition is exactly the bond edge cut of the node partition it induces.
+struct CellGraph {
+  double cell_size = 0;
+  std::vector<std::int32_t> cell_of;          ///< natural id -> cell (occupied cells, ordered by position)
+  std::vector<std::int64_t> offsets{0};       ///< cells + 1 (rows built; all by default)
+  std::vector<std::int32_t> adjacency;
+  std::vector<std::int64_t> edge_weight;      ///< bonds between the two cells
+  std::vector<std::int64_t> vertex_weight;    ///< ordered bonds of the cell's nodes (rows built)
+  std::int64_t cells = 0;                     ///< occupied cells in all
+  std::int64_t row_begin = 0;                 ///< first row built (rows [row_begin, row_begin + rows))
+};
+
+/// Bin the nodes into cubic cells of edge `size` (see cell_size_for) and build the rows
+/// [row_begin, row_end) of the cell graph (row_end = -1: all rows). cell_of covers every node.
+CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, std::int64_t row_begin = 0,
+                     std::int64_t row_end = -1);
+
+/// Cell size for `parts` parts: the largest horizon, shrunk by factors of 0.8 (not below half the
+/// horizon nor the largest spacing) until at least cells_per_part * parts cells are occupied.
+double cell_size_for(const Nodes& nodes, int parts, int cells_per_part);
+
+/// METIS k-way on a cell graph (all rows); returns a part per cell. Weights are scaled down if
+/// their sums exceed 32-bit METIS. Throws Error if METIS fails.
+std::vector<int> metis_kway(const CellGraph& graph, int parts);
+
+/// Exact edge cut and balance (largest part's ordered bonds / mean) of a node partition.
+struct PartitionQuality {
+  std::int64_t edge_cut = 0;
+  double balance = 1;
+};
+PartitionQuality quality(const CellGraph& graph, const std::vector<int>& cell_part, int parts);
+PartitionQuality quality(const BondGraph& graph, const std::vector<int>& part, int parts);
+
+/// Parts of every node, with the chosen partitioner (collective on comm: METIS methods run on
+/// rank 0 and broadcast; petsc runs on all ranks). parts <= 1: everything in part 0.
+Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm,
+                          const PartitionSettings& settings = {});
 
 }  // namespace peri

@@ -4,6 +4,7 @@
 #pragma once
 #include <mpi.h>
 
+#include <array>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -40,6 +41,15 @@ struct RunSummary {
   double bytes_per_bond = 0;
   double partition_seconds = 0;
   std::int64_t edge_cut = 0;
+  std::string partition_method;  ///< cells, bonds or petsc (-partition_method)
+  double partition_balance = 1;  ///< largest rank's ordered bonds / mean
+  /// Memory after each setup phase, summed over ranks: peak resident set (VmHWM) so far and
+  /// current resident set (VmRSS), bytes.
+  struct MemoryMark {
+    std::string phase;
+    double peak = 0, current = 0;
+  };
+  std::vector<MemoryMark> memory;
   EnergyRow final_energy;
   double initial_total_energy = 0;  ///< total at the start of the explicit part (after quasi-static stages)
   double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
@@ -145,6 +155,8 @@ class Simulation : public EquilibriumModel {
   double lattice_energy(const BondView& view);
   void lattice_derived(std::size_t body);
   void setup_crack_tips();                       // tracker settings from the scene (constructor)
+  void mark_memory(const char* phase);           // summary_.memory row (collective)
+  std::array<double, 3> reference_position(std::int64_t natural);  // of any node (collective)
   std::string track_crack_tips(const EnergyRow& row);  // one tip sample; returns the series columns
   void summarize_crack_tips();                   // summary fields from the tracker (finish)
 
@@ -152,7 +164,7 @@ class Simulation : public EquilibriumModel {
   MPI_Comm comm_;
   RunOptions options_;
   int rank_ = 0, ranks_ = 1;
-  Nodes nodes_;
+  Nodes nodes_;  // after setup only nodes_.bodies: the node arrays live in domain_ per rank
   Partition partition_;
   Domain domain_;
   std::unique_ptr<State> state_;
