@@ -223,10 +223,16 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
   force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
   positions_.assign(4 * static_cast<std::size_t>(domain_.local()), 0.0);
-  prev_force_ = force_;
   damage_.assign(domain_.owned, 0.0);
-  du_bc_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
+  // Boundary nodes' per-step figures (increment, old velocity, force at the start of the step)
+  // are kept for those nodes only: slot s of bc_slot_ for node i, 3 components each.
+  bc_slot_.assign(domain_.owned, -1);
+  std::int32_t bc_count = 0;
+  for (std::int32_t i = 0; i < domain_.owned; ++i)
+    if (bc_[i] >= 0) bc_slot_[i] = bc_count++;
+  du_bc_.assign(3 * static_cast<std::size_t>(bc_count), 0.0);
   v_old_bc_ = du_bc_;
+  prev_force_bc_ = du_bc_;
 
   // Stable time step (collective) and each stage's step.
   BondView view = bond_view();
@@ -473,11 +479,13 @@ void Simulation::step(bool with_energy) {
       const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
       if (bi >= 0 && scene_.boundaries[bi].components[c]) {
         const ActiveBoundary& b = active_bc_[bi];
-        v_old_bc[k] = v[k];
-        du_bc[k] = b.velocity[c] * (ramp_integral(t1, b.ramp_time) - ramp_integral(t0, b.ramp_time));
-        u[k] += du_bc[k];
+        const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
+        v_old_bc[kb] = v[k];
+        du_bc[kb] = b.velocity[c] * (ramp_integral(t1, b.ramp_time) - ramp_integral(t0, b.ramp_time));
+        prev_force_bc_[kb] = force_[k];
+        u[k] += du_bc[kb];
         v[k] = b.velocity[c] * ramp(t1, b.ramp_time);
-        moved2 += du_bc[k] * du_bc[k];
+        moved2 += du_bc[kb] * du_bc[kb];
       } else {
         damped += mass_[i] * v[k] * v[k];
         v[k] = damp_old * v[k] + 0.5 * dt * force_[k] * inv_density_[i];
@@ -494,7 +502,6 @@ void Simulation::step(bool with_energy) {
   }
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
-  std::swap(force_, prev_force_);
   compute_forces(with_energy);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
@@ -504,8 +511,9 @@ void Simulation::step(bool with_energy) {
       if (bi >= 0 && scene_.boundaries[bi].components[c]) {
         // Work of the reaction that enforces the motion: change of the node's kinetic energy
         // minus the work of the internal force along the prescribed path (trapezoidal).
-        const double fi = 0.5 * (force_[k] + prev_force_[k]) * domain_.volume[i];
-        external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[k] * v_old_bc[k]) - fi * du_bc[k];
+        const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
+        const double fi = 0.5 * (force_[k] + prev_force_bc_[kb]) * domain_.volume[i];
+        external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
       } else {
         v[k] = damp_new * (v[k] + 0.5 * dt * force_[k] * inv_density_[i]);
         damped += mass_[i] * v[k] * v[k];
@@ -605,12 +613,15 @@ void Simulation::mark_memory(const char* phase) {
 }
 
 void Simulation::setup_crack_tips() {
-  // Tracking runs when some material breaks. Lengths from the breaking bodies (crack_tips.hpp):
-  // link 2 dx, tip separation 2 delta, window 10 delta / c_l, jumps up to 2 delta + 2 c_l x the
-  // time between samples. Seeds: the pre-cracks' midpoints.
+  // Tracking runs when some membrane material breaks (crack tips are paths in a sheet; solid
+  // bodies have crack surfaces and are not tracked). Lengths from the breaking bodies
+  // (crack_tips.hpp): link 2 dx, tip separation 2 delta, window 10 delta / c_l, jumps up to
+  // 2 delta + 2 c_l x the time between samples. Seeds: the pre-cracks' midpoints.
   double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
+  tip_bodies_.assign(laws_.size(), false);
   for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (!laws_[b].breaks) continue;
+    if (!laws_[b].breaks || nodes_.bodies[b].kind == BodyKind::Solid) continue;
+    tip_bodies_[b] = true;
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
     dx = std::max(dx, nodes_.bodies[b].spacing);
     delta = std::max(delta, laws_[b].horizon);
@@ -646,7 +657,7 @@ std::string Simulation::track_crack_tips(const EnergyRow& row) {
     std::vector<std::int64_t> ids;
     std::vector<double> X;
     for (std::int32_t i = 0; i < domain_.owned; ++i)
-      if (damage_[i] >= tracker_->settings().damage_threshold) {
+      if (tip_bodies_[domain_.body[i]] && damage_[i] >= tracker_->settings().damage_threshold) {
         ids.push_back(domain_.natural[i]);
         X.insert(X.end(), &domain_.X[3 * i], &domain_.X[3 * i] + 3);
       }

@@ -187,10 +187,12 @@ class Simulation : public EquilibriumModel {
   std::vector<double> density_;         // per body
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
   std::vector<double> inv_density_, mass_;  // per owned node
-  std::vector<double> force_, prev_force_;  // force densities, 3 * owned
+  std::vector<double> force_;               // force densities, 3 * owned
   std::vector<double> positions_;           // current positions (X + u, 0), 4 * local (bond kernel input)
   std::vector<int> bc_;                     // per owned node: boundary index or -1
-  std::vector<double> du_bc_, v_old_bc_;    // prescribed components: step increment, old velocity
+  std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
+  std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step
+                                                          // increment, old velocity, old force
   std::vector<double> damage_;
   std::vector<std::int64_t> stage_steps_;
   std::vector<double> stage_dt_;
@@ -206,6 +208,7 @@ class Simulation : public EquilibriumModel {
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;
   std::unique_ptr<CrackTipTracker> tracker_;
+  std::vector<bool> tip_bodies_;  // per body: its crack tips are tracked (breaking membranes)
   std::vector<double> tip_seeds_;          // pre-crack midpoints
   std::int64_t tips_broken_at_ = -1;       // broken-bond count of the last tip sample
   std::vector<CrackTip> last_tips_;
