@@ -1,0 +1,60 @@
+#!/usr/bin/python3
+"""Two builds of bench_kernels side by side: runs A B A B ... and prints median throughputs and
+their ratio per benchmark. Prints figures only; asserts nothing.
+
+  /usr/bin/python3 benchmarks/ab_kernels.py OLD/bench_kernels build/benchmarks/bench_kernels \
+      [--rounds 5] [--filter 'kernel'] [--ranks 1]
+
+Each round runs every selected benchmark once in each binary (Google Benchmark, one repetition,
+its own iteration count); the table gives the median over rounds of `bond_updates/s` (per CPU
+second of the process; MPI ranks poll while they wait, so for the full step that is wall time)
+and B/A. Alternating spreads the noise of a
+shared machine over both binaries alike, so the ratio is meaningful where absolute figures are
+not. With --ranks 2 both run under `mpirun -n 2` (full-step benchmarks only).
+"""
+import argparse
+import json
+import shutil
+import statistics
+import subprocess
+
+
+def run(binary, bench_filter, ranks, mpirun):
+    cmd = [binary, f"--benchmark_filter={bench_filter}", "--benchmark_format=json"]
+    if ranks > 1:
+        cmd = [mpirun, "--allow-run-as-root", "-n", str(ranks)] + cmd
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    # Under mpirun every rank prints a report; the first complete JSON document is rank 0's.
+    report = json.JSONDecoder().raw_decode(out[out.index("{"):])[0]
+    return {b["name"]: b for b in report["benchmarks"]}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("a", help="bench_kernels binary A (e.g. a build of an older revision)")
+    ap.add_argument("b", help="bench_kernels binary B")
+    ap.add_argument("--rounds", type=int, default=5, help="A B rounds (default 5)")
+    ap.add_argument("--filter", default="kernel", help="Google Benchmark filter (default 'kernel')")
+    ap.add_argument("--ranks", type=int, default=1, help="MPI ranks (default 1)")
+    ap.add_argument("--mpirun", default=shutil.which("mpirun") or "mpirun")
+    args = ap.parse_args()
+    rates = {"A": {}, "B": {}}
+    meta = {}
+    for _ in range(args.rounds):
+        for label, binary in (("A", args.a), ("B", args.b)):
+            for name, b in run(binary, args.filter, args.ranks, args.mpirun).items():
+                rates[label].setdefault(name, []).append(b["bond_updates/s"])
+                meta.setdefault(name, {})[label] = b.get("bytes_per_bond")
+    print(f"{args.rounds} rounds A B, {args.ranks} rank(s); medians of bond_updates/s")
+    print(f"{'benchmark':45s} {'A':>10s} {'B':>10s} {'B/A':>6s} {'bytes/bond A':>13s} {'B':>6s}")
+    for name in rates["A"]:
+        if name not in rates["B"]:
+            continue
+        a, b = statistics.median(rates["A"][name]), statistics.median(rates["B"][name])
+        ba, bb = meta[name].get("A"), meta[name].get("B")
+        fmt = lambda x: f"{x:.2f}" if x else "-"
+        print(f"{name:45s} {a:10.3e} {b:10.3e} {b / a:6.2f} {fmt(ba):>13s} {fmt(bb):>6s}")
+
+
+if __name__ == "__main__":
+    main()
