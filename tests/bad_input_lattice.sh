@@ -53,6 +53,8 @@ f=$(variant no_cutoff '/cutoff:/d')
 expect no_cutoff "materials.rubber: missing required key 'cutoff'" -- "$f"
 f=$(variant stiffness_key 's/density: 1000/density: 1000\n    wave_speed: 30/')
 expect stiffness_key "$f:$(line_of "$f" 'wave_speed'): materials.rubber.wave_speed: not used by the marder model" -- "$f"
+f=$(variant kelvin_negative 's/breaking: irreversible/breaking: irreversible\n    kelvin_viscosity: -0.01/')
+expect kelvin_negative "$f:$(line_of "$f" 'kelvin_viscosity'): materials.rubber.kelvin_viscosity: expected a non-negative number [m^2/s], got -0.01" -- "$f"
 f=$(variant bad_breaking 's/breaking: irreversible/breaking: sometimes/')
 expect bad_breaking "materials.rubber.breaking: expected one of: irreversible, reversible; got sometimes" -- "$f"
 f=$(variant lattice_grid 's/spacing: 0.0005/spacing: 0.0005\n    grid: square/')
