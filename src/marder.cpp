@@ -36,7 +36,18 @@ std::string marder_parameter_problem(double a, double b, double delta, double us
   return {};
 }
 
-MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass, bool reversible) {
+double marder_dashpot(double kelvin_viscosity, double delta, double mass) noexcept {
+  // Homogeneous strain rate D of the reference lattice: v_j - v_i = D d_j (spin adds nothing
+  // along the bond), so bond j pulls with eta Delta (e.D e) e. Stress (force per length) of a
+  // node's cell, area (sqrt(3)/2) Delta^2: sum_j d_j (x) f_j / (2 cell) = eta Delta^2 /(2 cell)
+  // sum_j (e.D e) e (x) e, and over the six directions sum e_a e_b e_c e_d = (3/4)(d_ab d_cd +
+  // d_ac d_bd + d_ad d_bc): sigma = (sqrt(3)/4) eta (2 D + tr D I). Per unit mass
+  // (m / cell per area): nu = (sqrt(3)/4) eta cell / m = (3/8) eta Delta^2 / m.
+  return 8.0 * mass * kelvin_viscosity / (3.0 * delta * delta);
+}
+
+MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass, bool reversible,
+                     double kelvin_viscosity) {
   MarderLaw law;
   law.a = a;
   law.b = b;
@@ -45,6 +56,7 @@ MarderLaw marder_law(double a, double b, double delta, double us, double uc, dou
   law.uc = uc;
   law.mass = mass;
   law.reversible = reversible;
+  law.dashpot = marder_dashpot(kelvin_viscosity, delta, mass);
   const double d2 = delta * delta;
   law.A = mass * a / d2;                    // eq. (27), rho = mass per node (eq. 25)
   law.B = 9.0 * mass * a * b / (8.0 * d2 * d2);
@@ -117,7 +129,9 @@ void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_
 }
 
 void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows,
-                   const std::uint8_t* direction, double* slots, bool with_energy, BondTally& tally) {
+                   const std::uint8_t* direction, double* slots, bool with_energy, BondTally& tally,
+                   const double* velocity, double* viscous) {
+  const bool dashpots = velocity && viscous && law.dashpot > 0;
   double d[3 * kMarderMaxNeighbours], grad[3 * kMarderMaxNeighbours];
   std::uint8_t active[kMarderMaxNeighbours], before[kMarderMaxNeighbours];
   const double uc2 = law.uc * law.uc;
@@ -176,6 +190,25 @@ void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* 
     }
     double* si = slots + 3 * kMarderSlots * static_cast<std::size_t>(i);
     for (int c = 0; c < 3; ++c) si[c] = fi[c];
+    if (!dashpots) continue;
+    // Kelvin dashpots of the intact bonds, from this row's end: d_ji = -d_ij and
+    // v_i - v_j = -(v_j - v_i) exactly, so row j's force is bit for bit the negative.
+    double fv[3] = {0, 0, 0}, power = 0;
+    const double* vi = velocity + 3 * static_cast<std::size_t>(i);
+    for (int k = 0; k < n; ++k) {
+      if (v.broken[b0 + k] & kBrokenBit) continue;
+      const double* vj = velocity + 3 * static_cast<std::size_t>(v.neighbor[b0 + k]);
+      const double* dk = d + 3 * k;
+      const double r = std::sqrt(dk[0] * dk[0] + dk[1] * dk[1] + dk[2] * dk[2]);
+      if (!(r > 1e-12 * law.delta)) continue;
+      const double rate = (dk[0] * (vj[0] - vi[0]) + dk[1] * (vj[1] - vi[1]) + dk[2] * (vj[2] - vi[2])) / r;
+      const double s = law.dashpot * rate / r;
+      for (int c = 0; c < 3; ++c) fv[c] += s * dk[c];
+      power += law.dashpot * rate * rate;
+    }
+    double* out = viscous + 3 * static_cast<std::size_t>(i);
+    for (int c = 0; c < 3; ++c) out[c] = fv[c];
+    tally.viscous_power += 0.5 * power;
   }
 }
 
@@ -212,7 +245,14 @@ double marder_stable_time_step(const MarderLaw& law) {
   const double t = uc * uc + 2.0 * D * D;
   const double g_max = B / 27.0 * t * t, dg_max = 2.0 * B / 27.0 * t, ddg = 2.0 * B / 27.0;
   const double three = 2.0 * 10.0 * (ddg * uc * uc + dg_max + 0.1 * g_max / (us * us) + 0.5 * dg_max * uc / us);
-  return std::sqrt(2.0 * law.mass / (6.0 * (pair + three)));
+  const double dt0 = std::sqrt(2.0 * law.mass / (6.0 * (pair + three)));
+  if (!(law.dashpot > 0)) return dt0;
+  // Dashpots on the half-step velocity: leapfrog x_{n+1} - 2 x_n + x_{n-1} = -(omega dt)^2 x_n
+  // - gamma dt (x_n - x_{n-1}) is stable iff (omega dt)^2 / 4 + gamma dt / 2 < 1 (Jury). The
+  // damping matrix of a node is sum_j eta (2 - 2 cos k.d_j) e_j e_j^T <= 4 eta sum_j e_j e_j^T,
+  // whose largest eigenvalue is at most its trace, 6: gamma <= 24 eta / m for any deformation.
+  const double omega = 2.0 / dt0, gamma = 24.0 * law.dashpot / law.mass;
+  return 4.0 / (gamma + std::sqrt(gamma * gamma + 4.0 * omega * omega));
 }
 
 WaveSpeeds mooney_rivlin_wave_speeds(double a, double b, double /*lambda_along*/, double lambda_across) {

@@ -436,9 +436,11 @@ const Keys kMaterialKeys = {
     {"cutoff", false, ""},
     {"fracture_separation", false, ""},
     {"breaking", false, ""},
+    {"kelvin_viscosity", false, ""},
 };
 
-const char* const kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking"};
+const char* const kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking",
+                                   "kelvin_viscosity"};
 
 const Keys kHardeningKeys = {
     {"coefficient", true, "hardening coefficient c', >= 0"},
@@ -610,6 +612,7 @@ Material read_marder_material(const Map& m, Material mat) {
   p.fracture_separation = m.at("fracture_separation").positive("m");
   if (auto x = m.get("breaking"))
     p.reversible = x->choice<bool>({{"irreversible", false}, {"reversible", true}});
+  if (auto x = m.get("kelvin_viscosity")) p.kelvin_viscosity = x->non_negative("m^2/s");
   mat.marder = p;
   return mat;
 }
@@ -1281,6 +1284,7 @@ void emit_material(Writer& w, const Material& m) {
     w.key(4, "cutoff", m.marder->cutoff);
     w.key(4, "fracture_separation", m.marder->fracture_separation);
     w.key(4, "breaking", m.marder->reversible ? "reversible" : "irreversible");
+    if (m.marder->kelvin_viscosity > 0) w.key(4, "kelvin_viscosity", m.marder->kelvin_viscosity);
     return;
   }
   w.optional(4, "wave_speed", m.wave_speed);

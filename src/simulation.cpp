@@ -421,29 +421,37 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
   const std::vector<BondLaw>& laws = intact ? intact_laws_ : laws_;
   BondView view = bond_view();
   BondTally t;
+  if (has_kelvin_) {  // ghost velocities for the dashpots (not overlapped: the two ghosted Vecs
+    state_->velocity_halo_begin();  // share one scatter, which holds one exchange at a time)
+    state_->velocity_halo_end();
+  }
   state_->halo_begin();  // interior rows need no ghost: overlap them with the exchange
   {
     LocalArray u(state_->displacement());
+    std::optional<LocalArray> vel;
+    if (has_kelvin_) vel.emplace(state_->velocity());
     view.u = u.data();
     current_positions(domain_.X.data(), u.data(), 0, domain_.owned, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b])
         bond_forces(laws[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
                     force_.data(), with_energy, t);
-    if (has_lattice_) lattice_forces(view, true, with_energy, t);
+    if (has_lattice_) lattice_forces(view, true, with_energy, t, vel ? vel->data() : nullptr);
   }
   PetscLogEventBegin(events().halo, 0, 0, 0, 0);
   state_->halo_end();
   PetscLogEventEnd(events().halo, 0, 0, 0, 0);
   {
     LocalArray u(state_->displacement());
+    std::optional<LocalArray> vel;
+    if (has_kelvin_) vel.emplace(state_->velocity());
     view.u = u.data();
     current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b])
         bond_forces(laws[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
                     force_.data(), with_energy, t);
-    if (has_lattice_) lattice_forces(view, false, with_energy, t);
+    if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
   }
   if (has_lattice_) lattice_reduce();
   tally_.dissipated += t.dissipated;
@@ -471,6 +479,11 @@ void Simulation::step(bool with_energy) {
   std::vector<double>& du_bc = du_bc_;  // read only where written below (prescribed components)
   std::vector<double>& v_old_bc = v_old_bc_;
   double damped = 0;  // energy removed by damping: alpha m v.v dt, trapezoidal in time
+  // Energy removed by lattice dashpots: the kick by the dashpot force F_d over dt/2 changes the
+  // kinetic energy by F_d . (v_before + v_after)/2 dt/2 (exactly the share of F_d in
+  // m (v_after^2 - v_before^2)/2), booked as dissipated with the opposite sign.
+  double viscous = 0;
+  const bool kelvin = has_kelvin_;
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const int bi = bc_[i];
@@ -488,7 +501,9 @@ void Simulation::step(bool with_energy) {
         moved2 += du_bc[kb] * du_bc[kb];
       } else {
         damped += mass_[i] * v[k] * v[k];
+        const double before = v[k];
         v[k] = damp_old * v[k] + 0.5 * dt * force_[k] * inv_density_[i];
+        if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
         u[k] += dt * v[k];
         moved2 += dt * dt * v[k] * v[k];
       }
@@ -501,9 +516,13 @@ void Simulation::step(bool with_energy) {
     }
   }
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
+  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
+  // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
+  // "Kelvin dissipation").
   compute_forces(with_energy);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
+  PERI_PETSC(VecGetArray(state_->velocity(), &v));
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const int bi = bc_[i];
     for (int c = 0; c < 3; ++c) {
@@ -515,13 +534,16 @@ void Simulation::step(bool with_energy) {
         const double fi = 0.5 * (force_[k] + prev_force_bc_[kb]) * domain_.volume[i];
         external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
       } else {
+        const double before = v[k];
         v[k] = damp_new * (v[k] + 0.5 * dt * force_[k] * inv_density_[i]);
+        if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
         damped += mass_[i] * v[k] * v[k];
       }
     }
   }
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   if (damping_ > 0) damping_work_ += 0.5 * damping_ * dt * damped;
+  if (kelvin) damping_work_ += 0.5 * dt * viscous;
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
   time_ = t1;
   ++step_;

@@ -21,8 +21,10 @@ void Simulation::lattice_setup() {
     const BodyGeometry& g = nodes_.bodies[b];
     const MarderParams& p = *m.marder;
     const double node_mass = m.density * g.cell_area * g.thickness;  // the rho of eq. (27)
-    marder_[b] = marder_law(p.a, p.b, g.spacing, p.cutoff, p.fracture_separation, node_mass, p.reversible);
+    marder_[b] = marder_law(p.a, p.b, g.spacing, p.cutoff, p.fracture_separation, node_mass, p.reversible,
+                            p.kelvin_viscosity);
     has_lattice_ = true;
+    has_kelvin_ = has_kelvin_ || marder_[b]->dashpot > 0;
   }
   if (!has_lattice_) return;
   for (std::size_t s = 0; s < scene_.stages.size(); ++s)
@@ -32,6 +34,7 @@ void Simulation::lattice_setup() {
                        "loader and the release stage use the peridynamic bond laws); got a " +
                        (scene_.stages[s].kind == StageKind::QuasiStatic ? "quasistatic" : "release") + " stage");
   state_->enable_force_accumulation(3 * kMarderSlots);
+  if (has_kelvin_) viscous_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);
   lattice_direction_ = marder_directions(bond_view(), domain_.owned);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const std::optional<MarderLaw>& law = marder_[domain_.body[i]];
@@ -58,14 +61,15 @@ void Simulation::lattice_setup() {
   }
 }
 
-void Simulation::lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally) {
+void Simulation::lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
+                                const double* velocity) {
   LocalArray f(state_->force_accumulator());
   if (interior) std::fill(f.data(), f.data() + 3 * kMarderSlots * static_cast<std::size_t>(domain_.local()), 0.0);
   for (std::size_t b = 0; b < marder_.size(); ++b) {
     if (!marder_[b]) continue;
     const std::vector<std::int32_t>& rows = interior ? interior_by_body_[b] : boundary_by_body_[b];
     marder_forces(*marder_[b], view, rows.data(), rows.size(), lattice_direction_.data(), f.data(), with_energy,
-                  tally);
+                  tally, velocity, has_kelvin_ ? viscous_.data() : nullptr);
   }
 }
 
@@ -74,13 +78,23 @@ void Simulation::lattice_reduce() {
   state_->reverse_end();
   const double* f;
   PERI_PETSC(VecGetArrayRead(state_->force_accumulator(), &f));
-  // Forces [N] -> force densities [N/m^3], the unit of force_.
+  // Forces [N] -> force densities [N/m^3], the unit of force_; the dashpot force (computed by the
+  // node's own row, never on a ghost) added after the slot sum, also kept apart (viscous_) for
+  // the dissipation booked by step().
   for (std::size_t b = 0; b < marder_.size(); ++b) {
     if (!marder_[b]) continue;
+    const bool dashpots = marder_[b]->dashpot > 0;
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]}) {
       marder_sum_slots(f, rows->data(), rows->size(), force_.data());
       for (std::int32_t i : *rows)
-        for (int c = 0; c < 3; ++c) force_[3 * i + c] /= domain_.volume[i];
+        for (int c = 0; c < 3; ++c) {
+          const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
+          if (dashpots) {
+            force_[k] += viscous_[k];
+            viscous_[k] /= domain_.volume[i];
+          }
+          force_[k] /= domain_.volume[i];
+        }
     }
   }
   PERI_PETSC(VecRestoreArrayRead(state_->force_accumulator(), &f));

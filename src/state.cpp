@@ -79,6 +79,14 @@ void State::halo_end() {
   PERI_PETSC(VecGhostUpdateEnd(u_.get(), INSERT_VALUES, SCATTER_FORWARD));
 }
 
+void State::velocity_halo_begin() {
+  PERI_PETSC(VecGhostUpdateBegin(v_.get(), INSERT_VALUES, SCATTER_FORWARD));
+}
+
+void State::velocity_halo_end() {
+  PERI_PETSC(VecGhostUpdateEnd(v_.get(), INSERT_VALUES, SCATTER_FORWARD));
+}
+
 void State::enable_force_accumulation(int bs) {
   if (f_.get()) return;
   Vec f;

@@ -53,13 +53,15 @@ f=$(variant no_cutoff '/cutoff:/d')
 expect no_cutoff "materials.rubber: missing required key 'cutoff'" -- "$f"
 f=$(variant stiffness_key 's/density: 1000/density: 1000\n    wave_speed: 30/')
 expect stiffness_key "$f:$(line_of "$f" 'wave_speed'): materials.rubber.wave_speed: not used by the marder model" -- "$f"
+f=$(variant kelvin_negative 's/kelvin_viscosity: .*/kelvin_viscosity: -0.01/')
+expect kelvin_negative "$f:$(line_of "$f" 'kelvin_viscosity'): materials.rubber.kelvin_viscosity: expected a non-negative number [m^2/s], got -0.01" -- "$f"
 f=$(variant bad_breaking 's/breaking: irreversible/breaking: sometimes/')
 expect bad_breaking "materials.rubber.breaking: expected one of: irreversible, reversible; got sometimes" -- "$f"
 f=$(variant lattice_grid 's/spacing: 0.0005/spacing: 0.0005\n    grid: square/')
 expect lattice_grid "$f:$(line_of "$f" 'grid:'): bodies.strip.grid: not used by a lattice body" -- "$f"
 f=$(variant membrane_marder 's/kind: lattice/kind: membrane/')
 expect membrane_marder "bodies.strip.material: material 'rubber' has model: marder, which needs a body with kind: lattice" -- "$f"
-f=$(variant lattice_pmb 's/model: marder/model: pmb\n    bulk_modulus: 1.0e6/; /mooney_rivlin\|cutoff\|fracture_separation\|breaking/d')
+f=$(variant lattice_pmb 's/model: marder/model: pmb\n    bulk_modulus: 1.0e6/; /mooney_rivlin\|cutoff\|fracture_separation\|breaking\|kelvin_viscosity/d')
 expect lattice_pmb "bodies.strip.material: a lattice body needs a material with model: marder" -- "$f"
 f=$(variant quasistatic 's/^stages:$/stages:\n  - {name: load, kind: quasistatic}/')
 expect quasistatic "$f:$(line_of "$f" 'name: load'): stages.load.kind: a scene with a lattice body runs dynamic stages only" -- "$f"

@@ -249,6 +249,102 @@ TEST(MarderForces, IrreversibleBreakBooksTheEnergyItRemoves) {
   EXPECT_NEAR(t2.strain_energy, t.strain_energy, 1e-14 * before);
 }
 
+TEST(MarderKelvin, PairDashpotIsTheExactExpressionAndDissipates) {
+  // Two nodes, one bond, in 3D: the force on node 0 is eta (e . (v_1 - v_0)) e with e the current
+  // bond direction, node 1 gets bit for bit the opposite, and the two rows together book the
+  // power eta (e . (v_1 - v_0))^2 = -(F_0 . v_0 + F_1 . v_1). A broken bond has no dashpot.
+  const double nu = 0.03;  // m^2/s
+  const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false, nu);
+  EXPECT_DOUBLE_EQ(law.dashpot, 8 * kMass * nu / (3 * kDelta * kDelta));
+  EXPECT_EQ(marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false).dashpot, 0.0);
+  const std::vector<double> X = {0, 0, 0, kDelta, 0, 0};
+  const std::vector<double> u = {0.1 * kDelta, -0.2 * kDelta, 0.05 * kDelta, 0.5 * kDelta, 0.7 * kDelta, -0.1 * kDelta};
+  const std::vector<double> vel = {0.3, -1.1, 0.4, -0.7, 0.9, 2.0};  // m/s
+  std::vector<std::int64_t> offsets = {0, 1, 2};
+  std::vector<std::int32_t> neighbor = {1, 0};
+  std::vector<double> volume = {1.0, 1.0};
+  for (bool broken : {false, true}) {
+    std::vector<std::uint8_t> flags = {std::uint8_t(broken ? 1 : 0), std::uint8_t(broken ? 1 : 0)};
+    BondView view{X.data(), u.data(), volume.data(), offsets.data(), neighbor.data(), flags.data(), nullptr};
+    const std::vector<std::int32_t> rows = {0, 1};
+    const std::vector<std::uint8_t> dirs = {0, 3};
+    std::vector<double> slots(3 * kMarderSlots * 2, 0.0), viscous(6, -1.0);
+    BondTally t;
+    marder_forces(law, view, rows.data(), 2, dirs.data(), slots.data(), false, t, vel.data(), viscous.data());
+    double d[3], dv[3], r2 = 0, rate = 0;
+    for (int c = 0; c < 3; ++c) {
+      d[c] = (X[3 + c] + u[3 + c]) - (X[c] + u[c]);
+      dv[c] = vel[3 + c] - vel[c];
+      r2 += d[c] * d[c];
+    }
+    const double r = std::sqrt(r2);
+    for (int c = 0; c < 3; ++c) rate += d[c] / r * dv[c];
+    double work = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double expect = broken ? 0.0 : law.dashpot * rate * d[c] / r;
+      EXPECT_NEAR(viscous[c], expect, 1e-14 * law.dashpot * std::fabs(rate)) << c;
+      EXPECT_EQ(viscous[3 + c], -viscous[c]) << c;  // bit for bit: momentum is conserved exactly
+      work += viscous[c] * vel[c] + viscous[3 + c] * vel[3 + c];
+    }
+    const double power = broken ? 0.0 : law.dashpot * rate * rate;
+    EXPECT_NEAR(t.viscous_power, power, 1e-14 * law.dashpot * rate * rate);
+    EXPECT_NEAR(-work, t.viscous_power, 1e-13 * law.dashpot * rate * rate);
+    if (!broken) EXPECT_GT(t.viscous_power, 0.0);
+    // A rigid rotation about the bond's midpoint plus a translation dissipates nothing.
+    std::vector<double> rigid(6);
+    const double w[3] = {0.4, -1.3, 2.2}, vt[3] = {0.5, 0.1, -0.3};
+    for (int i = 0; i < 2; ++i) {
+      const double x[3] = {X[3 * i] + u[3 * i], X[3 * i + 1] + u[3 * i + 1], X[3 * i + 2] + u[3 * i + 2]};
+      rigid[3 * i] = vt[0] + w[1] * x[2] - w[2] * x[1];
+      rigid[3 * i + 1] = vt[1] + w[2] * x[0] - w[0] * x[2];
+      rigid[3 * i + 2] = vt[2] + w[0] * x[1] - w[1] * x[0];
+    }
+    BondTally t2;
+    marder_forces(law, view, rows.data(), 2, dirs.data(), slots.data(), false, t2, rigid.data(), viscous.data());
+    EXPECT_NEAR(t2.viscous_power, 0.0, 1e-24);
+    for (int c = 0; c < 6; ++c) EXPECT_NEAR(viscous[c], 0.0, 1e-14 * law.dashpot);
+  }
+}
+
+TEST(MarderKelvin, HomogeneousStrainRateGivesTheContinuumViscosity) {
+  // Reference lattice, velocity v = L X: an interior node feels no net dashpot force, and the
+  // power of its row (half of each of its six bonds) is the continuum dissipation of one cell,
+  // m nu (2 D:D + (tr D)^2) with D the symmetric part of L (viscous stress rho nu (2 D + tr D I)).
+  const double nu = 0.02;
+  const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false, nu);
+  Patch p = make_patch(5, 5);
+  const int n = static_cast<int>(p.volume.size());
+  const double L[2][2] = {{30.0, -12.0}, {45.0, -7.0}};  // 1/s
+  std::vector<double> u(3 * n, 0.0), vel(3 * n, 0.0);
+  for (int i = 0; i < n; ++i)
+    for (int a = 0; a < 2; ++a) vel[3 * i + a] = L[a][0] * p.X[3 * i] + L[a][1] * p.X[3 * i + 1];
+  BondView view{p.X.data(), u.data(), p.volume.data(), p.offsets.data(), p.neighbor.data(), p.broken.data(), nullptr};
+  const std::vector<std::uint8_t> dirs = marder_directions(view, n);
+  const std::vector<std::int32_t> centre = {12};
+  std::vector<double> slots(3 * kMarderSlots * n, 0.0), viscous(3 * n, 0.0);
+  BondTally t;
+  marder_forces(law, view, centre.data(), 1, dirs.data(), slots.data(), false, t, vel.data(), viscous.data());
+  const double D[2][2] = {{L[0][0], 0.5 * (L[0][1] + L[1][0])}, {0.5 * (L[0][1] + L[1][0]), L[1][1]}};
+  const double DD = D[0][0] * D[0][0] + 2 * D[0][1] * D[0][1] + D[1][1] * D[1][1], tr = D[0][0] + D[1][1];
+  const double expect = kMass * nu * (2 * DD + tr * tr);
+  std::printf("Kelvin dashpots, homogeneous strain rate: row power %.6e W, continuum %.6e W\n", t.viscous_power,
+              expect);
+  EXPECT_NEAR(t.viscous_power, expect, 1e-12 * expect);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(viscous[3 * 12 + c], 0.0, 1e-12 * law.dashpot * 50 * kDelta);
+}
+
+TEST(MarderKelvin, StableStepShrinksWithTheDashpot) {
+  // (omega dt/2)^2 + gamma dt/2 = 1 at the bound, omega = 2/dt0, gamma = 24 eta/m.
+  const MarderLaw bare = marder_law(kA, 0.4, kDelta, 0.05 * kDelta, 2 * kDelta, kMass, false);
+  const double dt0 = marder_stable_time_step(bare);
+  for (double nu : {1e-3, 0.03, 1.0}) {
+    const MarderLaw law = marder_law(kA, 0.4, kDelta, 0.05 * kDelta, 2 * kDelta, kMass, false, nu);
+    const double dt = marder_stable_time_step(law), gamma = 24 * law.dashpot / kMass;
+    EXPECT_LT(dt, dt0);
+    EXPECT_NEAR(std::pow(dt / dt0, 2) + 0.5 * gamma * dt, 1.0, 1e-12);
+  }
+}
+
 TEST(MarderParameters, RefusedWithAReason) {
   const double D = 1e-3;
   EXPECT_EQ(marder_parameter_problem(1e4, 1.0, D, 0.01 * D, 3 * D), "");

@@ -627,7 +627,7 @@ TEST(SceneErrors, UnknownKey) {
             "scene.yaml:5: materials.rubber.densty: unknown key; expected one of: model, density, "
             "wave_speed, bulk_modulus, youngs_modulus, micromodulus, influence, critical_stretch, "
             "critical_stretch_at_horizon, hardening, mooney_rivlin_a, mooney_rivlin_b, cutoff, fracture_separation, "
-            "breaking");
+            "breaking, kelvin_viscosity");
   EXPECT_THAT(error_of(kBase + "outptu: {frames: 2}\n"),
               AllOf(StartsWith("scene.yaml:16: outptu: unknown key; expected one of: name, "),
                     HasSubstr("stages, stability, output")));

@@ -44,9 +44,11 @@ struct BondTally {
   double strain_energy = 0;   ///< sum_i V_i * 1/2 sum_j w_ij V_j  [J] (eq. 5), intact bonds
   double dissipated = 0;      ///< energy of bonds broken during this call, at breaking [J]
   std::int64_t newly_broken = 0;  ///< ordered bonds broken during this call
+  double viscous_power = 0;   ///< power dissipated by lattice dashpots at this call [W]
   BondTally& operator+=(const BondTally& o) {
     strain_energy += o.strain_energy;
     dissipated += o.dissipated;
+    viscous_power += o.viscous_power;
     newly_broken += o.newly_broken;
     return *this;
   }

@@ -29,6 +29,10 @@ struct MarderLaw {
   double mass = 0;       ///< m, mass per node [kg]
   double a = 0, b = 0;   ///< Mooney-Rivlin constants of eq. (6) (a in J/kg, b dimensionless)
   bool reversible = false;  ///< bonds heal when u < u_c again (the paper's pure functional)
+  /// Kelvin (Kelvin-Voigt) dashpot of every intact bond [kg/s]: force on i from bond ij
+  /// eta (e_ij . (v_j - v_i)) e_ij, e_ij the current bond direction. eta = 8 m nu / (3 Delta^2)
+  /// for the material's kinematic viscosity nu (README "Kelvin dissipation"); 0: no dashpots.
+  double dashpot = 0;
 
   /// Constant of f that makes the reference lattice energy zero: the "+4" of eqs. (23), (24),
   /// (31) is 4 Delta^4 B per node for Delta = 1, shared by the six pair terms of a node.
@@ -78,8 +82,14 @@ constexpr int kMarderMaxNeighbours = 6;
 std::string marder_parameter_problem(double a, double b, double delta, double us, double uc);
 
 /// Constants for a lattice of spacing Delta whose nodes have mass m.
+/// `kelvin_viscosity` is the kinematic viscosity nu [m^2/s] of the bond dashpots (0: none).
 MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass,
-                     bool reversible);
+                     bool reversible, double kelvin_viscosity = 0);
+
+/// Dashpot coefficient per bond [kg/s] that gives a triangular lattice of spacing Delta and node
+/// mass m the viscous stress rho nu (2 D + (tr D) I) (reference lattice, strain rate D):
+/// eta = 8 m nu / (3 Delta^2).
+double marder_dashpot(double kelvin_viscosity, double delta, double mass) noexcept;
 
 /// Node-centred energy U_i of one row and its gradient: d[3*j..] are the bond vectors
 /// x_j - x_i of the n <= 6 neighbours, active[j] = 0 for a broken bond (no two-body term,
@@ -108,9 +118,16 @@ void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_
 /// breaks irreversibly (its two-body term and the three-body terms it switches off) is added to
 /// tally.dissipated, so kinetic + strain + dissipated is conserved. With `with_energy`, the
 /// energy of the rows is added to tally.strain_energy.
+///
+/// Kelvin dashpots (law.dashpot > 0 and `velocity` given: 3 * local velocities, ghosts
+/// included): each row writes the dashpot force on its own node, sum over its intact bonds (CSR
+/// order) of eta (e . (v_j - v_i)) e, into viscous[3 i..] [N] (no ghost slot: row j computes the
+/// opposite force, bit for bit the negative, from the same two velocities), and adds half of each
+/// bond's dissipated power eta (e . (v_j - v_i))^2 to tally.viscous_power (the other half is
+/// row j's). Bonds flagged broken (past u_c) have no dashpot.
 void marder_forces(const MarderLaw& law, const BondView& view, const std::int32_t* rows,
                    std::size_t nrows, const std::uint8_t* direction, double* slots, bool with_energy,
-                   BondTally& tally);
+                   BondTally& tally, const double* velocity = nullptr, double* viscous = nullptr);
 
 /// Energy of the rows with the current flags (no breaking, no forces).
 double marder_energy(const MarderLaw& law, const BondView& view, const std::int32_t* rows,
@@ -124,7 +141,10 @@ constexpr std::uint8_t kMarderUnbreakable = 8;
 /// Estimate of the stable explicit time step of the lattice: sqrt(2 m / k) with k the sum over
 /// six neighbours of the largest pair stiffness reachable below u_c (cutoff branch at Delta + u_s
 /// or quartic branch at u_c, both rows of a bond) plus bounds of the three-body curvature over
-/// the pairs a bond takes part in, including the switch h near u_c (see marder.cpp).
+/// the pairs a bond takes part in, including the switch h near u_c (see marder.cpp). With
+/// dashpots (force from the half-step velocity, see README "Kelvin dissipation") the step also
+/// satisfies (omega dt / 2)^2 + gamma dt / 2 <= 1 with omega = 2 / (undamped bound) and
+/// gamma = 24 eta / m the largest damping rate.
 double marder_stable_time_step(const MarderLaw& law);
 
 /// Small-amplitude wave speeds of the Mooney-Rivlin sheet W/rho = a [J1 + b J2] about the

@@ -55,6 +55,7 @@ struct MarderParams {
   double cutoff = 0;               ///< u_s, short-distance cutoff [m]
   double fracture_separation = 0;  ///< u_c, separation at which a bond fails [m]
   bool reversible = false;         ///< bonds heal below u_c (default: irreversible)
+  double kelvin_viscosity = 0;     ///< nu of the bond dashpots [m^2/s], >= 0 (0: none)
 };
 
 struct Material {

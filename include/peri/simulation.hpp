@@ -150,7 +150,8 @@ class Simulation : public EquilibriumModel {
   bool checkpoint_due(bool poll);                 // collective at poll steps; sets stopped_
   // Marder lattice bodies (src/simulation_lattice.cpp); nothing is built when there is none.
   void lattice_setup();
-  void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally);
+  void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
+                      const double* velocity);
   void lattice_reduce();
   double lattice_energy(const BondView& view);
   void lattice_derived(std::size_t body);
@@ -172,6 +173,8 @@ class Simulation : public EquilibriumModel {
   std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
   bool has_lattice_ = false;
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
+  bool has_kelvin_ = false;                 // some lattice body has bond dashpots (velocity halo)
+  std::vector<double> viscous_;             // dashpot force densities, 3 * local (owned rows written)
   std::vector<BondLaw> intact_laws_;    // same, never breaking (quasi-static residuals, tangents)
   struct ActiveBoundary {
     Vec3 velocity{0, 0, 0};

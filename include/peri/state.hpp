@@ -70,6 +70,9 @@ class State {
   /// can be computed while messages are in flight.
   void halo_begin();
   void halo_end();
+  /// Halo exchange of velocity (only scenes with velocity-dependent forces: lattice dashpots).
+  void velocity_halo_begin();
+  void velocity_halo_end();
   /// Gather owned per-node values (bs = 1 or 3) into the natural order. Returns this rank's
   /// contiguous slice; natural_begin()/natural_count() say which natural ids it holds.
   const double* to_natural(const double* owned_values, int bs);
