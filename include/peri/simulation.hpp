@@ -143,6 +143,8 @@ class Simulation : public EquilibriumModel {
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
+  /// |total - initial total| over the run's energy scale (at least energy_floor_).
+  double energy_balance_error(const EnergyRow& row) const;
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
   void check_restart(const Checkpoint& c);        // InputError unless c continues this scene
   void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
@@ -191,6 +193,7 @@ class Simulation : public EquilibriumModel {
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
   std::vector<double> inv_density_, mass_;  // per owned node
   std::vector<double> force_;               // force densities, 3 * owned
+  double energy_floor_ = 0;                 // smallest energy scale of the balance (sum m c_l^2 1e-20)
   std::vector<double> positions_;           // current positions (X + u, 0), 4 * local (bond kernel input)
   std::vector<int> bc_;                     // per owned node: boundary index or -1
   std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
