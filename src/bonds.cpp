@@ -172,8 +172,8 @@ struct PatternBuilder::Index {
   std::unordered_multimap<std::uint64_t, std::int32_t> by_hash;
 };
 
-PatternBuilder::PatternBuilder() : index_(new Index) {}
-PatternBuilder::~PatternBuilder() { delete index_; }
+PatternBuilder::PatternBuilder() : index_(std::make_unique<Index>()) {}
+PatternBuilder::~PatternBuilder() = default;
 
 void PatternBuilder::add_row(const std::vector<double>& xi2, const std::vector<double>& measure, double horizon) {
   const std::size_t n = xi2.size();

@@ -80,17 +80,9 @@ void loop_scalar(const BondLaw& law_in, const BondView& v, const std::int32_t* r
 }
 
 #if defined(__AVX512F__)
-// The same bond law, eight bonds at a time (AVX-512, masked tail). Per bond: one 256-bit load of
-// the neighbour's current position (x, y, z, 0), contiguous loads of the family pattern's |xi|^2
-// and w V_j, and the flag byte; no reference positions, measures or weights are gathered. (AVX-512
-// gathers of the three coordinates cost more than the rest of the bond on Zen 4: 3.3e8 against
-// 8.6e8 bond updates/s with the positions loaded contiguously, in a test of the kernel.)
-// Membrane (eq. 15): f_hat / y = 2 c g (y^4 - xi^4) / (xi^2 y^4), one division, no square root.
-// PMB: f_hat / y = c g (1/xi - 1/y), one reciprocal square root. Each row's eight lane sums are reduced in a fixed order,
-// so a node's force does not depend on which rank computes it.
 // 1/sqrt(d) from the 14-bit hardware estimate and two Newton steps (relative error about 2^-52,
-// within an ulp or two of the correctly rounded value), for the PMB law's 1/y (1/xi is stored per
-// pattern slot): replaces a square root and a division. (The same trick for the membrane's single division was slower than vdivpd: 5.0-5.3e8
+// within an ulp or two of the correctly rounded value): the PMB law's 1/y without a square root
+// and a division. (The same for the membrane's one division was slower than vdivpd: 5.0-5.3e8
 // against 5.4-7.2e8 bond updates/s in alternating runs of bench_kernels.)
 inline __m512d reciprocal_sqrt(__m512d d) {
   const __m512d half = _mm512_set1_pd(0.5), three_halves = _mm512_set1_pd(1.5);
@@ -100,6 +92,15 @@ inline __m512d reciprocal_sqrt(__m512d d) {
   return _mm512_mul_pd(r, _mm512_fnmadd_pd(hd, _mm512_mul_pd(r, r), three_halves));
 }
 
+// The same bond law, eight bonds at a time (AVX-512, masked tail). Per bond: one 256-bit load of
+// the neighbour's current position (x, y, z, 0), contiguous loads of the family pattern's |xi|^2,
+// 1/|xi| and w V_j, and the flag byte; no reference positions, measures or weights are gathered.
+// (AVX-512 gathers of the three coordinates cost more than the rest of the bond on Zen 4: 3.3e8
+// against 8.6e8 bond updates/s with the positions loaded contiguously.)
+// Membrane (eq. 15): f_hat / y = 2 c g (y^4 - xi^4) / (xi^2 y^4), one division, no square root.
+// PMB: f_hat / y = c g (1/xi - 1/y), one reciprocal square root. The law's constant c multiplies
+// the row's sum. Each row's eight lane sums are reduced in a fixed order, so a node's force does
+// not depend on which rank computes it.
 template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
                  double* force, BondTally& tally) {
@@ -127,7 +128,7 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
     for (std::int64_t k = 0; k < n; k += 8) {
       const __mmask8 m = n - k >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - k)) - 1u);
       // Neighbour positions: one 256-bit load each (x, y, z, 0), transposed in registers into
-      // x, y and z of eight bonds in CSR order (idle lanes of a tail repeat the row's first bond).
+      // x, y and z of eight bonds in CSR order (idle lanes of a tail repeat the chunk's first bond).
       const std::int32_t* jb = nbr + b0 + k;
       std::int32_t tail[8];
       if (m != 0xFF) {
@@ -167,7 +168,7 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
         newly += __builtin_popcount(fresh);
       }
       const __mmask8 intact = m & static_cast<__mmask8>(~(was | reached));
-      const __m512d gm = Conical ? _mm512_mul_pd(g, meas) : meas;  // times c_law once per row
+      const __m512d gm = Conical ? _mm512_mul_pd(g, meas) : meas;  // times c once per row
       __m512d coef;
       if constexpr (K == ModelKind::Membrane) {
         const __m512d y4 = _mm512_mul_pd(y2, y2);

@@ -6,6 +6,7 @@
 // reference positions, measures and weights per bond.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "peri/discretization.hpp"
@@ -88,7 +89,7 @@ class PatternBuilder {
  private:
   struct Index;
   FamilyPatterns p_;
-  Index* index_;
+  std::unique_ptr<Index> index_;
 };
 
 /// |xi|^2 rounded as FamilyPatterns stores it (see there).
