@@ -108,25 +108,36 @@ TEST(LatticeDecomposition, SameCrackHistoryWithKelvinDashpots) {
   EXPECT_GT(static_cast<std::int64_t>(broken), precrack + 20);
 }
 
+// A run of `duration` sampled every 100 steps: the energies at the start and the end, and the
+// largest |E(t) - E(0)| of kinetic + strain + dissipated [J].
+struct EnergyRun {
+  EnergyRow first, last;
+  double largest_change = 0;
+  std::int64_t steps = 0;
+};
 
-
-// Largest |E(t) - E(0)| / E(0) of kinetic + strain + dissipated over a run of `duration`.
-double energy_drift(double safety, double duration, std::int64_t& broken) {
-  Scene scene = parse_scene(strip_scene("irreversible", kStretch, true, false, safety), "lattice-strip");
+EnergyRun run_tracking_energy(Scene scene, double duration) {
   scene.stages[0].steps.reset();
   scene.stages[0].duration = duration;
   RunOptions quiet;
   quiet.quiet = true;
   Simulation sim(scene, PETSC_COMM_WORLD, quiet);
   sim.begin();
-  const EnergyRow e0 = sim.energies();
-  double drift = 0;
-  while (sim.advance(100) > 0) {
-    const EnergyRow e = sim.energies();
-    drift = std::max(drift, std::fabs(e.total() - e0.total()) / e0.total());
-  }
-  broken = sim.energies().broken_bonds;
-  return drift;
+  EnergyRun run;
+  run.first = sim.energies();
+  while (sim.advance(100) > 0)
+    run.largest_change = std::max(run.largest_change, std::fabs(sim.energies().total() - run.first.total()));
+  run.last = sim.energies();
+  run.steps = sim.current_step();
+  return run;
+}
+
+// Largest |E(t) - E(0)| / E(0) of kinetic + strain + dissipated over a run of `duration`.
+double energy_drift(double safety, double duration, std::int64_t& broken) {
+  const EnergyRun run = run_tracking_energy(
+      parse_scene(strip_scene("irreversible", kStretch, true, false, safety), "lattice-strip"), duration);
+  broken = run.last.broken_bonds;
+  return run.largest_change / run.first.total();
 }
 
 TEST(LatticeEnergy, BalanceWithIrreversibleBreakingConvergesWithTheStep) {
@@ -150,26 +161,17 @@ TEST(LatticeEnergy, KelvinDashpotsBookTheEnergyTheyRemove) {
   // gradient. The dashpots alone dissipate (no bond breaks), so kinetic + strain + dissipated
   // must stay at its start while most of the initial kinetic energy goes: the booked
   // dissipation is the work of the dashpot forces in the kicks.
-  Scene scene = parse_scene(strip_scene("irreversible", kStretch, false, true, 0.7, 0.03,
-                                        "[[0, 100, 0], [0, 0, 0], [0, 0, 0]]"),
-                            "lattice-strip");
-  scene.stages[0].steps.reset();
-  scene.stages[0].duration = 1.0e-3;
-  RunOptions quiet;
-  quiet.quiet = true;
-  Simulation sim(scene, PETSC_COMM_WORLD, quiet);
-  sim.begin();
-  const EnergyRow e0 = sim.energies();
-  double drift = 0;
-  while (sim.advance(100) > 0) {
-    const EnergyRow e = sim.energies();
-    drift = std::max(drift, std::fabs(e.total() - e0.total()) / e0.kinetic);
-  }
-  const EnergyRow e1 = sim.energies();
+  const EnergyRun run = run_tracking_energy(parse_scene(strip_scene("irreversible", kStretch, false, true, 0.7, 0.03,
+                                                                   "[[0, 100, 0], [0, 0, 0], [0, 0, 0]]"),
+                                                       "lattice-strip"),
+                                           1.0e-3);
+  const EnergyRow& e0 = run.first;
+  const EnergyRow& e1 = run.last;
+  const double drift = run.largest_change / e0.kinetic;
   if (world_rank() == 0)
     std::printf("lattice Kelvin dashpots over %lld steps: initial kinetic %.4e J, final kinetic %.4e J, dissipated "
                 "%.4e J, largest |E - E0| / K0 %.3e, %lld bonds broken\n",
-                static_cast<long long>(sim.current_step()), e0.kinetic, e1.kinetic, e1.dissipated, drift,
+                static_cast<long long>(run.steps), e0.kinetic, e1.kinetic, e1.dissipated, drift,
                 static_cast<long long>(e1.broken_bonds));
   EXPECT_EQ(e1.broken_bonds, 0);
   EXPECT_GT(e1.dissipated, 0.5 * e0.kinetic);  // the dashpots did work
