@@ -40,26 +40,20 @@ struct Measured {
   long long graph_vertices = 0;
 };
 
-bool read_all(int fd, void* data, std::size_t bytes) {
-  auto* p = static_cast<char*>(data);
+// Moves all `bytes` through a pipe with `io` (read or write), which may move fewer at a time.
+template <class Io, class Byte>
+bool transfer_all(Io io, int fd, Byte* p, std::size_t bytes) {
   while (bytes > 0) {
-    const ssize_t r = read(fd, p, bytes);
+    const ssize_t r = io(fd, p, bytes);
     if (r <= 0) return false;
     p += r;
     bytes -= static_cast<std::size_t>(r);
   }
   return true;
 }
-
+bool read_all(int fd, void* data, std::size_t bytes) { return transfer_all(read, fd, static_cast<char*>(data), bytes); }
 bool write_all(int fd, const void* data, std::size_t bytes) {
-  const auto* p = static_cast<const char*>(data);
-  while (bytes > 0) {
-    const ssize_t r = write(fd, p, bytes);
-    if (r <= 0) return false;
-    p += r;
-    bytes -= static_cast<std::size_t>(r);
-  }
-  return true;
+  return transfer_all(write, fd, static_cast<const char*>(data), bytes);
 }
 
 // Run one partitioner in a forked child: its time, its peak resident memory above the memory at

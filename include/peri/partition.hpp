@@ -43,7 +43,8 @@ const char* to_string(PartitionMethod m);
 
 struct PartitionSettings {
   PartitionMethod method = PartitionMethod::Cells;
-  int cells_per_part = 64;  ///< cells: shrink cells (down to the spacing) until this many per part
+  int cells_per_part = 64;  ///< cells: shrink cells (not below half the horizon nor the spacing)
+                            ///< until this many per part
 };
 
 /// Partition settings from the PETSc options database: -partition_method cells|bonds|petsc,
