@@ -207,6 +207,7 @@ void PatternBuilder::add_row(const std::vector<double>& xi2, const std::vector<d
   p_.xi2.insert(p_.xi2.end(), rounded.begin(), rounded.end());
   for (std::size_t k = 0; k < n; ++k) p_.inv_xi.push_back(1.0 / std::sqrt(rounded[k]));
   p_.measure.insert(p_.measure.end(), measure.begin(), measure.end());
+  for (std::size_t k = 0; k < n; ++k) p_.measure_per_xi2.push_back(measure[k] / rounded[k]);
   p_.begin.push_back(static_cast<std::int64_t>(p_.xi2.size()));
   p_.of_row.push_back(p);
   index_->by_hash.emplace(h, p);
@@ -216,6 +217,7 @@ FamilyPatterns PatternBuilder::finish() {
   p_.xi2.shrink_to_fit();
   p_.inv_xi.shrink_to_fit();
   p_.measure.shrink_to_fit();
+  p_.measure_per_xi2.shrink_to_fit();
   index_->by_hash.clear();
   return std::move(p_);
 }
@@ -225,7 +227,7 @@ double BondFamilies::bytes_per_bond() const {
   const double bytes = offsets.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) +
                        broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
                        patterns.begin.size() * sizeof(std::int64_t) +
-                       patterns.xi2.size() * 3 * sizeof(double);
+                       patterns.xi2.size() * 4 * sizeof(double);
   return bytes / static_cast<double>(neighbor.size());
 }
 

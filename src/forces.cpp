@@ -1,7 +1,8 @@
 #include "peri/forces.hpp"
 
 #include <algorithm>
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) && defined(__AVX512VL__) && defined(__AVX512BW__)
+#define PERI_AVX512 1
 #include <immintrin.h>
 // GCC 12 reports its own intrinsics' _mm512_undefined_* temporaries as maybe-uninitialized.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
@@ -79,7 +80,7 @@ void loop_scalar(const BondLaw& law_in, const BondView& v, const std::int32_t* r
   }
 }
 
-#if defined(__AVX512F__)
+#if defined(PERI_AVX512)
 // 1/sqrt(d) from the 14-bit hardware estimate and two Newton steps (relative error about 2^-52,
 // within an ulp or two of the correctly rounded value): the PMB law's 1/y without a square root
 // and a division. (The same for the membrane's one division was slower than vdivpd: 5.0-5.3e8
@@ -92,15 +93,34 @@ inline __m512d reciprocal_sqrt(__m512d d) {
   return _mm512_mul_pd(r, _mm512_fnmadd_pd(hd, _mm512_mul_pd(r, r), three_halves));
 }
 
-// The same bond law, eight bonds at a time (AVX-512, masked tail). Per bond: one 256-bit load of
-// the neighbour's current position (x, y, z, 0), contiguous loads of the family pattern's |xi|^2,
-// 1/|xi| and w V_j, and the flag byte; no reference positions, measures or weights are gathered.
+// Lane sums of a, b, c and d, each reduced in one fixed order (so a node's force does not depend
+// on which rank computes it): out = {sum a, sum b, sum c, sum d}. Seven shuffles and four adds for
+// all four, against six operations per vector for separate reductions.
+inline void lane_sums(__m512d a, __m512d b, __m512d c, __m512d d, double out[4]) {
+  const __m512d ab = _mm512_add_pd(_mm512_shuffle_f64x2(a, b, _MM_SHUFFLE(1, 0, 1, 0)),
+                                   _mm512_shuffle_f64x2(a, b, _MM_SHUFFLE(3, 2, 3, 2)));
+  const __m512d cd = _mm512_add_pd(_mm512_shuffle_f64x2(c, d, _MM_SHUFFLE(1, 0, 1, 0)),
+                                   _mm512_shuffle_f64x2(c, d, _MM_SHUFFLE(3, 2, 3, 2)));
+  const __m512d s = _mm512_add_pd(_mm512_shuffle_f64x2(ab, cd, _MM_SHUFFLE(2, 0, 2, 0)),
+                                  _mm512_shuffle_f64x2(ab, cd, _MM_SHUFFLE(3, 1, 3, 1)));
+  const __m512d t = _mm512_add_pd(s, _mm512_permute_pd(s, 0x55));
+  // Lanes 0, 2, 4, 6 by register extracts (a store and scalar reloads would miss store forwarding).
+  out[0] = _mm_cvtsd_f64(_mm512_castpd512_pd128(t));
+  out[1] = _mm_cvtsd_f64(_mm512_extractf64x2_pd(t, 1));
+  out[2] = _mm_cvtsd_f64(_mm512_extractf64x2_pd(t, 2));
+  out[3] = _mm_cvtsd_f64(_mm512_extractf64x2_pd(t, 3));
+}
+
+// The same bond law, eight bonds at a time (AVX-512). Per bond: one 256-bit load of the
+// neighbour's current position (x, y, z, 0), contiguous loads of the family pattern's |xi|^2 and
+// measure term, and the flag byte; no reference positions, measures or weights are gathered.
 // (AVX-512 gathers of the three coordinates cost more than the rest of the bond on Zen 4: 3.3e8
 // against 8.6e8 bond updates/s with the positions loaded contiguously.)
-// Membrane (eq. 15): f_hat / y = 2 c g (y^4 - xi^4) / (xi^2 y^4), one division, no square root.
+// Membrane (eq. 15): f_hat / y = 2 c g (1 - r^2) w V_j / xi^2 with r = xi^2 / y^2 = lambda^-2:
+// one division, no square root, and the failure test (eq. 11) is r <= lambda_0^-2.
 // PMB: f_hat / y = c g (1/xi - 1/y), one reciprocal square root. The law's constant c multiplies
-// the row's sum. Each row's eight lane sums are reduced in a fixed order, so a node's force does
-// not depend on which rank computes it.
+// the row's sum. Full chunks of eight run unmasked; a row's last partial chunk is masked and
+// loads its idle lanes' neighbour index as node 0.
 template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
                  double* force, BondTally& tally) {
@@ -110,8 +130,9 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
   const FamilyPatterns& P = *v.patterns;
   const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
   const __m512d c_energy = _mm512_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c);
-  const __m512d tiny = _mm512_set1_pd(1e-12);
+  const __m512d tiny = _mm512_set1_pd(1e-12), r_max = _mm512_set1_pd(1e12);
   const __m512d crit0 = _mm512_set1_pd(L.critical0), crit0_sq = _mm512_set1_pd(L.critical0 * L.critical0);
+  const __m512d inv_crit0_sq = _mm512_set1_pd(1.0 / (L.critical0 * L.critical0));  // 0 if unbreakable
   const __m512d crit_slope = _mm512_set1_pd(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0);
   const __m512d inv_horizon = _mm512_set1_pd(1.0 / L.horizon);
   const __m128i bit_broken = _mm_set1_epi8(static_cast<char>(kBroken));
@@ -120,21 +141,19 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
     const __m512d xi0 = _mm512_set1_pd(x[4 * i]), xi1 = _mm512_set1_pd(x[4 * i + 1]),
                   xi2c = _mm512_set1_pd(x[4 * i + 2]);
     const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
-    const double* sx = P.xi2.data() + P.begin[P.of_row[i]];
-    const double* sm = P.measure.data() + P.begin[P.of_row[i]];
-    const double* sr = P.inv_xi.data() + P.begin[P.of_row[i]];
+    const std::int64_t slot0 = P.begin[P.of_row[i]];
+    const double* sx = P.xi2.data() + slot0;
+    const double* sm = P.measure.data() + slot0;
+    const double* sr = P.inv_xi.data() + slot0;
+    const double* sa = P.measure_per_xi2.data() + slot0;
+    const std::int32_t* row_nbr = nbr + b0;
+    std::uint8_t* row_flag = flag + b0;
     __m512d f0 = zero, f1 = zero, f2 = zero, w = zero;
     int newly = 0;
-    for (std::int64_t k = 0; k < n; k += 8) {
-      const __mmask8 m = n - k >= 8 ? __mmask8(0xFF) : static_cast<__mmask8>((1u << (n - k)) - 1u);
+    // Eight bonds from slot k; m marks the lanes in the row, jb their neighbour indices.
+    auto chunk = [&](std::int64_t k, __mmask8 m, const std::int32_t* jb) __attribute__((always_inline)) {
       // Neighbour positions: one 256-bit load each (x, y, z, 0), transposed in registers into
-      // x, y and z of eight bonds in CSR order (idle lanes of a tail repeat the chunk's first bond).
-      const std::int32_t* jb = nbr + b0 + k;
-      std::int32_t tail[8];
-      if (m != 0xFF) {
-        for (int l = 0; l < 8; ++l) tail[l] = l < n - k ? jb[l] : jb[0];
-        jb = tail;
-      }
+      // x, y and z of eight bonds in CSR order.
       auto pos = [x](std::int32_t j) { return _mm256_loadu_pd(x + 4 * static_cast<std::int64_t>(j)); };
       const __m512d a0 = _mm512_insertf64x4(_mm512_castpd256_pd512(pos(jb[0])), pos(jb[2]), 1);
       const __m512d a1 = _mm512_insertf64x4(_mm512_castpd256_pd512(pos(jb[1])), pos(jb[3]), 1);
@@ -146,57 +165,74 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
       const __m512d d1 = _mm512_sub_pd(_mm512_shuffle_f64x2(t1, t3, _MM_SHUFFLE(2, 0, 2, 0)), xi1);
       const __m512d d2 = _mm512_sub_pd(_mm512_shuffle_f64x2(t0, t2, _MM_SHUFFLE(3, 1, 3, 1)), xi2c);
       const __m512d s2 = _mm512_mask_loadu_pd(one, m, sx + k);  // 1 in idle lanes: no 0/0
-      const __m512d meas = _mm512_maskz_loadu_pd(m, sm + k);
-      __m512d y2 = _mm512_fmadd_pd(d2, d2, _mm512_fmadd_pd(d1, d1, _mm512_mul_pd(d0, d0)));
-      y2 = _mm512_max_pd(y2, _mm512_mul_pd(tiny, s2));  // coincident nodes (see loop_scalar)
+      // (x^2 + z^2) + y^2: two independent products, a shorter dependency chain than nested FMAs.
+      const __m512d y2 = _mm512_add_pd(_mm512_fmadd_pd(d2, d2, _mm512_mul_pd(d0, d0)), _mm512_mul_pd(d1, d1));
       __m512d xi = zero, g = one;
       if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm512_sqrt_pd(s2);
       if constexpr (Conical) g = _mm512_max_pd(zero, _mm512_fnmadd_pd(xi, inv_horizon, one));
-      __m512d threshold;  // eq. (11): broken once y^2 >= lambda_0(|xi|)^2 |xi|^2 (eq. 29 if linear)
+      // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in loop_scalar).
+      __m512d ratio = one, y2g = y2;
+      if constexpr (K == ModelKind::Membrane) ratio = _mm512_min_pd(_mm512_div_pd(s2, y2), r_max);
+      else y2g = _mm512_max_pd(y2, _mm512_mul_pd(tiny, s2));
+      __mmask8 reached;  // eq. (11): broken once y^2 >= lambda_0(|xi|)^2 |xi|^2 (eq. 29 if linear)
       if constexpr (Linear) {
         const __m512d lc = _mm512_fmadd_pd(crit_slope, xi, crit0);
-        threshold = _mm512_mul_pd(_mm512_mul_pd(lc, lc), s2);
+        reached = _mm512_mask_cmp_pd_mask(m, y2g, _mm512_mul_pd(_mm512_mul_pd(lc, lc), s2), _CMP_GE_OQ);
+      } else if constexpr (K == ModelKind::Membrane) {
+        reached = _mm512_mask_cmp_pd_mask(m, ratio, inv_crit0_sq, _CMP_LE_OQ);
       } else {
-        threshold = _mm512_mul_pd(crit0_sq, s2);
+        reached = _mm512_mask_cmp_pd_mask(m, y2g, _mm512_mul_pd(crit0_sq, s2), _CMP_GE_OQ);
       }
-      const __mmask8 was = _mm_mask_test_epi8_mask(m, _mm_maskz_loadu_epi8(m, flag + b0 + k), bit_broken);
-      const __mmask8 reached = _mm512_mask_cmp_pd_mask(m, y2, threshold, _CMP_GE_OQ);
+      const __mmask8 was = _mm_mask_test_epi8_mask(m, _mm_maskz_loadu_epi8(m, row_flag + k), bit_broken);
       const __mmask8 fresh = reached & static_cast<__mmask8>(~was);
       if (fresh) [[unlikely]] {
         for (int l = 0; l < 8; ++l)
-          if (fresh >> l & 1) flag[b0 + k + l] |= kBroken | kJustBroken;
+          if (fresh >> l & 1) row_flag[k + l] |= kBroken | kJustBroken;
         newly += __builtin_popcount(fresh);
       }
       const __mmask8 intact = m & static_cast<__mmask8>(~(was | reached));
-      const __m512d gm = Conical ? _mm512_mul_pd(g, meas) : meas;  // times c once per row
       __m512d coef;
       if constexpr (K == ModelKind::Membrane) {
-        const __m512d y4 = _mm512_mul_pd(y2, y2);
-        const __m512d num = _mm512_mul_pd(_mm512_sub_pd(y2, s2), _mm512_add_pd(y2, s2));
-        coef = _mm512_maskz_div_pd(intact, _mm512_mul_pd(gm, num), _mm512_mul_pd(s2, y4));
+        __m512d a = _mm512_maskz_loadu_pd(m, sa + k);  // w V_j / xi^2
+        if constexpr (Conical) a = _mm512_mul_pd(g, a);
+        coef = _mm512_maskz_fnmadd_pd(intact, a, _mm512_mul_pd(ratio, ratio), a);  // g wV/xi^2 (1 - r^2)
         if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g (y^2 - xi^2)^2 / (xi^2 y^2)
-          const __m512d e = _mm512_sub_pd(y2, s2);
+          const __m512d meas = _mm512_maskz_loadu_pd(m, sm + k);
+          const __m512d y2e = _mm512_max_pd(y2, _mm512_mul_pd(tiny, s2));  // as loop_scalar
+          const __m512d e = _mm512_sub_pd(y2e, s2);
           const __m512d ge = _mm512_mul_pd(c_energy, Conical ? _mm512_mul_pd(g, meas) : meas);
-          w = _mm512_mask_add_pd(w, intact, w, _mm512_div_pd(_mm512_mul_pd(ge, _mm512_mul_pd(e, e)), _mm512_mul_pd(s2, y2)));
+          w = _mm512_mask_add_pd(w, intact, w, _mm512_div_pd(_mm512_mul_pd(ge, _mm512_mul_pd(e, e)), _mm512_mul_pd(s2, y2e)));
         }
       } else {
-        const __m512d inv_y = reciprocal_sqrt(y2), inv_xi = _mm512_mask_loadu_pd(one, m, sr + k);
+        const __m512d meas = _mm512_maskz_loadu_pd(m, sm + k);
+        const __m512d gm = Conical ? _mm512_mul_pd(g, meas) : meas;
+        const __m512d inv_y = reciprocal_sqrt(y2g), inv_xi = _mm512_mask_loadu_pd(one, m, sr + k);
         coef = _mm512_maskz_mul_pd(intact, gm, _mm512_sub_pd(inv_xi, inv_y));  // c g (1/xi - 1/y)
         if constexpr (Energy) {  // w = c s^2 |xi| g / 2 = (c/2) g (y - xi)^2 / xi
-          const __m512d stretch = _mm512_sub_pd(_mm512_sqrt_pd(y2), xi);
-          const __m512d ge = _mm512_mul_pd(c_energy, Conical ? _mm512_mul_pd(g, meas) : meas);
+          const __m512d stretch = _mm512_sub_pd(_mm512_sqrt_pd(y2g), xi);
+          const __m512d ge = _mm512_mul_pd(c_energy, gm);
           w = _mm512_mask_add_pd(w, intact, w, _mm512_div_pd(_mm512_mul_pd(ge, _mm512_mul_pd(stretch, stretch)), xi));
         }
       }
       f0 = _mm512_fmadd_pd(coef, d0, f0);
       f1 = _mm512_fmadd_pd(coef, d1, f1);
       f2 = _mm512_fmadd_pd(coef, d2, f2);
+    };
+    std::int64_t k = 0;
+    for (; k + 8 <= n; k += 8) chunk(k, __mmask8(0xFF), row_nbr + k);
+    if (k < n) {
+      const auto m = static_cast<__mmask8>((1u << (n - k)) - 1u);
+      alignas(32) std::int32_t tail[8];
+      _mm256_store_si256(reinterpret_cast<__m256i*>(tail), _mm256_maskz_loadu_epi32(m, row_nbr + k));
+      chunk(k, m, tail);
     }
+    double sums[4];
+    lane_sums(f0, f1, f2, w, sums);
     const double c = K == ModelKind::Membrane ? 2.0 * L.c : L.c;
-    force[3 * i] = c * _mm512_reduce_add_pd(f0);
-    force[3 * i + 1] = c * _mm512_reduce_add_pd(f1);
-    force[3 * i + 2] = c * _mm512_reduce_add_pd(f2);
-    if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * _mm512_reduce_add_pd(w);
+    force[3 * i] = c * sums[0];
+    force[3 * i + 1] = c * sums[1];
+    force[3 * i + 2] = c * sums[2];
+    if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * sums[3];
     if (newly) book_breaks(L, v, i, newly, tally);
   }
 }
@@ -205,7 +241,7 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
 template <ModelKind K, bool Conical, bool Linear, bool Hard, bool Energy>
 void loop(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t n, double* force,
           BondTally& t) {
-#if defined(__AVX512F__)
+#if defined(PERI_AVX512)
   if constexpr (!Hard)
     if (v.patterns) return loop_avx512<K, Conical, Linear, Energy>(law, v, rows, n, force, t);
 #endif

@@ -68,6 +68,7 @@ struct FamilyPatterns {
   std::vector<double> xi2;              ///< slot -> |xi|^2 [m^2]
   std::vector<double> inv_xi;           ///< slot -> 1 / |xi| [1/m] (from the rounded |xi|^2)
   std::vector<double> measure;          ///< slot -> w_ij V_j (quadrature weight x measure) [m^3]
+  std::vector<double> measure_per_xi2;  ///< slot -> w_ij V_j / |xi|^2 [m] (membrane coefficient)
   std::int64_t patterns() const { return static_cast<std::int64_t>(begin.size()) - 1; }
   std::int64_t slot(std::int32_t row, std::int64_t offset_in_family) const {
     return begin[of_row[row]] + offset_in_family;
