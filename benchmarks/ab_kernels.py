@@ -14,18 +14,28 @@ not. With --ranks 2 both run under `mpirun -n 2` (full-step benchmarks only).
 """
 import argparse
 import json
+import os
 import shutil
 import statistics
 import subprocess
+import tempfile
 
 
 def run(binary, bench_filter, ranks, mpirun):
     cmd = [binary, f"--benchmark_filter={bench_filter}", "--benchmark_format=json"]
-    if ranks > 1:
-        cmd = [mpirun, "--allow-run-as-root", "-n", str(ranks)] + cmd
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    # Under mpirun every rank prints a report; the first complete JSON document is rank 0's.
-    report = json.JSONDecoder().raw_decode(out[out.index("{"):])[0]
+    if ranks == 1:
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+        report = json.loads(out)
+    else:
+        # Under mpirun every rank reports and the standard outputs interleave: each rank writes
+        # its own file (Open MPI's rank variable), and rank 0's is read.
+        with tempfile.TemporaryDirectory() as work:
+            wrapped = ["sh", "-c", f'exec "$0" "$@" --benchmark_out={work}/rank$OMPI_COMM_WORLD_RANK.json '
+                                   "--benchmark_out_format=json"] + cmd
+            subprocess.run([mpirun, "--allow-run-as-root", "-n", str(ranks)] + wrapped, check=True,
+                           capture_output=True, text=True)
+            with open(os.path.join(work, "rank0.json")) as f:
+                report = json.load(f)
     return {b["name"]: b for b in report["benchmarks"]}
 
 

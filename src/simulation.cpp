@@ -496,10 +496,22 @@ void Simulation::step(bool with_energy) {
   double viscous = 0;
   const bool kelvin = has_kelvin_;
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
+  const bool damped_run = damping_ > 0;
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const int bi = bc_[i];
     double moved2 = 0;
-    for (int c = 0; c < 3; ++c) {
+    if (bi < 0 && !kelvin) {  // free node (most nodes): the same arithmetic, no per-component tests
+      const double inv_rho = inv_density_[i], m = mass_[i];
+      double* vi = v + 3 * static_cast<std::size_t>(i);
+      double* ui = u + 3 * static_cast<std::size_t>(i);
+      const double* fi = force_.data() + 3 * static_cast<std::size_t>(i);
+      for (int c = 0; c < 3; ++c) {
+        if (damped_run) damped += m * vi[c] * vi[c];
+        vi[c] = damp_old * vi[c] + 0.5 * dt * fi[c] * inv_rho;
+        ui[c] += dt * vi[c];
+        moved2 += dt * dt * vi[c] * vi[c];
+      }
+    } else for (int c = 0; c < 3; ++c) {
       const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
       if (bi >= 0 && scene_.boundaries[bi].components[c]) {
         const ActiveBoundary& b = active_bc_[bi];
@@ -536,6 +548,16 @@ void Simulation::step(bool with_energy) {
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const int bi = bc_[i];
+    if (bi < 0 && !kelvin) {  // free node: the same arithmetic, no per-component tests
+      const double inv_rho = inv_density_[i], m = mass_[i];
+      double* vi = v + 3 * static_cast<std::size_t>(i);
+      const double* fi = force_.data() + 3 * static_cast<std::size_t>(i);
+      for (int c = 0; c < 3; ++c) {
+        vi[c] = damp_new * (vi[c] + 0.5 * dt * fi[c] * inv_rho);
+        if (damped_run) damped += m * vi[c] * vi[c];
+      }
+      continue;
+    }
     for (int c = 0; c < 3; ++c) {
       const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
       if (bi >= 0 && scene_.boundaries[bi].components[c]) {
