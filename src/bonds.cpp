@@ -227,7 +227,8 @@ double BondFamilies::bytes_per_bond() const {
   const double bytes = offsets.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) +
                        broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
                        patterns.begin.size() * sizeof(std::int64_t) +
-                       patterns.xi2.size() * 4 * sizeof(double);
+                       (patterns.xi2.size() + patterns.inv_xi.size() + patterns.measure.size() +
+                        patterns.measure_per_xi2.size()) * sizeof(double);
   return bytes / static_cast<double>(neighbor.size());
 }
 

@@ -132,8 +132,7 @@ double cell_size_for(const Nodes& nodes, int parts, int cells_per_part) {
   }
 }
 
-CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, std::int64_t row_begin,
-                     std::int64_t row_end) {
+CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, int share, int shares) {
   CellGraph g;
   g.cell_size = size;
   const std::int64_t n = nodes.size();
@@ -152,7 +151,7 @@ CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, std
       g.cell_of[i] = static_cast<std::int32_t>(std::lower_bound(sorted.begin(), sorted.end(), lin[i]) - sorted.begin());
   }
   std::vector<std::int64_t>().swap(lin);
-  if (row_end < 0) row_end = g.cells;
+  const std::int64_t row_begin = g.cells * share / shares, row_end = g.cells * (share + 1) / shares;
   g.row_begin = row_begin;
   // Nodes of the rows built, grouped by cell (natural order inside a cell).
   std::vector<std::int64_t> start(row_end - row_begin + 1, 0);
@@ -321,8 +320,8 @@ CellGraph cell_graph_on_root(const Nodes& nodes, const CellList& cells, double s
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
-  const std::int64_t total = cell_graph(nodes, cells, size, 0, 0).cells;
-  CellGraph g = cell_graph(nodes, cells, size, total * rank / ranks, total * (rank + 1) / ranks);
+  CellGraph g = cell_graph(nodes, cells, size, rank, ranks);
+  const std::int64_t total = g.cells;
   if (ranks == 1) return g;
   const int rows = static_cast<int>(g.vertex_weight.size()), edges = static_cast<int>(g.adjacency.size());
   std::vector<int> row_counts(ranks), edge_counts(ranks), row_displs(ranks, 0), edge_displs(ranks, 0);
@@ -360,11 +359,8 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
-  // Cell count first (cheap, no rows), then this rank's rows.
-  const std::int64_t total = cell_graph(nodes, cells, size, 0, 0).cells;
-  const std::int64_t lo = total * rank / ranks, hi = total * (rank + 1) / ranks;
-  local = cell_graph(nodes, cells, size, lo, hi);
-  const PetscInt m = static_cast<PetscInt>(hi - lo);
+  local = cell_graph(nodes, cells, size, rank, ranks);  // this rank's rows
+  const PetscInt m = static_cast<PetscInt>(local.vertex_weight.size());
   long long sums[2] = {0, 0}, global_sums[2];
   for (std::int64_t v : local.vertex_weight) sums[0] += v + 1;
   for (std::int64_t e : local.edge_weight) sums[1] += e;
@@ -383,7 +379,7 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
   for (PetscInt r = 0; r < m; ++r)
     vwgt[r] = static_cast<PetscInt>(std::max<std::int64_t>(1, (local.vertex_weight[r] + 1) / vdiv));
   Mat adj;
-  PERI_PETSC(MatCreateMPIAdj(comm, m, static_cast<PetscInt>(total), ia, ja, values, &adj));  // owns ia, ja, values
+  PERI_PETSC(MatCreateMPIAdj(comm, m, static_cast<PetscInt>(local.cells), ia, ja, values, &adj));  // owns ia, ja, values
   MatPartitioning mp;
   PERI_PETSC(MatPartitioningCreate(comm, &mp));
   PERI_PETSC(PetscObjectSetOptionsPrefix(reinterpret_cast<PetscObject>(mp), "partition_"));
@@ -405,7 +401,7 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
   PERI_PETSC(ISAllGather(is, &all));
   const PetscInt* p;
   PERI_PETSC(ISGetIndices(all, &p));
-  std::vector<int> cell_part(p, p + total);
+  std::vector<int> cell_part(p, p + local.cells);
   PERI_PETSC(ISRestoreIndices(all, &p));
   ISDestroy(&all);
   ISDestroy(&is);

@@ -497,23 +497,25 @@ void Simulation::step(bool with_energy) {
   const bool kelvin = has_kelvin_;
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
   const bool damped_run = damping_ > 0;
+  // Free component k of node i: half kick, drift; returns the squared motion.
+  auto kick_drift = [&](std::int32_t i, std::size_t k) {
+    if (damped_run) damped += mass_[i] * v[k] * v[k];
+    const double before = v[k];
+    v[k] = damp_old * v[k] + 0.5 * dt * force_[k] * inv_density_[i];
+    if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
+    u[k] += dt * v[k];
+    return dt * dt * v[k] * v[k];
+  };
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const int bi = bc_[i];
+    const std::size_t k0 = 3 * static_cast<std::size_t>(i);
     double moved2 = 0;
-    if (bi < 0 && !kelvin) {  // free node (most nodes): the same arithmetic, no per-component tests
-      const double inv_rho = inv_density_[i], m = mass_[i];
-      double* vi = v + 3 * static_cast<std::size_t>(i);
-      double* ui = u + 3 * static_cast<std::size_t>(i);
-      const double* fi = force_.data() + 3 * static_cast<std::size_t>(i);
-      for (int c = 0; c < 3; ++c) {
-        if (damped_run) damped += m * vi[c] * vi[c];
-        vi[c] = damp_old * vi[c] + 0.5 * dt * fi[c] * inv_rho;
-        ui[c] += dt * vi[c];
-        moved2 += dt * dt * vi[c] * vi[c];
-      }
-    } else for (int c = 0; c < 3; ++c) {
-      const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
+    if (bi < 0) {  // most nodes: no per-component boundary test
+      for (int c = 0; c < 3; ++c) moved2 += kick_drift(i, k0 + c);
+    }
+    for (int c = 0; c < 3 && bi >= 0; ++c) {
+      const std::size_t k = k0 + c;
+      if (scene_.boundaries[bi].components[c]) {
         const ActiveBoundary& b = active_bc_[bi];
         const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
         v_old_bc[kb] = v[k];
@@ -523,12 +525,7 @@ void Simulation::step(bool with_energy) {
         v[k] = b.velocity[c] * ramp(t1, b.ramp_time);
         moved2 += du_bc[kb] * du_bc[kb];
       } else {
-        damped += mass_[i] * v[k] * v[k];
-        const double before = v[k];
-        v[k] = damp_old * v[k] + 0.5 * dt * force_[k] * inv_density_[i];
-        if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
-        u[k] += dt * v[k];
-        moved2 += dt * dt * v[k] * v[k];
+        moved2 += kick_drift(i, k);
       }
     }
     // Instability detector: no stable explicit step moves a node by a sizeable part of the spacing.
@@ -546,31 +543,30 @@ void Simulation::step(bool with_energy) {
   compute_forces(with_energy);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
+  // Free component k of node i: second half kick.
+  auto kick = [&](std::int32_t i, std::size_t k) {
+    const double before = v[k];
+    v[k] = damp_new * (v[k] + 0.5 * dt * force_[k] * inv_density_[i]);
+    if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
+    if (damped_run) damped += mass_[i] * v[k] * v[k];
+  };
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const int bi = bc_[i];
-    if (bi < 0 && !kelvin) {  // free node: the same arithmetic, no per-component tests
-      const double inv_rho = inv_density_[i], m = mass_[i];
-      double* vi = v + 3 * static_cast<std::size_t>(i);
-      const double* fi = force_.data() + 3 * static_cast<std::size_t>(i);
-      for (int c = 0; c < 3; ++c) {
-        vi[c] = damp_new * (vi[c] + 0.5 * dt * fi[c] * inv_rho);
-        if (damped_run) damped += m * vi[c] * vi[c];
-      }
+    const std::size_t k0 = 3 * static_cast<std::size_t>(i);
+    if (bi < 0) {  // most nodes: no per-component boundary test
+      for (int c = 0; c < 3; ++c) kick(i, k0 + c);
       continue;
     }
     for (int c = 0; c < 3; ++c) {
-      const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
+      const std::size_t k = k0 + c;
+      if (scene_.boundaries[bi].components[c]) {
         // Work of the reaction that enforces the motion: change of the node's kinetic energy
         // minus the work of the internal force along the prescribed path (trapezoidal).
         const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
         const double fi = 0.5 * (force_[k] + prev_force_bc_[kb]) * domain_.volume[i];
         external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
       } else {
-        const double before = v[k];
-        v[k] = damp_new * (v[k] + 0.5 * dt * force_[k] * inv_density_[i]);
-        if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
-        damped += mass_[i] * v[k] * v[k];
+        kick(i, k);
       }
     }
   }

@@ -79,10 +79,10 @@ struct CellGraph {
   std::int64_t row_begin = 0;                 ///< first row built (rows [row_begin, row_begin + rows))
 };
 
-/// Bin the nodes into cubic cells of edge `size` (see cell_size_for) and build the rows
-/// [row_begin, row_end) of the cell graph (row_end = -1: all rows). cell_of covers every node.
-CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, std::int64_t row_begin = 0,
-                     std::int64_t row_end = -1);
+/// Bin the nodes into cubic cells of edge `size` (see cell_size_for) and build share `share` of
+/// `shares` equal row ranges of the cell graph: rows [cells * share / shares, cells * (share + 1)
+/// / shares) (all rows by default). cell_of covers every node.
+CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, int share = 0, int shares = 1);
 
 /// Cell size for `parts` parts: the largest horizon, shrunk by factors of 0.8 (not below half the
 /// horizon nor the largest spacing) until at least cells_per_part * parts cells are occupied.
