@@ -6,8 +6,12 @@
 #include <immintrin.h>
 // GCC 12 reports its own intrinsics' _mm512_undefined_* temporaries as maybe-uninitialized.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#elif defined(__AVX2__) && defined(__FMA__)
+#define PERI_AVX2 1
+#include <immintrin.h>
 #endif
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace peri {
@@ -238,12 +242,171 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
 }
 #endif
 
+#if defined(PERI_AVX2)
+// Lane sums of a, b, c and d in one fixed order: out = {sum a, sum b, sum c, sum d}.
+inline void lane_sums4(__m256d a, __m256d b, __m256d c, __m256d d, double out[4]) {
+  const __m256d ab = _mm256_hadd_pd(a, b);  // a0+a1 b0+b1 a2+a3 b2+b3
+  const __m256d cd = _mm256_hadd_pd(c, d);
+  const __m256d s = _mm256_add_pd(_mm256_permute2f128_pd(ab, cd, 0x20), _mm256_permute2f128_pd(ab, cd, 0x31));
+  _mm256_storeu_pd(out, s);
+}
+
+// The same bond law four bonds at a time (AVX2 + FMA, for CPUs without AVX-512): the arithmetic
+// of loop_avx512 on 256-bit vectors. Per bond one 128-bit and one 64-bit load of the neighbour's
+// (x, y, z) merged into lanes, the family pattern's slots loaded contiguously, the flag byte.
+// Masks are whole-lane bit patterns (all ones = true). PMB: 1/y as sqrt then division (AVX2 has
+// no double-precision reciprocal square root estimate).
+template <ModelKind K, bool Conical, bool Linear, bool Energy>
+void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
+               double* force, BondTally& tally) {
+  const double* __restrict x = v.x;
+  const std::int32_t* __restrict nbr = v.neighbor;
+  std::uint8_t* __restrict flag = v.broken;
+  const FamilyPatterns& P = *v.patterns;
+  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+  const __m256d c_energy = _mm256_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c);
+  const __m256d tiny = _mm256_set1_pd(1e-12), r_max = _mm256_set1_pd(1e12);
+  const __m256d crit0 = _mm256_set1_pd(L.critical0), crit0_sq = _mm256_set1_pd(L.critical0 * L.critical0);
+  const __m256d inv_crit0_sq = _mm256_set1_pd(1.0 / (L.critical0 * L.critical0));  // 0 if unbreakable
+  const __m256d crit_slope = _mm256_set1_pd(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0);
+  const __m256d inv_horizon = _mm256_set1_pd(1.0 / L.horizon);
+  const __m256i bit_broken = _mm256_set1_epi64x(kBroken);
+  for (std::size_t r = 0; r < nrows; ++r) {
+    const std::int32_t i = rows[r];
+    const __m256d xi0 = _mm256_set1_pd(x[4 * i]), xi1 = _mm256_set1_pd(x[4 * i + 1]),
+                  xi2c = _mm256_set1_pd(x[4 * i + 2]);
+    const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
+    const std::int64_t slot0 = P.begin[P.of_row[i]];
+    const double* sx = P.xi2.data() + slot0;
+    const double* sm = P.measure.data() + slot0;
+    const double* sr = P.inv_xi.data() + slot0;
+    const double* sa = P.measure_per_xi2.data() + slot0;
+    const std::int32_t* row_nbr = nbr + b0;
+    std::uint8_t* row_flag = flag + b0;
+    __m256d f0 = zero, f1 = zero, f2 = zero, w = zero;
+    int newly = 0;
+    // Four bonds from slot k. Tail: the row's last partial chunk, `live` its lanes (all ones),
+    // jb its neighbour indices padded with node 0, and its pattern slots loaded under the mask.
+    auto chunk = [&]<bool Tail>(std::int64_t k, const std::int32_t* jb, __m256i live, std::uint32_t flags)
+                     __attribute__((always_inline)) {
+      // (x, y) of two neighbours per 256-bit register, transposed in registers.
+      auto xy = [x](std::int32_t j0, std::int32_t j1) {
+        return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j0))),
+                                    _mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j1)), 1);
+      };
+      auto z = [x](std::int32_t j0, std::int32_t j1) {
+        return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j0) + 2)),
+                                    _mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j1) + 2), 1);
+      };
+      const __m256d m0 = xy(jb[0], jb[2]), m1 = xy(jb[1], jb[3]);  // x0 y0 x2 y2 | x1 y1 x3 y3
+      const __m256d n0 = z(jb[0], jb[2]), n1 = z(jb[1], jb[3]);    // z0 0 z2 0 | z1 0 z3 0
+      const __m256d d0 = _mm256_sub_pd(_mm256_unpacklo_pd(m0, m1), xi0);
+      const __m256d d1 = _mm256_sub_pd(_mm256_unpackhi_pd(m0, m1), xi1);
+      const __m256d d2 = _mm256_sub_pd(_mm256_unpacklo_pd(n0, n1), xi2c);
+      __m256d s2;
+      if constexpr (Tail) s2 = _mm256_blendv_pd(one, _mm256_maskload_pd(sx + k, live), _mm256_castsi256_pd(live));
+      else s2 = _mm256_loadu_pd(sx + k);  // 1 in idle lanes: no 0/0
+      auto slots = [&](const double* s) {
+        if constexpr (Tail) return _mm256_maskload_pd(s + k, live);
+        else return _mm256_loadu_pd(s + k);
+      };
+      const __m256d y2 = _mm256_add_pd(_mm256_fmadd_pd(d2, d2, _mm256_mul_pd(d0, d0)), _mm256_mul_pd(d1, d1));
+      __m256d xi = zero, g = one;
+      if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm256_sqrt_pd(s2);
+      if constexpr (Conical) g = _mm256_max_pd(zero, _mm256_fnmadd_pd(xi, inv_horizon, one));
+      __m256d ratio = one, y2g = y2;
+      if constexpr (K == ModelKind::Membrane) ratio = _mm256_min_pd(_mm256_div_pd(s2, y2), r_max);
+      else y2g = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));
+      __m256d reached;  // eq. (11), as in loop_avx512
+      if constexpr (Linear) {
+        const __m256d lc = _mm256_fmadd_pd(crit_slope, xi, crit0);
+        reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(_mm256_mul_pd(lc, lc), s2), _CMP_GE_OQ);
+      } else if constexpr (K == ModelKind::Membrane) {
+        reached = _mm256_cmp_pd(ratio, inv_crit0_sq, _CMP_LE_OQ);
+      } else {
+        reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(crit0_sq, s2), _CMP_GE_OQ);
+      }
+      if constexpr (Tail) reached = _mm256_and_pd(reached, _mm256_castsi256_pd(live));
+      const __m256i flag_lanes = _mm256_cvtepu8_epi64(_mm_cvtsi32_si128(static_cast<int>(flags)));
+      const __m256d was = _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(flag_lanes, bit_broken), bit_broken));
+      const int fresh = _mm256_movemask_pd(_mm256_andnot_pd(was, reached));
+      if (fresh) [[unlikely]] {
+        for (int l = 0; l < 4; ++l)
+          if (fresh >> l & 1) row_flag[k + l] |= kBroken | kJustBroken;
+        newly += __builtin_popcount(static_cast<unsigned>(fresh));
+      }
+      __m256d dead = _mm256_or_pd(was, reached);  // all ones where the bond adds nothing
+      if constexpr (Tail) dead = _mm256_or_pd(dead, _mm256_castsi256_pd(_mm256_xor_si256(live, _mm256_set1_epi64x(-1))));
+      __m256d coef;
+      if constexpr (K == ModelKind::Membrane) {
+        __m256d a = slots(sa);  // w V_j / xi^2
+        if constexpr (Conical) a = _mm256_mul_pd(g, a);
+        coef = _mm256_andnot_pd(dead, _mm256_fnmadd_pd(a, _mm256_mul_pd(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
+        if constexpr (Energy) {  // eq. (13), as in loop_avx512
+          const __m256d meas = slots(sm);
+          const __m256d y2e = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));
+          const __m256d e = _mm256_sub_pd(y2e, s2);
+          const __m256d ge = _mm256_mul_pd(c_energy, Conical ? _mm256_mul_pd(g, meas) : meas);
+          w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(e, e)), _mm256_mul_pd(s2, y2e))));
+        }
+      } else {
+        const __m256d meas = slots(sm);
+        const __m256d gm = Conical ? _mm256_mul_pd(g, meas) : meas;
+        __m256d inv_xi;
+        if constexpr (Tail) inv_xi = _mm256_blendv_pd(one, slots(sr), _mm256_castsi256_pd(live));
+        else inv_xi = slots(sr);
+        const __m256d y = _mm256_sqrt_pd(y2g);
+        const __m256d inv_y = _mm256_div_pd(one, y);
+        coef = _mm256_andnot_pd(dead, _mm256_mul_pd(gm, _mm256_sub_pd(inv_xi, inv_y)));  // c g (1/xi - 1/y)
+        if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
+          const __m256d stretch = _mm256_sub_pd(y, xi);
+          const __m256d ge = _mm256_mul_pd(c_energy, gm);
+          w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(stretch, stretch)), xi)));
+        }
+      }
+      f0 = _mm256_fmadd_pd(coef, d0, f0);
+      f1 = _mm256_fmadd_pd(coef, d1, f1);
+      f2 = _mm256_fmadd_pd(coef, d2, f2);
+    };
+    std::int64_t k = 0;
+    const __m256i all = _mm256_set1_epi64x(-1);
+    for (; k + 4 <= n; k += 4) {
+      std::uint32_t flags;
+      std::memcpy(&flags, row_flag + k, 4);
+      chunk.template operator()<false>(k, row_nbr + k, all, flags);
+    }
+    if (k < n) {
+      const int left = static_cast<int>(n - k);
+      std::int32_t tail[4] = {0, 0, 0, 0};
+      std::uint32_t flags = 0;
+      for (int l = 0; l < left; ++l) {
+        tail[l] = row_nbr[k + l];
+        flags |= static_cast<std::uint32_t>(row_flag[k + l]) << (8 * l);
+      }
+      const __m256i live = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), _mm256_setr_epi64x(0, 1, 2, 3));
+      chunk.template operator()<true>(k, tail, live, flags);
+    }
+    double sums[4];
+    lane_sums4(f0, f1, f2, w, sums);
+    const double c = K == ModelKind::Membrane ? 2.0 * L.c : L.c;
+    force[3 * i] = c * sums[0];
+    force[3 * i + 1] = c * sums[1];
+    force[3 * i + 2] = c * sums[2];
+    if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * sums[3];
+    if (newly) book_breaks(L, v, i, newly, tally);
+  }
+}
+#endif
+
 template <ModelKind K, bool Conical, bool Linear, bool Hard, bool Energy>
 void loop(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t n, double* force,
           BondTally& t) {
 #if defined(PERI_AVX512)
   if constexpr (!Hard)
     if (v.patterns) return loop_avx512<K, Conical, Linear, Energy>(law, v, rows, n, force, t);
+#elif defined(PERI_AVX2)
+  if constexpr (!Hard)
+    if (v.patterns) return loop_avx2<K, Conical, Linear, Energy>(law, v, rows, n, force, t);
 #endif
   loop_scalar<K, Conical, Linear, Hard, Energy>(law, v, rows, n, force, t);
 }
