@@ -286,7 +286,7 @@ void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, st
     __m256d f0 = zero, f1 = zero, f2 = zero, w = zero;
     int newly = 0;
     // Four bonds from slot k. Tail: the row's last partial chunk, `live` its lanes (all ones),
-    // jb its neighbour indices padded with node 0, and its pattern slots loaded under the mask.
+    // jb its neighbour indices, and its pattern slots loaded under the mask.
     auto chunk = [&]<bool Tail>(std::int64_t k, const std::int32_t* jb, __m256i live, std::uint32_t flags)
                      __attribute__((always_inline)) {
       // (x, y) of two neighbours per 256-bit register, transposed in registers.
@@ -376,14 +376,15 @@ void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, st
       chunk.template operator()<false>(k, row_nbr + k, all, flags);
     }
     if (k < n) {
-      const int left = static_cast<int>(n - k);
-      std::int32_t tail[4] = {0, 0, 0, 0};
+      // Idle lanes repeat the row's last bond (no data-dependent branch); `live` masks them out.
+      std::int32_t tail[4];
       std::uint32_t flags = 0;
-      for (int l = 0; l < left; ++l) {
-        tail[l] = row_nbr[k + l];
-        flags |= static_cast<std::uint32_t>(row_flag[k + l]) << (8 * l);
+      for (int l = 0; l < 4; ++l) {
+        const std::int64_t b = std::min<std::int64_t>(k + l, n - 1);
+        tail[l] = row_nbr[b];
+        flags |= static_cast<std::uint32_t>(row_flag[b]) << (8 * l);
       }
-      const __m256i live = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), _mm256_setr_epi64x(0, 1, 2, 3));
+      const __m256i live = _mm256_cmpgt_epi64(_mm256_set1_epi64x(n - k), _mm256_setr_epi64x(0, 1, 2, 3));
       chunk.template operator()<true>(k, tail, live, flags);
     }
     double sums[4];
