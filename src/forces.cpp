@@ -252,10 +252,11 @@ inline void lane_sums4(__m256d a, __m256d b, __m256d c, __m256d d, double out[4]
 }
 
 // The same bond law four bonds at a time (AVX2 + FMA, for CPUs without AVX-512): the arithmetic
-// of loop_avx512 on 256-bit vectors. Per bond one 128-bit and one 64-bit load of the neighbour's
-// (x, y, z) merged into lanes, the family pattern's slots loaded contiguously, the flag byte.
-// Masks are whole-lane bit patterns (all ones = true). PMB: 1/y as sqrt then division (AVX2 has
-// no double-precision reciprocal square root estimate).
+// of loop_avx512 on 256-bit vectors. Per bond two 128-bit loads of the neighbour's padded position,
+// (x, y) and (z, 0), merged into 256-bit registers and transposed, the family pattern's slots
+// loaded contiguously, the flag byte. Masks are whole-lane bit patterns (all ones = true). PMB:
+// 1/y as a square root and a division (AVX2 has no double-precision reciprocal square root
+// estimate; the single-precision one and three Newton steps ran at 0.64 of this).
 template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
                double* force, BondTally& tally) {
