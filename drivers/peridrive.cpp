@@ -15,6 +15,7 @@
 
 #include "peri/build_info.hpp"
 #include "peri/checkpoint.hpp"
+#include "peri/forces.hpp"
 #include "peri/output.hpp"
 #include "peri/restart.hpp"
 #include "peri/simulation.hpp"
@@ -138,7 +139,7 @@ int main(int argc, char** argv) {
     if (args.help || args.version) {
       if (rank == 0) {
         if (args.help) std::fputs(kUsage, stdout);
-        else std::printf("peridrive %s (%s)\n", peri::version(), peri::git_revision());
+        else std::printf("peridrive %s (%s), bond kernel %s\n", peri::version(), peri::git_revision(), peri::bond_kernel_isa());
       }
     } else {
       std::shared_ptr<const peri::Checkpoint> checkpoint;

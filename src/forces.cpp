@@ -442,6 +442,16 @@ void dispatch_conical(const BondLaw& law, const BondView& v, const std::int32_t*
 
 }  // namespace
 
+const char* bond_kernel_isa() {
+#if defined(PERI_AVX512)
+  return "avx512";
+#elif defined(PERI_AVX2)
+  return "avx2";
+#else
+  return "portable";
+#endif
+}
+
 void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end, double* x) {
   for (std::int64_t i = begin; i < end; ++i) {
     for (int c = 0; c < 3; ++c) x[4 * i + c] = X[3 * i + c] + u[3 * i + c];

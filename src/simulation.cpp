@@ -88,6 +88,7 @@ std::string RunSummary::to_json() const {
     << "  \"bonds\": " << ordered_bonds / 2 << ",\n"
     << "  \"ordered_bonds\": " << ordered_bonds << ",\n"
     << "  \"ranks\": " << ranks << ",\n"
+    << "  \"bond_kernel\": \"" << bond_kernel_isa() << "\",\n"
     << "  \"dt\": " << json_number(dt) << ",\n"
     << "  \"dt_stable\": " << json_number(dt_stable) << ",\n"
     << "  \"steps\": " << steps << ",\n"
@@ -902,10 +903,10 @@ void Simulation::begin() {
     while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) ++next_frame_;
   }
   if (rank_ == 0 && !options_.quiet) {
-    std::printf("[peridrive] %lld nodes, %lld bonds, %d rank%s; dt = %.4g s (stable bound %.4g s), %lld steps\n",
+    std::printf("[peridrive] %lld nodes, %lld bonds, %d rank%s; dt = %.4g s (stable bound %.4g s), %lld steps; bond kernel %s\n",
                 static_cast<long long>(summary_.nodes), static_cast<long long>(summary_.ordered_bonds / 2),
                 ranks_, ranks_ > 1 ? "s" : "", summary_.dt, summary_.dt_stable,
-                static_cast<long long>(total_steps_));
+                static_cast<long long>(total_steps_), bond_kernel_isa());
     std::fflush(stdout);
   }
   loop_start_ = std::chrono::steady_clock::now();

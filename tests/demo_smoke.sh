@@ -19,6 +19,7 @@ def check(name, ok, detail):
     print(("ok   " if ok else "FAIL ") + f"{name}: {detail}")
 check("nodes", s["nodes"] == 160 * 160, s["nodes"])
 check("ranks", s["ranks"] == 2, s["ranks"])
+check("bond kernel named", s["bond_kernel"] in ("avx512", "avx2", "portable"), s["bond_kernel"])
 # The slit (10 mm) grows: at least 500 bonds break beyond the pre-cracked ones.
 check("crack grows", s["broken_bonds"] > 500, f'{s["broken_bonds"]} bonds broken, {s["precrack_bonds"]} pre-cracked')
 check("energy balance", s["energy_balance_error"] < 0.05, s["energy_balance_error"])

@@ -54,6 +54,11 @@ struct BondTally {
   }
 };
 
+/// The vector loop this build runs for bond laws without hardening: "avx512", "avx2" (AVX2 + FMA)
+/// or "portable" (the scalar loop, which also serves hardening laws). Chosen at compile time
+/// (-march); the paths agree to round-off, and each is bit-identical on any rank count.
+const char* bond_kernel_isa();
+
 /// Force densities (N/m^3) on `rows`, written to force[3*row..]; bonds reaching the failure test
 /// are broken (irreversibly) first. With `with_energy`, strain energy is summed too. Reads the
 /// current positions `view.x` (of the rows and their neighbours) and the family patterns.
