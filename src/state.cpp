@@ -1,6 +1,7 @@
 #include "peri/state.hpp"
 
 #include <algorithm>
+#include <string>
 
 #include "peri/error.hpp"
 
@@ -69,14 +70,103 @@ State::State(const Domain& d, MPI_Comm comm) : comm_(comm), owned_(d.owned) {
   ISDestroy(&to1);
   ISDestroy(&from3);
   ISDestroy(&to3);
+  setup_halo(d);
+}
+
+void State::setup_halo(const Domain& d) {
+  int ranks = 1;
+  MPI_Comm_size(comm_, &ranks);
+  if (ranks == 1) return;
+  MPI_Comm_dup(comm_, &halo_comm_);
+  // Owner of each ghost from the ranks' first global indices (owned ranges are contiguous).
+  std::vector<std::int64_t> begins(ranks + 1);
+  MPI_Allgather(&d.global_begin, 1, MPI_INT64_T, begins.data(), 1, MPI_INT64_T, comm_);
+  begins[ranks] = d.global_nodes;
+  std::vector<int> wanted(ranks, 0), asked(ranks, 0);
+  for (std::int32_t k = 0; k < d.ghosts; ++k) {
+    const std::int64_t g = d.global[d.owned + k];
+    ++wanted[std::upper_bound(begins.begin(), begins.end(), g) - begins.begin() - 1];
+  }
+  MPI_Alltoall(wanted.data(), 1, MPI_INT, asked.data(), 1, MPI_INT, comm_);
+  std::vector<int> wanted_at(ranks, 0), asked_at(ranks, 0);
+  for (int p = 1; p < ranks; ++p) {
+    wanted_at[p] = wanted_at[p - 1] + wanted[p - 1];
+    asked_at[p] = asked_at[p - 1] + asked[p - 1];
+  }
+  std::vector<std::int64_t> requested(asked_at[ranks - 1] + asked[ranks - 1]);
+  MPI_Alltoallv(d.global.data() + d.owned, wanted.data(), wanted_at.data(), MPI_INT64_T, requested.data(),
+                asked.data(), asked_at.data(), MPI_INT64_T, comm_);
+  send_offset_.push_back(0);
+  for (int p = 0; p < ranks; ++p) {
+    if (wanted[p] == 0 && asked[p] == 0) continue;
+    halo_ranks_.push_back(p);
+    for (int k = 0; k < asked[p]; ++k)
+      send_nodes_.push_back(static_cast<std::int32_t>(requested[asked_at[p] + k] - d.global_begin));
+    send_offset_.push_back(static_cast<std::int64_t>(send_nodes_.size()));
+  }
+  recv_buffer_.resize(3 * static_cast<std::size_t>(d.ghosts));
+  // Messages of at most `chunk` nodes (160: 3840 bytes, below the eager limit of common MPI
+  // transports, Open MPI's shared memory 4 KB): an eager send is complete once posted, so the
+  // receiver needs nothing more of the sender (a rendezvous send needs both inside MPI).
+  PetscInt chunk = 160;
+  PetscBool set = PETSC_FALSE;
+  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-halo_chunk_nodes", &chunk, &set));
+  if (chunk < 1) throw InputError("-halo_chunk_nodes: expected a positive number of nodes, got " + std::to_string(chunk));
+  const std::int64_t kChunkNodes = chunk;
+  constexpr int kTag = 7;
+  for (int b = 0; b < 2; ++b) {
+    send_buffer_[b].resize(3 * send_nodes_.size());
+    for (std::size_t n = 0; n < halo_ranks_.size(); ++n)
+      for (std::int64_t first = send_offset_[n]; first < send_offset_[n + 1]; first += kChunkNodes) {
+        const std::int64_t count = std::min(kChunkNodes, send_offset_[n + 1] - first);
+        MPI_Request r;
+        MPI_Send_init(send_buffer_[b].data() + 3 * first, static_cast<int>(3 * count), MPI_DOUBLE, halo_ranks_[n],
+                      kTag, halo_comm_, &r);
+        send_requests_[b].push_back(r);
+      }
+  }
+  for (int p : halo_ranks_)
+    for (std::int64_t first = wanted_at[p]; first < wanted_at[p] + wanted[p]; first += kChunkNodes) {
+      const std::int64_t count = std::min<std::int64_t>(kChunkNodes, wanted_at[p] + wanted[p] - first);
+      MPI_Request r;
+      MPI_Recv_init(recv_buffer_.data() + 3 * static_cast<std::size_t>(first), static_cast<int>(3 * count), MPI_DOUBLE,
+                    p, kTag, halo_comm_, &r);
+      recv_requests_.push_back(r);
+    }
+}
+
+State::~State() {
+  for (int b = 0; b < 2; ++b) {
+    if (sends_active_[b]) MPI_Waitall(static_cast<int>(send_requests_[b].size()), send_requests_[b].data(), MPI_STATUSES_IGNORE);
+    for (MPI_Request& r : send_requests_[b]) MPI_Request_free(&r);
+  }
+  for (MPI_Request& r : recv_requests_) MPI_Request_free(&r);
+  if (halo_comm_ != MPI_COMM_NULL) MPI_Comm_free(&halo_comm_);
 }
 
 void State::halo_begin() {
-  PERI_PETSC(VecGhostUpdateBegin(u_.get(), INSERT_VALUES, SCATTER_FORWARD));
+  if (halo_comm_ == MPI_COMM_NULL) return;
+  // This buffer's previous sends (two exchanges ago) must be complete before it is refilled.
+  std::vector<MPI_Request>& sends = send_requests_[parity_];
+  if (sends_active_[parity_]) MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
+  const double* u;
+  PERI_PETSC(VecGetArrayRead(u_.get(), &u));
+  double* out = send_buffer_[parity_].data();
+  for (std::size_t k = 0; k < send_nodes_.size(); ++k)
+    for (int c = 0; c < 3; ++c) out[3 * k + c] = u[3 * static_cast<std::size_t>(send_nodes_[k]) + c];
+  PERI_PETSC(VecRestoreArrayRead(u_.get(), &u));
+  if (!recv_requests_.empty()) MPI_Startall(static_cast<int>(recv_requests_.size()), recv_requests_.data());
+  if (!sends.empty()) MPI_Startall(static_cast<int>(sends.size()), sends.data());
+  sends_active_[parity_] = !sends.empty();
+  parity_ ^= 1;
 }
 
 void State::halo_end() {
-  PERI_PETSC(VecGhostUpdateEnd(u_.get(), INSERT_VALUES, SCATTER_FORWARD));
+  if (halo_comm_ == MPI_COMM_NULL) return;
+  if (!recv_requests_.empty())
+    MPI_Waitall(static_cast<int>(recv_requests_.size()), recv_requests_.data(), MPI_STATUSES_IGNORE);
+  LocalArray local(u_.get());  // ghosts follow the owned entries, in the receive buffer's order
+  std::copy(recv_buffer_.begin(), recv_buffer_.end(), local.data() + 3 * static_cast<std::size_t>(owned_));
 }
 
 void State::velocity_halo_begin() {

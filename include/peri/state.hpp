@@ -64,10 +64,17 @@ class LocalArray {
 class State {
  public:
   State(const Domain& domain, MPI_Comm comm);
+  ~State();
+  State(const State&) = delete;
+  State& operator=(const State&) = delete;
   Vec displacement() const { return u_.get(); }
   Vec velocity() const { return v_.get(); }
   /// Halo exchange of displacement (owner values -> ghost copies), split so that interior bonds
-  /// can be computed while messages are in flight.
+  /// can be computed while messages are in flight. Point-to-point with persistent requests:
+  /// halo_end waits for this rank's receives only; its sends are completed two exchanges later
+  /// (two send buffers, used alternately), so a rank never waits for a slower neighbour to
+  /// reach its own halo_end (as a scatter's end, which completes sends and receives together,
+  /// would make it), only for the neighbour's data.
   void halo_begin();
   void halo_end();
   /// Halo exchange of velocity (only scenes with velocity-dependent forces: lattice dashpots).
@@ -90,6 +97,7 @@ class State {
   void reverse_end();
 
  private:
+  void setup_halo(const Domain& d);
   OwnedVec f_;
   std::vector<PetscInt> ghost_globals_;
   std::int64_t global_nodes_ = 0;
@@ -100,6 +108,18 @@ class State {
   std::int64_t nat_begin_ = 0, nat_count_ = 0;
   std::int32_t owned_ = 0;
   std::vector<double> slice_;
+
+  // Displacement halo (see halo_begin): neighbour ranks, per neighbour the owned local nodes it
+  // needs and the range of this rank's ghosts it owns (ghosts are in global order, so the ghosts
+  // of one owner are contiguous).
+  MPI_Comm halo_comm_ = MPI_COMM_NULL;
+  std::vector<int> halo_ranks_;
+  std::vector<std::int32_t> send_nodes_;       // concatenated over neighbours
+  std::vector<std::int64_t> send_offset_;      // neighbours + 1 (nodes)
+  std::vector<double> send_buffer_[2], recv_buffer_;
+  std::vector<MPI_Request> send_requests_[2], recv_requests_;
+  bool sends_active_[2] = {false, false};
+  int parity_ = 0;
 };
 
 }  // namespace peri
