@@ -74,6 +74,10 @@ State::State(const Domain& d, MPI_Comm comm) : comm_(comm), owned_(d.owned) {
 }
 
 void State::setup_halo(const Domain& d) {
+  PetscInt chunk = 160;  // largest message in nodes (see below)
+  PetscBool set = PETSC_FALSE;
+  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-halo_chunk_nodes", &chunk, &set));
+  if (chunk < 1) throw InputError("-halo_chunk_nodes: expected a positive number of nodes, got " + std::to_string(chunk));
   int ranks = 1;
   MPI_Comm_size(comm_, &ranks);
   if (ranks == 1) return;
@@ -105,34 +109,36 @@ void State::setup_halo(const Domain& d) {
     send_offset_.push_back(static_cast<std::int64_t>(send_nodes_.size()));
   }
   recv_buffer_.resize(3 * static_cast<std::size_t>(d.ghosts));
-  // Messages of at most `chunk` nodes (160: 3840 bytes, below the eager limit of common MPI
+  // Messages of at most `chunk` nodes (default 160: 3840 bytes, below the eager limit of common MPI
   // transports, Open MPI's shared memory 4 KB): an eager send is complete once posted, so the
-  // receiver needs nothing more of the sender (a rendezvous send needs both inside MPI).
-  PetscInt chunk = 160;
-  PetscBool set = PETSC_FALSE;
-  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-halo_chunk_nodes", &chunk, &set));
-  if (chunk < 1) throw InputError("-halo_chunk_nodes: expected a positive number of nodes, got " + std::to_string(chunk));
-  const std::int64_t kChunkNodes = chunk;
+  // receiver needs nothing more of the sender (a rendezvous send needs both inside MPI). At most
+  // kMaxMessages per neighbour: a larger halo takes larger messages (both ends split alike).
+  constexpr std::int64_t kMaxMessages = 64;
+  auto chunk_for = [&](std::int64_t count) { return std::max<std::int64_t>(chunk, (count + kMaxMessages - 1) / kMaxMessages); };
   constexpr int kTag = 7;
   for (int b = 0; b < 2; ++b) {
     send_buffer_[b].resize(3 * send_nodes_.size());
-    for (std::size_t n = 0; n < halo_ranks_.size(); ++n)
-      for (std::int64_t first = send_offset_[n]; first < send_offset_[n + 1]; first += kChunkNodes) {
-        const std::int64_t count = std::min(kChunkNodes, send_offset_[n + 1] - first);
+    for (std::size_t n = 0; n < halo_ranks_.size(); ++n) {
+      const std::int64_t step = chunk_for(send_offset_[n + 1] - send_offset_[n]);
+      for (std::int64_t first = send_offset_[n]; first < send_offset_[n + 1]; first += step) {
+        const std::int64_t count = std::min(step, send_offset_[n + 1] - first);
         MPI_Request r;
         MPI_Send_init(send_buffer_[b].data() + 3 * first, static_cast<int>(3 * count), MPI_DOUBLE, halo_ranks_[n],
                       kTag, halo_comm_, &r);
         send_requests_[b].push_back(r);
       }
+    }
   }
-  for (int p : halo_ranks_)
-    for (std::int64_t first = wanted_at[p]; first < wanted_at[p] + wanted[p]; first += kChunkNodes) {
-      const std::int64_t count = std::min<std::int64_t>(kChunkNodes, wanted_at[p] + wanted[p] - first);
+  for (int p : halo_ranks_) {
+    const std::int64_t step = chunk_for(wanted[p]);
+    for (std::int64_t first = wanted_at[p]; first < wanted_at[p] + wanted[p]; first += step) {
+      const std::int64_t count = std::min<std::int64_t>(step, wanted_at[p] + wanted[p] - first);
       MPI_Request r;
       MPI_Recv_init(recv_buffer_.data() + 3 * static_cast<std::size_t>(first), static_cast<int>(3 * count), MPI_DOUBLE,
                     p, kTag, halo_comm_, &r);
       recv_requests_.push_back(r);
     }
+  }
 }
 
 State::~State() {

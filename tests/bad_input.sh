@@ -65,6 +65,7 @@ expect yaml_syntax "$work/syntax.yaml:3: YAML syntax error" -- "$work/syntax.yam
 expect missing_file "cannot read scene file '$work/none.yaml': No such file or directory" -- "$work/none.yaml"
 expect bad_override "--set: bodies.sheet.spacing: expected a positive number [m], got -1" -- --set bodies.sheet.spacing=-1
 expect unknown_option "unknown option --bogus; see --help" -- --bogus
+expect halo_chunk "-halo_chunk_nodes: expected a positive number of nodes, got 0" -- "$scene" -halo_chunk_nodes 0
 expect unstable_dt "stages.0.dt: time step 1e-05 s exceeds the stable bound" -- --set stages.0.dt=1e-5
 expect absurd_resolution "the scene cannot fit in memory: about 6.25e+08 nodes" -- --set bodies.sheet.spacing=2e-6
 expect huge_number "the scene cannot fit in memory: about >1e308 nodes" -- --set bodies.sheet.size=[1e300,1e300]
