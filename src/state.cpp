@@ -109,17 +109,32 @@ void State::setup_halo(const Domain& d) {
     send_offset_.push_back(static_cast<std::int64_t>(send_nodes_.size()));
   }
   recv_buffer_.resize(3 * static_cast<std::size_t>(d.ghosts));
-  // Messages of at most `chunk` nodes (default 160: 3840 bytes, below the eager limit of common MPI
-  // transports, Open MPI's shared memory 4 KB): an eager send is complete once posted, so the
-  // receiver needs nothing more of the sender (a rendezvous send needs both inside MPI). At most
-  // kMaxMessages per neighbour: a larger halo takes larger messages (both ends split alike).
+  // To a rank on the same node, messages of at most `chunk` nodes (default 160: 3840 bytes,
+  // below the 4 KB eager limit of Open MPI's shared memory): an eager send is complete once
+  // posted, so the receiver needs nothing more of the sender (a rendezvous send through shared
+  // memory needs both inside MPI), and at most kMaxMessages per neighbour (a larger halo takes
+  // larger messages). To another node, one message: network rendezvous is driven by the NIC.
+  // Both ends of a pair compute the same split.
+  MPI_Comm node;
+  MPI_Comm_split_type(comm_, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
+  int me = 0, node_rank = 0;
+  MPI_Comm_rank(comm_, &me);
+  MPI_Comm_rank(node, &node_rank);
+  int node_leader = node_rank == 0 ? me : 0;  // the node's id: its first rank in comm_
+  MPI_Bcast(&node_leader, 1, MPI_INT, 0, node);
+  MPI_Comm_free(&node);
+  std::vector<int> node_of(ranks);
+  MPI_Allgather(&node_leader, 1, MPI_INT, node_of.data(), 1, MPI_INT, comm_);
   constexpr std::int64_t kMaxMessages = 64;
-  auto chunk_for = [&](std::int64_t count) { return std::max<std::int64_t>(chunk, (count + kMaxMessages - 1) / kMaxMessages); };
+  auto chunk_for = [&](int p, std::int64_t count) {
+    if (node_of[p] != node_of[me]) return std::max<std::int64_t>(count, 1);
+    return std::max<std::int64_t>(chunk, (count + kMaxMessages - 1) / kMaxMessages);
+  };
   constexpr int kTag = 7;
   for (int b = 0; b < 2; ++b) {
     send_buffer_[b].resize(3 * send_nodes_.size());
     for (std::size_t n = 0; n < halo_ranks_.size(); ++n) {
-      const std::int64_t step = chunk_for(send_offset_[n + 1] - send_offset_[n]);
+      const std::int64_t step = chunk_for(halo_ranks_[n], send_offset_[n + 1] - send_offset_[n]);
       for (std::int64_t first = send_offset_[n]; first < send_offset_[n + 1]; first += step) {
         const std::int64_t count = std::min(step, send_offset_[n + 1] - first);
         MPI_Request r;
@@ -130,7 +145,7 @@ void State::setup_halo(const Domain& d) {
     }
   }
   for (int p : halo_ranks_) {
-    const std::int64_t step = chunk_for(wanted[p]);
+    const std::int64_t step = chunk_for(p, wanted[p]);
     for (std::int64_t first = wanted_at[p]; first < wanted_at[p] + wanted[p]; first += step) {
       const std::int64_t count = std::min<std::int64_t>(step, wanted_at[p] + wanted[p] - first);
       MPI_Request r;
