@@ -102,6 +102,11 @@ double quadrature_weight(const BodyGeometry& g, const double xi[3]) {
   if (g.kind == BodyKind::Membrane) {
     // Cell of the neighbour: dx by (cell_area/dx) rectangle (square grid: dx by dx).
     const double hy = 0.5 * g.cell_area / g.spacing;
+    // Cells wholly inside the disc (far corner within the horizon) or wholly outside (nearest
+    // point beyond it) need no area: most candidates of a cell-list search are one or the other.
+    if ((ax + hx) * (ax + hx) + (ay + hy) * (ay + hy) <= d * d) return 1.0;
+    const double nx = std::max(ax - hx, 0.0), ny = std::max(ay - hy, 0.0);
+    if (nx * nx + ny * ny >= d * d) return 0.0;
     const double area = disc_rectangle_area(d, ax - hx, ax + hx, ay - hy, ay + hy);
     const double w = area / g.cell_area;
     return w < 1e-12 ? 0.0 : std::min(w, 1.0);
