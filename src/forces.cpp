@@ -84,6 +84,36 @@ void loop_scalar(const BondLaw& law_in, const BondView& v, const std::int32_t* r
   }
 }
 
+#if defined(PERI_AVX512) || defined(PERI_AVX2)
+// Scalar constants of a law for the vector loops (each broadcasts them to its own width).
+template <ModelKind K, bool Linear>
+struct VectorLawConstants {
+  double c_energy, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon, c_row;
+  explicit VectorLawConstants(const BondLaw& L)
+      : c_energy(K == ModelKind::Membrane ? L.c : 0.5 * L.c),
+        crit0(L.critical0),
+        crit0_sq(L.critical0 * L.critical0),
+        inv_crit0_sq(1.0 / (L.critical0 * L.critical0)),  // 0 if unbreakable
+        crit_slope(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0),
+        inv_horizon(1.0 / L.horizon),
+        c_row(K == ModelKind::Membrane ? 2.0 * L.c : L.c) {}  // applied to the row's sum
+};
+
+// Row i's bonds (CSR slices) and its family pattern's slots.
+struct RowSlices {
+  std::int64_t n;                  // bonds in the row
+  const std::int32_t* neighbor;
+  std::uint8_t* flag;
+  const double *xi2, *measure, *inv_xi, *measure_per_xi2;
+};
+inline RowSlices row_slices(const BondView& v, std::int32_t i) {
+  const FamilyPatterns& P = *v.patterns;
+  const std::int64_t b0 = v.offsets[i], slot0 = P.begin[P.of_row[i]];
+  return {v.offsets[i + 1] - b0, v.neighbor + b0, v.broken + b0, P.xi2.data() + slot0,
+          P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
+}
+#endif
+
 #if defined(PERI_AVX512)
 // 1/sqrt(d) from the 14-bit hardware estimate and two Newton steps (relative error about 2^-52,
 // within an ulp or two of the correctly rounded value): the PMB law's 1/y without a square root
@@ -129,29 +159,23 @@ template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
                  double* force, BondTally& tally) {
   const double* __restrict x = v.x;
-  const std::int32_t* __restrict nbr = v.neighbor;
-  std::uint8_t* __restrict flag = v.broken;
-  const FamilyPatterns& P = *v.patterns;
   const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
-  const __m512d c_energy = _mm512_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c);
+  const VectorLawConstants<K, Linear> constants(L);
+  const __m512d c_energy = _mm512_set1_pd(constants.c_energy);
   const __m512d tiny = _mm512_set1_pd(1e-12), r_max = _mm512_set1_pd(1e12);
-  const __m512d crit0 = _mm512_set1_pd(L.critical0), crit0_sq = _mm512_set1_pd(L.critical0 * L.critical0);
-  const __m512d inv_crit0_sq = _mm512_set1_pd(1.0 / (L.critical0 * L.critical0));  // 0 if unbreakable
-  const __m512d crit_slope = _mm512_set1_pd(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0);
-  const __m512d inv_horizon = _mm512_set1_pd(1.0 / L.horizon);
+  const __m512d crit0 = _mm512_set1_pd(constants.crit0), crit0_sq = _mm512_set1_pd(constants.crit0_sq);
+  const __m512d inv_crit0_sq = _mm512_set1_pd(constants.inv_crit0_sq), crit_slope = _mm512_set1_pd(constants.crit_slope);
+  const __m512d inv_horizon = _mm512_set1_pd(constants.inv_horizon);
   const __m128i bit_broken = _mm_set1_epi8(static_cast<char>(kBroken));
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
     const __m512d xi0 = _mm512_set1_pd(x[4 * i]), xi1 = _mm512_set1_pd(x[4 * i + 1]),
                   xi2c = _mm512_set1_pd(x[4 * i + 2]);
-    const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
-    const std::int64_t slot0 = P.begin[P.of_row[i]];
-    const double* sx = P.xi2.data() + slot0;
-    const double* sm = P.measure.data() + slot0;
-    const double* sr = P.inv_xi.data() + slot0;
-    const double* sa = P.measure_per_xi2.data() + slot0;
-    const std::int32_t* row_nbr = nbr + b0;
-    std::uint8_t* row_flag = flag + b0;
+    const RowSlices row = row_slices(v, i);
+    const std::int64_t n = row.n;
+    const double *sx = row.xi2, *sm = row.measure, *sr = row.inv_xi, *sa = row.measure_per_xi2;
+    const std::int32_t* __restrict row_nbr = row.neighbor;
+    std::uint8_t* __restrict row_flag = row.flag;
     __m512d f0 = zero, f1 = zero, f2 = zero, w = zero;
     int newly = 0;
     // Eight bonds from slot k; m marks the lanes in the row, jb their neighbour indices.
@@ -232,10 +256,9 @@ void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, 
     }
     double sums[4];
     lane_sums(f0, f1, f2, w, sums);
-    const double c = K == ModelKind::Membrane ? 2.0 * L.c : L.c;
-    force[3 * i] = c * sums[0];
-    force[3 * i + 1] = c * sums[1];
-    force[3 * i + 2] = c * sums[2];
+    force[3 * i] = constants.c_row * sums[0];
+    force[3 * i + 1] = constants.c_row * sums[1];
+    force[3 * i + 2] = constants.c_row * sums[2];
     if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * sums[3];
     if (newly) book_breaks(L, v, i, newly, tally);
   }
@@ -261,29 +284,23 @@ template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
                double* force, BondTally& tally) {
   const double* __restrict x = v.x;
-  const std::int32_t* __restrict nbr = v.neighbor;
-  std::uint8_t* __restrict flag = v.broken;
-  const FamilyPatterns& P = *v.patterns;
   const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
-  const __m256d c_energy = _mm256_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c);
+  const VectorLawConstants<K, Linear> constants(L);
+  const __m256d c_energy = _mm256_set1_pd(constants.c_energy);
   const __m256d tiny = _mm256_set1_pd(1e-12), r_max = _mm256_set1_pd(1e12);
-  const __m256d crit0 = _mm256_set1_pd(L.critical0), crit0_sq = _mm256_set1_pd(L.critical0 * L.critical0);
-  const __m256d inv_crit0_sq = _mm256_set1_pd(1.0 / (L.critical0 * L.critical0));  // 0 if unbreakable
-  const __m256d crit_slope = _mm256_set1_pd(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0);
-  const __m256d inv_horizon = _mm256_set1_pd(1.0 / L.horizon);
+  const __m256d crit0 = _mm256_set1_pd(constants.crit0), crit0_sq = _mm256_set1_pd(constants.crit0_sq);
+  const __m256d inv_crit0_sq = _mm256_set1_pd(constants.inv_crit0_sq), crit_slope = _mm256_set1_pd(constants.crit_slope);
+  const __m256d inv_horizon = _mm256_set1_pd(constants.inv_horizon);
   const __m256i bit_broken = _mm256_set1_epi64x(kBroken);
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
     const __m256d xi0 = _mm256_set1_pd(x[4 * i]), xi1 = _mm256_set1_pd(x[4 * i + 1]),
                   xi2c = _mm256_set1_pd(x[4 * i + 2]);
-    const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
-    const std::int64_t slot0 = P.begin[P.of_row[i]];
-    const double* sx = P.xi2.data() + slot0;
-    const double* sm = P.measure.data() + slot0;
-    const double* sr = P.inv_xi.data() + slot0;
-    const double* sa = P.measure_per_xi2.data() + slot0;
-    const std::int32_t* row_nbr = nbr + b0;
-    std::uint8_t* row_flag = flag + b0;
+    const RowSlices row = row_slices(v, i);
+    const std::int64_t n = row.n;
+    const double *sx = row.xi2, *sm = row.measure, *sr = row.inv_xi, *sa = row.measure_per_xi2;
+    const std::int32_t* __restrict row_nbr = row.neighbor;
+    std::uint8_t* __restrict row_flag = row.flag;
     __m256d f0 = zero, f1 = zero, f2 = zero, w = zero;
     int newly = 0;
     // Four bonds from slot k. Tail: the row's last partial chunk, `live` its lanes (all ones),
@@ -390,10 +407,9 @@ void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, st
     }
     double sums[4];
     lane_sums4(f0, f1, f2, w, sums);
-    const double c = K == ModelKind::Membrane ? 2.0 * L.c : L.c;
-    force[3 * i] = c * sums[0];
-    force[3 * i + 1] = c * sums[1];
-    force[3 * i + 2] = c * sums[2];
+    force[3 * i] = constants.c_row * sums[0];
+    force[3 * i + 1] = constants.c_row * sums[1];
+    force[3 * i + 2] = constants.c_row * sums[2];
     if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * sums[3];
     if (newly) book_breaks(L, v, i, newly, tally);
   }
