@@ -157,8 +157,8 @@ void State::setup_halo(const Domain& d) {
 }
 
 State::~State() {
-  for (int b = 0; b < 2; ++b) {
-    if (sends_active_[b]) MPI_Waitall(static_cast<int>(send_requests_[b].size()), send_requests_[b].data(), MPI_STATUSES_IGNORE);
+  for (int b = 0; b < 2; ++b) {  // (a persistent request never started completes at once)
+    MPI_Waitall(static_cast<int>(send_requests_[b].size()), send_requests_[b].data(), MPI_STATUSES_IGNORE);
     for (MPI_Request& r : send_requests_[b]) MPI_Request_free(&r);
   }
   for (MPI_Request& r : recv_requests_) MPI_Request_free(&r);
@@ -169,7 +169,7 @@ void State::halo_begin() {
   if (halo_comm_ == MPI_COMM_NULL) return;
   // This buffer's previous sends (two exchanges ago) must be complete before it is refilled.
   std::vector<MPI_Request>& sends = send_requests_[parity_];
-  if (sends_active_[parity_]) MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
+  MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
   const double* u;
   PERI_PETSC(VecGetArrayRead(u_.get(), &u));
   double* out = send_buffer_[parity_].data();
@@ -178,7 +178,6 @@ void State::halo_begin() {
   PERI_PETSC(VecRestoreArrayRead(u_.get(), &u));
   if (!recv_requests_.empty()) MPI_Startall(static_cast<int>(recv_requests_.size()), recv_requests_.data());
   if (!sends.empty()) MPI_Startall(static_cast<int>(sends.size()), sends.data());
-  sends_active_[parity_] = !sends.empty();
   parity_ ^= 1;
 }
 

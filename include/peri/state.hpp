@@ -118,7 +118,6 @@ class State {
   std::vector<std::int64_t> send_offset_;      // neighbours + 1 (nodes)
   std::vector<double> send_buffer_[2], recv_buffer_;
   std::vector<MPI_Request> send_requests_[2], recv_requests_;
-  bool sends_active_[2] = {false, false};
   int parity_ = 0;
 };
 
