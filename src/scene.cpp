@@ -275,6 +275,11 @@ class Value {
     return out;
   }
 
+  std::array<double, 2> vec2(std::string_view unit) const {
+    const auto xs = numbers(2, 2, "a list of 2 numbers [x, y]" + unit_suffix(unit), unit);
+    return {xs[0], xs[1]};
+  }
+
   Vec3 vec3(std::string_view unit) const {
     const auto xs = numbers(3, 3, "a list of 3 numbers [x, y, z]" + unit_suffix(unit), unit);
     return {xs[0], xs[1], xs[2]};
@@ -414,6 +419,7 @@ const Keys kSceneKeys = {
     {"bodies", true, "map of body name to body"},
     {"cracks", false, ""},
     {"boundaries", false, ""},
+    {"tools", false, ""},
     {"initial", false, ""},
     {"stages", true, "list of stages, at least one"},
     {"stability", false, ""},
@@ -478,6 +484,16 @@ const Keys kBoundaryKeys = {
     {"velocity", false, ""},
     {"components", false, ""},
     {"ramp_time", false, ""},
+};
+
+const Keys kToolKeys = {
+    {"name", true, "tool name, unique"},
+    {"kind", true, "tool kind: cylinder"},
+    {"radius", true, "cylinder radius, m"},
+    {"center", true, "axis position [x, y] at t = 0, m"},
+    {"velocity", false, ""},
+    {"friction", false, ""},
+    {"stiffness", false, ""},
 };
 
 const Keys kRegionKeys = {
@@ -837,6 +853,20 @@ Boundary read_boundary(const Value& v, UniqueNames& names, const std::vector<Bod
   return b;
 }
 
+Tool read_tool(const Value& v, UniqueNames& names) {
+  const Map m(v, &kToolKeys, "a map {name, kind, radius, center, velocity, friction, stiffness}");
+  Tool t;
+  t.name = entry_name(m, "", 0, names);
+  t.where = m.where();
+  m.at("kind").choice<int>({{"cylinder", 0}});
+  t.radius = m.at("radius").positive("m");
+  t.center = m.at("center").vec2("m");
+  if (auto x = m.get("velocity")) t.velocity = x->vec2("m/s");
+  if (auto x = m.get("friction")) t.friction = x->non_negative("");
+  if (auto x = m.get("stiffness")) t.stiffness = x->positive("");
+  return t;
+}
+
 Initial read_initial(const Value& v) {
   const Map m(v, &kInitialKeys, "a map {displacement_gradient, velocity_gradient, center, seed}");
   Initial init;
@@ -980,6 +1010,10 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   for (const Value& v : optional_list(top, "boundaries", "a list of boundaries"))
     s.boundaries.push_back(read_boundary(v, boundary_names, s.bodies));
 
+  UniqueNames tool_names("tool");
+  const auto tools = optional_list(top, "tools", "a list of tools");
+  for (const Value& v : tools) s.tools.push_back(read_tool(v, tool_names));
+
   if (auto x = top.get("initial")) s.initial = read_initial(*x);
 
   const Value stages_value = top.at("stages");
@@ -996,6 +1030,10 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   bool dynamic = false;
   for (const Stage& st : s.stages) dynamic |= st.kind == StageKind::Dynamic;
   if (!dynamic) stages_value.fail("expected at least one stage of kind dynamic");
+  for (std::size_t i = 0; i < s.stages.size() && !s.tools.empty(); ++i)
+    if (s.stages[i].kind == StageKind::QuasiStatic)
+      stages[i].fail("a quasistatic stage in a scene with tools; tools act in dynamic stages only (tools: '" +
+                     s.tools.front().name + "')");
 
   if (auto x = top.get("stability")) {
     const Map m(*x, &kStabilityKeys, "a map {energy_error, motion_per_step}");
@@ -1335,6 +1373,16 @@ void emit_boundary(Writer& w, const Boundary& b) {
   w.key(4, "ramp_time", b.ramp_time);
 }
 
+void emit_tool(Writer& w, const Tool& t) {
+  w.key(2, "- name", yaml_string(t.name));
+  w.key(4, "kind", "cylinder");
+  w.key(4, "radius", t.radius);
+  w.key(4, "center", flow({t.center[0], t.center[1]}));
+  w.key(4, "velocity", flow({t.velocity[0], t.velocity[1]}));
+  w.key(4, "friction", t.friction);
+  w.key(4, "stiffness", t.stiffness);
+}
+
 std::string flow_values(const std::vector<BoundaryValue>& values) {
   std::vector<std::string> items;
   for (const BoundaryValue& b : values) items.push_back(yaml_string(b.boundary) + ": " + flow(b.value));
@@ -1443,6 +1491,10 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
   if (!s.boundaries.empty()) {
     w.key(0, "boundaries", "");
     for (const Boundary& b : s.boundaries) emit_boundary(w, b);
+  }
+  if (!s.tools.empty()) {
+    w.key(0, "tools", "");
+    for (const Tool& t : s.tools) emit_tool(w, t);
   }
   const Initial& init = s.initial;
   w.key(0, "initial", "");

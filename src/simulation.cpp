@@ -10,6 +10,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include "peri/build_info.hpp"
 #include "peri/checkpoint.hpp"
@@ -261,6 +262,57 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   MPI_Allreduce(&dt_local, &summary_.dt_stable, 1, MPI_DOUBLE, MPI_MIN, comm_);
   if (!std::isfinite(summary_.dt_stable))
     throw InputError(scene_.file + ": no node has a bond; the horizon is too small for the spacing");
+  // Tools: a penalty stiffness per unit mass of `stiffness` times the stiffest node's bond
+  // stiffness (2 rho / dt_bound^2 at the bound), so that the bound with contact is at least
+  // dt_bound / sqrt(1 + stiffness).
+  double stiffest_tool = 0;
+  for (const Tool& t : scene_.tools) {
+    RigidCylinder c;
+    c.radius = t.radius;
+    for (int d = 0; d < 2; ++d) {
+      c.center[d] = t.center[d];
+      c.velocity[d] = t.velocity[d];
+    }
+    c.friction = t.friction;
+    c.stiffness = t.stiffness * 2.0 / (summary_.dt_stable * summary_.dt_stable);
+    tools_.push_back(c);
+    stiffest_tool = std::max(stiffest_tool, t.stiffness);
+  }
+  tool_contact_.assign(tools_.size(), ContactTally{});
+  bool friction = false;
+  for (const Tool& t : scene_.tools) friction |= t.friction > 0;
+  if (friction)  // (natural id, tool, force) of every friction force, gathered to rank 0
+    add_checkpoint_extra(
+        "tool_friction",
+        [this] {
+          std::vector<double> local;
+          for (std::size_t k = 0; k < tool_contact_.size(); ++k)
+            for (const NodeFriction& nf : tool_contact_[k].friction)
+              local.insert(local.end(), {double(domain_.natural[nf.node]), double(k), nf.force[0], nf.force[1],
+                                         nf.force[2]});
+          const int n = static_cast<int>(local.size());
+          std::vector<int> counts(ranks_), displs(ranks_, 0);
+          MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm_);
+          for (int r = 1; r < ranks_; ++r) displs[r] = displs[r - 1] + counts[r - 1];
+          std::vector<double> all(rank_ == 0 ? displs.back() + counts.back() : 0);
+          MPI_Gatherv(local.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm_);
+          return all;
+        },
+        [this](const std::vector<double>* flat) {
+          if (!flat) return;
+          std::unordered_map<std::int64_t, std::int32_t> local;
+          for (std::int32_t i = 0; i < domain_.owned; ++i) local.emplace(domain_.natural[i], i);
+          resumed_friction_.emplace(tools_.size());
+          for (std::size_t e = 0; e + 5 <= flat->size(); e += 5) {
+            const auto it = local.find(static_cast<std::int64_t>((*flat)[e]));
+            const auto k = static_cast<std::size_t>((*flat)[e + 1]);
+            if (it == local.end() || k >= tools_.size()) continue;
+            (*resumed_friction_)[k].push_back({it->second, {(*flat)[e + 2], (*flat)[e + 3], (*flat)[e + 4]}});
+          }
+          for (auto& list : *resumed_friction_)
+            std::sort(list.begin(), list.end(), [](const NodeFriction& a, const NodeFriction& b) { return a.node < b.node; });
+        });
+  summary_.dt_stable /= std::sqrt(1.0 + stiffest_tool);
   for (const Boundary& b : scene_.boundaries) active_bc_.push_back({b.velocity, b.ramp_time});
   for (std::size_t s = 0; s < scene_.stages.size(); ++s) {
     const Stage& st = scene_.stages[s];
@@ -370,6 +422,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
         *tips_csv_ << kept << std::setprecision(12);
       }
     }
+    for (const Tool& t : scene_.tools)
+      for (const char* c : {"_x", "_y", "_force_x", "_force_y", "_force_z"})
+        tip_columns += (tip_columns.empty() ? "" : ",") + t.name + c;
     series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -542,6 +597,7 @@ void Simulation::step(bool with_energy) {
   // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
   // "Kelvin dissipation").
   compute_forces(with_energy);
+  if (!tools_.empty()) add_tool_forces(t1, true);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
   // Free component k of node i: second half kick.
@@ -571,12 +627,39 @@ void Simulation::step(bool with_energy) {
       }
     }
   }
+  // Friction: the force found at t + dt acts between v(t + dt/2) and v(t + 3dt/2), whose mean is
+  // the velocity just computed.
+  for (std::size_t k = 0; k < tools_.size(); ++k)
+    damping_work_ -= friction_work(tools_[k], tool_contact_[k], dt, v, domain_.volume.data());
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   if (damping_ > 0) damping_work_ += 0.5 * damping_ * dt * damped;
   if (kelvin) damping_work_ += 0.5 * dt * viscous;
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
   time_ = t1;
   ++step_;
+}
+
+void Simulation::add_tool_forces(double t, bool book) {
+  if (tools_.empty()) return;
+  PetscLogEventBegin(events().update, 0, 0, 0, 0);
+  const double* v;
+  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
+  for (std::size_t k = 0; k < tools_.size(); ++k) {
+    const RigidCylinder& tool = tools_[k];
+    ContactTally c;
+    cylinder_contact(tool, t, dt_, positions_.data(), v, domain_.volume.data(), inv_density_.data(), domain_.owned,
+                     force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
+    tally_.strain_energy += cylinder_contact_energy(tool, t, positions_.data(), domain_.volume.data(),
+                                                    inv_density_.data(), domain_.owned);
+    // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
+    if (book)
+      for (int d = 0; d < 2; ++d)
+        external_work_ += 0.5 * dt_ * (tool_contact_[k].force[d] + c.force[d]) * tool.velocity[d];
+    tool_contact_[k] = std::move(c);
+  }
+  resumed_friction_.reset();
+  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
+  PetscLogEventEnd(events().update, 0, 0, 0, 0);
 }
 
 double Simulation::kinetic_energy() {
@@ -648,8 +731,24 @@ void Simulation::write_series_row() {
       throw RuntimeFailure(msg.str());
     }
   }
-  const std::string tip_values = tracker_ ? track_crack_tips(row) : std::string();
-  if (series_) series_->write(row, tip_values);
+  std::string extra = tracker_ ? track_crack_tips(row) : std::string();
+  if (!tools_.empty()) {
+    // Each tool's axis position and total force on the nodes (the reaction on the tool is its negative).
+    std::vector<double> local(3 * tools_.size()), total(3 * tools_.size());
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (int d = 0; d < 3; ++d) local[3 * k + d] = tool_contact_[k].force[d];
+    MPI_Allreduce(local.data(), total.data(), static_cast<int>(total.size()), MPI_DOUBLE, MPI_SUM, comm_);
+    std::ostringstream values;
+    values << std::setprecision(12);
+    for (std::size_t k = 0; k < tools_.size(); ++k) {
+      const RigidCylinder& t = tools_[k];
+      values << (extra.empty() && k == 0 ? "" : ",") << t.center[0] + t.velocity[0] * time_ << ','
+             << t.center[1] + t.velocity[1] * time_ << ',' << total[3 * k] << ',' << total[3 * k + 1] << ','
+             << total[3 * k + 2];
+    }
+    extra += values.str();
+  }
+  if (series_) series_->write(row, extra);
   summary_.final_energy = row;
 }
 
@@ -896,6 +995,7 @@ void Simulation::begin() {
     ++stage_;
   }
   compute_forces(true);
+  add_tool_forces(time_, false);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
   if (frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) {
@@ -941,6 +1041,7 @@ std::int64_t Simulation::advance(std::int64_t n) {
       start_stage();
       ++stage_;
       compute_forces(true);
+      add_tool_forces(time_, false);
       write_series_row();
       if (scene_.stages[stage_ - 1].kind == StageKind::QuasiStatic)
         summary_.initial_total_energy = summary_.final_energy.total();
@@ -1451,6 +1552,7 @@ void Simulation::restore(const Checkpoint& c) {
   // Forces at the restored positions, computed as the uninterrupted run did at the end of this
   // step; every bond past its critical stretch there is already broken, so none breaks now.
   compute_forces(true);
+  add_tool_forces(time_, false);
   summary_.final_energy = reduce_energies(tally_.strain_energy);
   while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
   last_checkpoint_step_ = step_;

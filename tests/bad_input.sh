@@ -74,5 +74,11 @@ printf 'not a checkpoint\n' > "$work/fake.h5"
 expect foreign_checkpoint "checkpoint '$work/fake.h5': not a peridrive checkpoint" -- --resume "$work/fake.h5"
 expect missing_checkpoint "checkpoint '$work/none': no such file" -- --resume "$work/none"
 
+tool=$src/drivers/scenes/blunt_tool.yaml
+expect tool_radius "tools.0.radius: expected a positive number [m], got -0.001" -- "$tool" --set tools.rod.radius=-0.001
+expect tool_kind "tools.0.kind: expected one of" -- "$tool" --set tools.rod.kind=sphere
+expect tool_center "tools.0.center: expected a list of 2 numbers [x, y] [m]" -- "$tool" --set tools.rod.center=[0,0,0]
+sed 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$tool" > "$work/tool_qs.yaml"
+expect tool_quasistatic "a quasistatic stage in a scene with tools" -- "$work/tool_qs.yaml"
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

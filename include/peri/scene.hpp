@@ -132,6 +132,21 @@ struct Boundary {
   double ramp_time = 0.0;  ///< [s] velocity rises linearly from 0 over this time (0: at once)
 };
 
+/// Rigid tool: a cylinder of infinite length with its axis along z (normal to membranes), moving
+/// at a constant in-plane velocity; nodes inside it are pushed out by a penalty force, with
+/// Coulomb friction (Silling & Bobaru 7.4, the blunt tool). Acts in dynamic stages.
+struct Tool {
+  std::string name;
+  SourceLoc where;
+  double radius = 0.0;                 ///< [m] (> 0)
+  std::array<double, 2> center{0, 0};  ///< axis position (x, y) at t = 0 [m]
+  std::array<double, 2> velocity{0, 0};  ///< [m/s]
+  double friction = 0.0;               ///< Coulomb coefficient mu (>= 0)
+  /// Penalty stiffness relative to the stiffest node's bond stiffness (> 0); the stable step is
+  /// divided by sqrt(1 + stiffness) when a scene has tools.
+  double stiffness = 0.5;
+};
+
 /// Initial conditions, applied before the first stage.
 struct Initial {
   /// u = displacement_gradient * (X - center): e.g. a homogeneous preload. 3x3 row-major.
@@ -217,6 +232,7 @@ struct Scene {
   std::vector<Body> bodies;
   std::vector<Crack> cracks;
   std::vector<Boundary> boundaries;
+  std::vector<Tool> tools;
   Initial initial;
   std::vector<Stage> stages;
   Stability stability;

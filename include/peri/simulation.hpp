@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "peri/contact.hpp"
 #include "peri/crack_tips.hpp"
 #include "peri/forces.hpp"
 #include "peri/marder.hpp"
@@ -140,6 +141,11 @@ class Simulation : public EquilibriumModel {
   void check_health(std::int64_t step, double time);
   void write_frame();
   void write_series_row();
+  /// Adds the tools' contact forces at time `t` to force_ (after compute_forces: positions_ of
+  /// the owned nodes current, the velocity Vec at the half step when `book`); with `book`, the
+  /// tools' work (trapezoidal in time) goes to external_work_. The contact's penalty energy is
+  /// added to tally_.strain_energy. Friction is booked by step() after the second half kick.
+  void add_tool_forces(double t, bool book);
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
@@ -195,6 +201,9 @@ class Simulation : public EquilibriumModel {
   std::vector<double> force_;               // force densities, 3 * owned
   double energy_floor_ = 0;                 // smallest energy scale of the balance (sum m c_l^2 1e-20)
   std::vector<double> positions_;           // current positions (X + u, 0), 4 * local (bond kernel input)
+  std::vector<RigidCylinder> tools_;        // scene tools, stiffness per unit mass
+  std::vector<ContactTally> tool_contact_;  // per tool: this rank's contact at time_ (forces, friction)
+  std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
   std::vector<int> bc_;                     // per owned node: boundary index or -1
   std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
   std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step

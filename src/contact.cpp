@@ -1,0 +1,86 @@
+#include "peri/contact.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace peri {
+namespace {
+
+// Depth p of a point inside the cylinder at time t and the outward unit normal (nx, ny, 0);
+// false if the point is outside (or on the axis, where no direction is defined).
+bool penetration(const RigidCylinder& tool, double time, const double* xi, double& p, double& nx, double& ny) {
+  const double dx = xi[0] - (tool.center[0] + tool.velocity[0] * time);
+  const double dy = xi[1] - (tool.center[1] + tool.velocity[1] * time);
+  const double r2 = dx * dx + dy * dy;
+  if (!(r2 < tool.radius * tool.radius) || r2 == 0) return false;
+  const double r = std::sqrt(r2);
+  p = tool.radius - r;
+  nx = dx / r;
+  ny = dy / r;
+  return true;
+}
+
+}  // namespace
+
+void cylinder_contact(const RigidCylinder& tool, double time, double dt, const double* x, const double* v,
+                      const double* volume, const double* inv_density, std::int32_t n, double* force,
+                      ContactTally& tally, const std::vector<NodeFriction>* given) {
+  std::size_t next_given = 0;
+  for (std::int32_t i = 0; i < n; ++i) {
+    double p, nx, ny;
+    if (!penetration(tool, time, x + 4 * static_cast<std::size_t>(i), p, nx, ny)) continue;
+    const double rho = 1.0 / inv_density[i];
+    const double fn = rho * tool.stiffness * p;  // normal force density
+    double f[3] = {fn * nx, fn * ny, 0.0};
+    if (given) {
+      while (next_given < given->size() && (*given)[next_given].node < i) ++next_given;
+      if (next_given < given->size() && (*given)[next_given].node == i) {
+        const NodeFriction& nf = (*given)[next_given];
+        for (int c = 0; c < 3; ++c) f[c] += nf.force[c];
+        tally.friction.push_back(nf);
+      }
+    } else if (tool.friction > 0) {
+      // Velocity relative to the tool, and its part tangential to the surface.
+      const double* vi = v + 3 * static_cast<std::size_t>(i);
+      const double rel[3] = {vi[0] - tool.velocity[0], vi[1] - tool.velocity[1], vi[2]};
+      const double vn = rel[0] * nx + rel[1] * ny;
+      const double t[3] = {rel[0] - vn * nx, rel[1] - vn * ny, rel[2]};
+      const double speed = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+      if (speed > 0) {
+        const double ft = std::min(tool.friction * fn, 0.5 * rho * speed / dt);
+        NodeFriction nf{i, {-ft * t[0] / speed, -ft * t[1] / speed, -ft * t[2] / speed}};
+        for (int c = 0; c < 3; ++c) f[c] += nf.force[c];
+        tally.friction.push_back(nf);
+      }
+    }
+    for (int c = 0; c < 3; ++c) {
+      force[3 * static_cast<std::size_t>(i) + c] += f[c];
+      tally.force[c] += f[c] * volume[i];
+    }
+    ++tally.nodes;
+  }
+}
+
+double friction_work(const RigidCylinder& tool, const ContactTally& tally, double dt, const double* v,
+                     const double* volume) {
+  double work = 0;
+  for (const NodeFriction& nf : tally.friction) {
+    const double* vi = v + 3 * static_cast<std::size_t>(nf.node);
+    const double rel[3] = {vi[0] - tool.velocity[0], vi[1] - tool.velocity[1], vi[2]};
+    work += dt * volume[nf.node] * (nf.force[0] * rel[0] + nf.force[1] * rel[1] + nf.force[2] * rel[2]);
+  }
+  return work;
+}
+
+double cylinder_contact_energy(const RigidCylinder& tool, double time, const double* x, const double* volume,
+                               const double* inv_density, std::int32_t n) {
+  double energy = 0;
+  for (std::int32_t i = 0; i < n; ++i) {
+    double p, nx, ny;
+    if (penetration(tool, time, x + 4 * static_cast<std::size_t>(i), p, nx, ny))
+      energy += 0.5 * tool.stiffness * p * p * volume[i] / inv_density[i];
+  }
+  return energy;
+}
+
+}  // namespace peri
