@@ -8,7 +8,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <memory>
 
 #include <unistd.h>
 
@@ -70,30 +72,40 @@ RunOptions quiet() {
   return o;
 }
 
+/// Runs `scene` for `steps` steps, checkpoints it to a shared file, and returns the run resumed
+/// from that checkpoint and taken to its end; `inspect` sees the loaded checkpoint first.
+std::unique_ptr<Simulation> resumed_run(const Scene& scene, std::int64_t steps, const std::string& stem,
+                                        const std::function<void(const Checkpoint&)>& inspect = {}) {
+  const std::string path = shared_path(stem);
+  {
+    Simulation first(scene, PETSC_COMM_WORLD, quiet());
+    first.begin();
+    first.advance(steps);
+    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
+  }
+  RunOptions o = quiet();
+  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
+  if (inspect) inspect(*o.restart);
+  auto second = std::make_unique<Simulation>(scene, PETSC_COMM_WORLD, o);
+  second->run();
+  if (world_rank() == 0) {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+  }
+  return second;
+}
+
 TEST(Restart, ContinuedRunIsBitForBitTheUninterruptedOne) {
   const Scene scene = parse_scene(kScene, "small-slit");
   Simulation whole(scene, PETSC_COMM_WORLD, quiet());
   whole.run();
 
-  const std::string path = shared_path("restart-bits");
-  std::int64_t checkpoint_step = 0;
-  {
-    Simulation first(scene, PETSC_COMM_WORLD, quiet());
-    first.begin();
-    first.advance(whole.total_steps() / 2 + 7);  // inside the second stage, between series rows
-    checkpoint_step = first.current_step();
-    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
-  }
-  RunOptions o = quiet();
-  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
-  EXPECT_EQ(o.restart->step, checkpoint_step);
-  EXPECT_EQ(o.restart->stage, 1);
-  Simulation second(scene, PETSC_COMM_WORLD, o);
-  second.run();
-  if (world_rank() == 0) {
-    std::remove(path.c_str());
-    std::remove(previous_checkpoint_path(path).c_str());
-  }
+  const std::int64_t checkpoint_step = whole.total_steps() / 2 + 7;  // inside the second stage, between series rows
+  const auto resumed = resumed_run(scene, checkpoint_step, "restart-bits", [&](const Checkpoint& c) {
+    EXPECT_EQ(c.step, checkpoint_step);
+    EXPECT_EQ(c.stage, 1);
+  });
+  Simulation& second = *resumed;
 
   EXPECT_EQ(second.current_step(), whole.current_step());
   EXPECT_EQ(second.current_time(), whole.current_time());
@@ -144,21 +156,8 @@ TEST(Restart, WithAFrictionalToolIsBitForBit) {
   const Scene scene = parse_scene(kToolScene, "tool");
   Simulation whole(scene, PETSC_COMM_WORLD, quiet());
   whole.run();
-  const std::string path = shared_path("restart-tool");
-  {
-    Simulation first(scene, PETSC_COMM_WORLD, quiet());
-    first.begin();
-    first.advance(whole.total_steps() / 2 + 3);
-    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
-  }
-  RunOptions o = quiet();
-  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
-  Simulation second(scene, PETSC_COMM_WORLD, o);
-  second.run();
-  if (world_rank() == 0) {
-    std::remove(path.c_str());
-    std::remove(previous_checkpoint_path(path).c_str());
-  }
+  const auto resumed = resumed_run(scene, whole.total_steps() / 2 + 3, "restart-tool");
+  Simulation& second = *resumed;
   const auto xa = whole.natural_positions(), xb = second.natural_positions();
   const auto va = whole.natural_velocities(), vb = second.natural_velocities();
   std::size_t differing = 0;
@@ -205,23 +204,11 @@ TEST(Restart, AfterQuasiStaticReleaseAndDampedStages) {
   const Scene scene = parse_scene(kStagedScene, "staged");
   Simulation whole(scene, PETSC_COMM_WORLD, quiet());
   whole.run();
-  const std::string path = shared_path("restart-staged");
-  {
-    Simulation first(scene, PETSC_COMM_WORLD, quiet());
-    first.begin();
-    first.advance(25);  // inside the damped stage
-    store_checkpoint(path, first.make_checkpoint(), PETSC_COMM_WORLD);
-  }
-  RunOptions o = quiet();
-  o.restart = load_checkpoint(path, PETSC_COMM_WORLD);
-  EXPECT_EQ(o.restart->stage, 2);
-  EXPECT_EQ(o.restart->stage_step, 25);
-  Simulation second(scene, PETSC_COMM_WORLD, o);
-  second.run();
-  if (world_rank() == 0) {
-    std::remove(path.c_str());
-    std::remove(previous_checkpoint_path(path).c_str());
-  }
+  const auto resumed = resumed_run(scene, 25, "restart-staged", [](const Checkpoint& c) {  // inside the damped stage
+    EXPECT_EQ(c.stage, 2);
+    EXPECT_EQ(c.stage_step, 25);
+  });
+  Simulation& second = *resumed;
   const auto xa = whole.natural_positions(), xb = second.natural_positions();
   std::size_t differing = 0;
   for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k];
