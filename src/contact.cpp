@@ -31,6 +31,7 @@ void cylinder_contact(const RigidCylinder& tool, double time, double dt, const d
     if (!penetration(tool, time, x + 4 * static_cast<std::size_t>(i), p, nx, ny)) continue;
     const double rho = 1.0 / inv_density[i];
     const double fn = rho * tool.stiffness * p;  // normal force density
+    tally.energy += 0.5 * fn * p * volume[i];
     double f[3] = {fn * nx, fn * ny, 0.0};
     if (given) {
       while (next_given < given->size() && (*given)[next_given].node < i) ++next_given;
@@ -70,17 +71,6 @@ double friction_work(const RigidCylinder& tool, const ContactTally& tally, doubl
     work += dt * volume[nf.node] * (nf.force[0] * rel[0] + nf.force[1] * rel[1] + nf.force[2] * rel[2]);
   }
   return work;
-}
-
-double cylinder_contact_energy(const RigidCylinder& tool, double time, const double* x, const double* volume,
-                               const double* inv_density, std::int32_t n) {
-  double energy = 0;
-  for (std::int32_t i = 0; i < n; ++i) {
-    double p, nx, ny;
-    if (penetration(tool, time, x + 4 * static_cast<std::size_t>(i), p, nx, ny))
-      energy += 0.5 * tool.stiffness * p * p * volume[i] / inv_density[i];
-  }
-  return energy;
 }
 
 }  // namespace peri

@@ -266,6 +266,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // stiffness (2 rho / dt_bound^2 at the bound), so that the bound with contact is at least
   // dt_bound / sqrt(1 + stiffness).
   double stiffest_tool = 0;
+  bool friction = false;
   for (const Tool& t : scene_.tools) {
     RigidCylinder c;
     c.radius = t.radius;
@@ -277,10 +278,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     c.stiffness = t.stiffness * 2.0 / (summary_.dt_stable * summary_.dt_stable);
     tools_.push_back(c);
     stiffest_tool = std::max(stiffest_tool, t.stiffness);
+    friction |= t.friction > 0;
   }
   tool_contact_.assign(tools_.size(), ContactTally{});
-  bool friction = false;
-  for (const Tool& t : scene_.tools) friction |= t.friction > 0;
   if (friction)  // (natural id, tool, force) of every friction force, gathered to rank 0
     add_checkpoint_extra(
         "tool_friction",
@@ -597,7 +597,7 @@ void Simulation::step(bool with_energy) {
   // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
   // "Kelvin dissipation").
   compute_forces(with_energy);
-  if (!tools_.empty()) add_tool_forces(t1, true);
+  add_tool_forces(t1, true);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
   // Free component k of node i: second half kick.
@@ -649,8 +649,7 @@ void Simulation::add_tool_forces(double t, bool book) {
     ContactTally c;
     cylinder_contact(tool, t, dt_, positions_.data(), v, domain_.volume.data(), inv_density_.data(), domain_.owned,
                      force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
-    tally_.strain_energy += cylinder_contact_energy(tool, t, positions_.data(), domain_.volume.data(),
-                                                    inv_density_.data(), domain_.owned);
+    tally_.strain_energy += c.energy;
     // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
     if (book)
       for (int d = 0; d < 2; ++d)

@@ -27,6 +27,7 @@ struct NodeFriction {
 struct ContactTally {
   double force[3] = {0, 0, 0};  ///< total force of the tool on the nodes [N]
   std::int64_t nodes = 0;       ///< nodes in contact
+  double energy = 0;            ///< penalty energy: sum of volume * rho k p^2 / 2 [J]
   std::vector<NodeFriction> friction;  ///< nodes with a friction force, and that force
 };
 
@@ -51,9 +52,5 @@ void cylinder_contact(const RigidCylinder& tool, double time, double dt, const d
 /// between, exactly, in velocity Verlet): sum over nodes of dt V f . (v - V_tool) (<= 0) [J].
 double friction_work(const RigidCylinder& tool, const ContactTally& tally, double dt, const double* v,
                      const double* volume);
-
-/// Penalty energy of the contact: sum over nodes of volume * rho k p^2 / 2 [J].
-double cylinder_contact_energy(const RigidCylinder& tool, double time, const double* x, const double* volume,
-                               const double* inv_density, std::int32_t n);
 
 }  // namespace peri
