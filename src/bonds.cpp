@@ -131,6 +131,17 @@ double quadrature_weight(const BodyGeometry& g, const double xi[3]) {
   return w < 1e-12 ? 0.0 : std::min(w, 1.0);
 }
 
+void reference_offset(const BodyGeometry& g, const double* Xi, const double* Xj, double xi[3]) {
+  const double dx = g.spacing;
+  const bool hex = g.grid == Grid::Hexagonal;
+  // The units discretize() places nodes on (the same expressions, so the same bits).
+  const double unit[3] = {hex ? 0.5 * dx : dx, hex ? dx * std::sqrt(3.0) / 2.0 : dx, dx};
+  for (int c = 0; c < 3; ++c) {
+    xi[c] = Xj[c] - Xi[c];
+    if (unit[c] > 0) xi[c] = std::nearbyint(xi[c] / unit[c]) * unit[c];
+  }
+}
+
 void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
                    std::vector<std::int64_t>& ids, std::vector<double>& weights) {
   ids.clear();
@@ -142,7 +153,8 @@ void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
   found.clear();
   cells.for_each_candidate(xi, [&](std::int64_t j) {
     if (j == i || nodes.body[j] != body) return;
-    const double d[3] = {nodes.X[3 * j] - xi[0], nodes.X[3 * j + 1] - xi[1], nodes.X[3 * j + 2] - xi[2]};
+    double d[3];
+    reference_offset(g, xi, &nodes.X[3 * j], d);
     const double w = quadrature_weight(g, d);
     if (w > 0) found.emplace_back(j, w);
   });

@@ -22,13 +22,14 @@ bool penetration(const RigidCylinder& tool, double time, const double* xi, doubl
 
 }  // namespace
 
-void cylinder_contact(const RigidCylinder& tool, double time, double dt, const double* x, const double* v,
-                      const double* volume, const double* inv_density, std::int32_t n, double* force,
-                      ContactTally& tally, const std::vector<NodeFriction>* given) {
+void cylinder_contact(const RigidCylinder& tool, double time, double dt, const double* x, std::int64_t x_stride,
+                      const double* v, const double* volume, const double* inv_density, std::int32_t n,
+                      double* force, ContactTally& tally, const std::vector<NodeFriction>* given) {
   std::size_t next_given = 0;
   for (std::int32_t i = 0; i < n; ++i) {
     double p, nx, ny;
-    if (!penetration(tool, time, x + 4 * static_cast<std::size_t>(i), p, nx, ny)) continue;
+    const double xi[2] = {x[i], x[x_stride + i]};
+    if (!penetration(tool, time, xi, p, nx, ny)) continue;
     const double rho = 1.0 / inv_density[i];
     const double fn = rho * tool.stiffness * p;  // normal force density
     tally.energy += 0.5 * fn * p * volume[i];

@@ -86,8 +86,9 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         touches_ghost = true;
       }
       d.bonds.neighbor[b] = lj;
-      double s2 = 0;
-      for (int c = 0; c < 3; ++c) s2 += (nodes.X[3 * j + c] - nodes.X[3 * i + c]) * (nodes.X[3 * j + c] - nodes.X[3 * i + c]);
+      double xi_ij[3];
+      reference_offset(nodes.bodies[nodes.body[i]], &nodes.X[3 * i], &nodes.X[3 * j], xi_ij);
+      const double s2 = xi_ij[0] * xi_ij[0] + xi_ij[1] * xi_ij[1] + xi_ij[2] * xi_ij[2];
       xi2.push_back(s2);
       // Weights are kept to float precision, as the per-bond weights they replace were.
       measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);

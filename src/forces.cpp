@@ -1,12 +1,7 @@
 #include "peri/forces.hpp"
 
 #include <algorithm>
-#if defined(__AVX512F__) && defined(__AVX512VL__) && defined(__AVX512BW__)
-#define PERI_AVX512 1
-#include <immintrin.h>
-// GCC 12 reports its own intrinsics' _mm512_undefined_* temporaries as maybe-uninitialized.
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#elif defined(__AVX2__) && defined(__FMA__)
+#if defined(__AVX2__) && defined(__FMA__)
 #define PERI_AVX2 1
 #include <immintrin.h>
 #endif
@@ -41,25 +36,27 @@ void book_breaks(const BondLaw& L, const BondView& v, std::int32_t i, int newly,
 // the model remains. `L` is a local copy whose flags are compile-time constants after assignment.
 // Serves every law (hardening included) and views without family patterns.
 template <ModelKind K, bool Conical, bool Linear, bool Hard, bool Energy>
-void loop_scalar(const BondLaw& law_in, const BondView& v, const std::int32_t* rows, std::size_t nrows,
-                 double* force, BondTally& tally) {
-  BondLaw L = law_in;
-  L.kind = K;
-  L.conical = Conical;
-  L.linear_critical = Linear;
-  L.hardening = Hard;
-  const double* __restrict x = v.x;
-  const std::int32_t* __restrict nbr = v.neighbor;
-  std::uint8_t* __restrict flag = v.broken;
-  for (std::size_t r = 0; r < nrows; ++r) {
-    const std::int32_t i = rows[r];
-    const double xi0 = x[4 * i], xi1 = x[4 * i + 1], xi2c = x[4 * i + 2];
+struct ScalarLoop {
+  BondLaw L;
+  explicit ScalarLoop(const BondLaw& law) : L(law) {
+    L.kind = K;
+    L.conical = Conical;
+    L.linear_critical = Linear;
+    L.hardening = Hard;
+  }
+  void row(const BondView& v, std::int32_t i, double* force, BondTally& tally) const {
+    const double* __restrict px = v.x;
+    const double* __restrict py = v.x + v.x_stride;
+    const double* __restrict pz = v.x + 2 * v.x_stride;
+    const std::int32_t* __restrict nbr = v.neighbor;
+    std::uint8_t* __restrict flag = v.broken;
+    const double xi0 = px[i], xi1 = py[i], xi2c = pz[i];
     double f0 = 0, f1 = 0, f2 = 0, w = 0;
     int newly = 0;
     const std::int64_t b0 = v.offsets[i], b1 = v.offsets[i + 1];
     for (std::int64_t b = b0; b < b1; ++b) {
       const std::int32_t j = nbr[b];
-      const double d0 = x[4 * j] - xi0, d1 = x[4 * j + 1] - xi1, d2 = x[4 * j + 2] - xi2c;
+      const double d0 = px[j] - xi0, d1 = py[j] - xi1, d2 = pz[j] - xi2c;
       const double s2 = v.xi2(i, b);
       // Guard against coincident nodes (y = 0) so a collapsed bond cannot produce inf/NaN.
       const double y2 = std::max(d0 * d0 + d1 * d1 + d2 * d2, 1e-12 * s2);
@@ -82,405 +79,360 @@ void loop_scalar(const BondLaw& law_in, const BondView& v, const std::int32_t* r
     if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * w;
     if (newly) book_breaks(L, v, i, newly, tally);
   }
-}
-
-#if defined(PERI_AVX512) || defined(PERI_AVX2)
-// Scalar constants of a law for the vector loops (each broadcasts them to its own width).
-template <ModelKind K, bool Linear>
-struct VectorLawConstants {
-  double c_energy, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon, c_row;
-  explicit VectorLawConstants(const BondLaw& L)
-      : c_energy(K == ModelKind::Membrane ? L.c : 0.5 * L.c),
-        crit0(L.critical0),
-        crit0_sq(L.critical0 * L.critical0),
-        inv_crit0_sq(1.0 / (L.critical0 * L.critical0)),  // 0 if unbreakable
-        crit_slope(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0),
-        inv_horizon(1.0 / L.horizon),
-        c_row(K == ModelKind::Membrane ? 2.0 * L.c : L.c) {}  // applied to the row's sum
-};
-
-// Row i's bonds (CSR slices) and its family pattern's slots.
-struct RowSlices {
-  std::int64_t n;                  // bonds in the row
-  const std::int32_t* neighbor;
-  std::uint8_t* flag;
-  const double *xi2, *measure, *inv_xi, *measure_per_xi2;
-};
-inline RowSlices row_slices(const BondView& v, std::int32_t i) {
-  const FamilyPatterns& P = *v.patterns;
-  const std::int64_t b0 = v.offsets[i], slot0 = P.begin[P.of_row[i]];
-  return {v.offsets[i + 1] - b0, v.neighbor + b0, v.broken + b0, P.xi2.data() + slot0,
-          P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
-}
-#endif
-
-#if defined(PERI_AVX512)
-// 1/sqrt(d) from the 14-bit hardware estimate and two Newton steps (relative error about 2^-52,
-// within an ulp or two of the correctly rounded value): the PMB law's 1/y without a square root
-// and a division. (The same for the membrane's one division was slower than vdivpd: 5.0-5.3e8
-// against 5.4-7.2e8 bond updates/s in alternating runs of bench_kernels.)
-inline __m512d reciprocal_sqrt(__m512d d) {
-  const __m512d half = _mm512_set1_pd(0.5), three_halves = _mm512_set1_pd(1.5);
-  const __m512d hd = _mm512_mul_pd(half, d);
-  __m512d r = _mm512_rsqrt14_pd(d);
-  r = _mm512_mul_pd(r, _mm512_fnmadd_pd(hd, _mm512_mul_pd(r, r), three_halves));
-  return _mm512_mul_pd(r, _mm512_fnmadd_pd(hd, _mm512_mul_pd(r, r), three_halves));
-}
-
-// Lane sums of a, b, c and d, each reduced in one fixed order (so a node's force does not depend
-// on which rank computes it): out = {sum a, sum b, sum c, sum d}. Seven shuffles and four adds for
-// all four, against six operations per vector for separate reductions.
-inline void lane_sums(__m512d a, __m512d b, __m512d c, __m512d d, double out[4]) {
-  const __m512d ab = _mm512_add_pd(_mm512_shuffle_f64x2(a, b, _MM_SHUFFLE(1, 0, 1, 0)),
-                                   _mm512_shuffle_f64x2(a, b, _MM_SHUFFLE(3, 2, 3, 2)));
-  const __m512d cd = _mm512_add_pd(_mm512_shuffle_f64x2(c, d, _MM_SHUFFLE(1, 0, 1, 0)),
-                                   _mm512_shuffle_f64x2(c, d, _MM_SHUFFLE(3, 2, 3, 2)));
-  const __m512d s = _mm512_add_pd(_mm512_shuffle_f64x2(ab, cd, _MM_SHUFFLE(2, 0, 2, 0)),
-                                  _mm512_shuffle_f64x2(ab, cd, _MM_SHUFFLE(3, 1, 3, 1)));
-  const __m512d t = _mm512_add_pd(s, _mm512_permute_pd(s, 0x55));
-  // Lanes 0, 2, 4, 6 by register extracts (a store and scalar reloads would miss store forwarding).
-  out[0] = _mm_cvtsd_f64(_mm512_castpd512_pd128(t));
-  out[1] = _mm_cvtsd_f64(_mm512_extractf64x2_pd(t, 1));
-  out[2] = _mm_cvtsd_f64(_mm512_extractf64x2_pd(t, 2));
-  out[3] = _mm_cvtsd_f64(_mm512_extractf64x2_pd(t, 3));
-}
-
-// The same bond law, eight bonds at a time (AVX-512). Per bond: one 256-bit load of the
-// neighbour's current position (x, y, z, 0), contiguous loads of the family pattern's |xi|^2 and
-// measure term, and the flag byte; no reference positions, measures or weights are gathered.
-// (AVX-512 gathers of the three coordinates cost more than the rest of the bond on Zen 4: 3.3e8
-// against 8.6e8 bond updates/s with the positions loaded contiguously.)
-// Membrane (eq. 15): f_hat / y = 2 c g (1 - r^2) w V_j / xi^2 with r = xi^2 / y^2 = lambda^-2:
-// one division, no square root, and the failure test (eq. 11) is r <= lambda_0^-2.
-// PMB: f_hat / y = c g (1/xi - 1/y), one reciprocal square root. The law's constant c multiplies
-// the row's sum. Full chunks of eight run unmasked; a row's last partial chunk is masked and
-// loads its idle lanes' neighbour index as node 0.
-template <ModelKind K, bool Conical, bool Linear, bool Energy>
-void loop_avx512(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
-                 double* force, BondTally& tally) {
-  const double* __restrict x = v.x;
-  const __m512d zero = _mm512_setzero_pd(), one = _mm512_set1_pd(1.0);
-  const VectorLawConstants<K, Linear> constants(L);
-  const __m512d c_energy = _mm512_set1_pd(constants.c_energy);
-  const __m512d tiny = _mm512_set1_pd(1e-12), r_max = _mm512_set1_pd(1e12);
-  const __m512d crit0 = _mm512_set1_pd(constants.crit0), crit0_sq = _mm512_set1_pd(constants.crit0_sq);
-  const __m512d inv_crit0_sq = _mm512_set1_pd(constants.inv_crit0_sq), crit_slope = _mm512_set1_pd(constants.crit_slope);
-  const __m512d inv_horizon = _mm512_set1_pd(constants.inv_horizon);
-  const __m128i bit_broken = _mm_set1_epi8(static_cast<char>(kBroken));
-  for (std::size_t r = 0; r < nrows; ++r) {
-    const std::int32_t i = rows[r];
-    const __m512d xi0 = _mm512_set1_pd(x[4 * i]), xi1 = _mm512_set1_pd(x[4 * i + 1]),
-                  xi2c = _mm512_set1_pd(x[4 * i + 2]);
-    const RowSlices row = row_slices(v, i);
-    const std::int64_t n = row.n;
-    const double *sx = row.xi2, *sm = row.measure, *sr = row.inv_xi, *sa = row.measure_per_xi2;
-    const std::int32_t* __restrict row_nbr = row.neighbor;
-    std::uint8_t* __restrict row_flag = row.flag;
-    __m512d f0 = zero, f1 = zero, f2 = zero, w = zero;
-    int newly = 0;
-    // Eight bonds from slot k; m marks the lanes in the row, jb their neighbour indices.
-    auto chunk = [&](std::int64_t k, __mmask8 m, const std::int32_t* jb) __attribute__((always_inline)) {
-      // Neighbour positions: one 256-bit load each (x, y, z, 0), transposed in registers into
-      // x, y and z of eight bonds in CSR order.
-      auto pos = [x](std::int32_t j) { return _mm256_loadu_pd(x + 4 * static_cast<std::int64_t>(j)); };
-      const __m512d a0 = _mm512_insertf64x4(_mm512_castpd256_pd512(pos(jb[0])), pos(jb[2]), 1);
-      const __m512d a1 = _mm512_insertf64x4(_mm512_castpd256_pd512(pos(jb[1])), pos(jb[3]), 1);
-      const __m512d a2 = _mm512_insertf64x4(_mm512_castpd256_pd512(pos(jb[4])), pos(jb[6]), 1);
-      const __m512d a3 = _mm512_insertf64x4(_mm512_castpd256_pd512(pos(jb[5])), pos(jb[7]), 1);
-      const __m512d t0 = _mm512_unpacklo_pd(a0, a1), t1 = _mm512_unpackhi_pd(a0, a1);  // x z | y 0
-      const __m512d t2 = _mm512_unpacklo_pd(a2, a3), t3 = _mm512_unpackhi_pd(a2, a3);
-      const __m512d d0 = _mm512_sub_pd(_mm512_shuffle_f64x2(t0, t2, _MM_SHUFFLE(2, 0, 2, 0)), xi0);
-      const __m512d d1 = _mm512_sub_pd(_mm512_shuffle_f64x2(t1, t3, _MM_SHUFFLE(2, 0, 2, 0)), xi1);
-      const __m512d d2 = _mm512_sub_pd(_mm512_shuffle_f64x2(t0, t2, _MM_SHUFFLE(3, 1, 3, 1)), xi2c);
-      const __m512d s2 = _mm512_mask_loadu_pd(one, m, sx + k);  // 1 in idle lanes: no 0/0
-      // (x^2 + z^2) + y^2: two independent products, a shorter dependency chain than nested FMAs.
-      const __m512d y2 = _mm512_add_pd(_mm512_fmadd_pd(d2, d2, _mm512_mul_pd(d0, d0)), _mm512_mul_pd(d1, d1));
-      __m512d xi = zero, g = one;
-      if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm512_sqrt_pd(s2);
-      if constexpr (Conical) g = _mm512_max_pd(zero, _mm512_fnmadd_pd(xi, inv_horizon, one));
-      // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in loop_scalar).
-      __m512d ratio = one, y2g = y2;
-      if constexpr (K == ModelKind::Membrane) ratio = _mm512_min_pd(_mm512_div_pd(s2, y2), r_max);
-      else y2g = _mm512_max_pd(y2, _mm512_mul_pd(tiny, s2));
-      __mmask8 reached;  // eq. (11): broken once y^2 >= lambda_0(|xi|)^2 |xi|^2 (eq. 29 if linear)
-      if constexpr (Linear) {
-        const __m512d lc = _mm512_fmadd_pd(crit_slope, xi, crit0);
-        reached = _mm512_mask_cmp_pd_mask(m, y2g, _mm512_mul_pd(_mm512_mul_pd(lc, lc), s2), _CMP_GE_OQ);
-      } else if constexpr (K == ModelKind::Membrane) {
-        reached = _mm512_mask_cmp_pd_mask(m, ratio, inv_crit0_sq, _CMP_LE_OQ);
-      } else {
-        reached = _mm512_mask_cmp_pd_mask(m, y2g, _mm512_mul_pd(crit0_sq, s2), _CMP_GE_OQ);
-      }
-      const __mmask8 was = _mm_mask_test_epi8_mask(m, _mm_maskz_loadu_epi8(m, row_flag + k), bit_broken);
-      const __mmask8 fresh = reached & static_cast<__mmask8>(~was);
-      if (fresh) [[unlikely]] {
-        for (int l = 0; l < 8; ++l)
-          if (fresh >> l & 1) row_flag[k + l] |= kBroken | kJustBroken;
-        newly += __builtin_popcount(fresh);
-      }
-      const __mmask8 intact = m & static_cast<__mmask8>(~(was | reached));
-      __m512d coef;
-      if constexpr (K == ModelKind::Membrane) {
-        __m512d a = _mm512_maskz_loadu_pd(m, sa + k);  // w V_j / xi^2
-        if constexpr (Conical) a = _mm512_mul_pd(g, a);
-        coef = _mm512_maskz_fnmadd_pd(intact, a, _mm512_mul_pd(ratio, ratio), a);  // g wV/xi^2 (1 - r^2)
-        if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g (y^2 - xi^2)^2 / (xi^2 y^2)
-          const __m512d meas = _mm512_maskz_loadu_pd(m, sm + k);
-          const __m512d y2e = _mm512_max_pd(y2, _mm512_mul_pd(tiny, s2));  // as loop_scalar
-          const __m512d e = _mm512_sub_pd(y2e, s2);
-          const __m512d ge = _mm512_mul_pd(c_energy, Conical ? _mm512_mul_pd(g, meas) : meas);
-          w = _mm512_mask_add_pd(w, intact, w, _mm512_div_pd(_mm512_mul_pd(ge, _mm512_mul_pd(e, e)), _mm512_mul_pd(s2, y2e)));
-        }
-      } else {
-        const __m512d meas = _mm512_maskz_loadu_pd(m, sm + k);
-        const __m512d gm = Conical ? _mm512_mul_pd(g, meas) : meas;
-        const __m512d inv_y = reciprocal_sqrt(y2g), inv_xi = _mm512_mask_loadu_pd(one, m, sr + k);
-        coef = _mm512_maskz_mul_pd(intact, gm, _mm512_sub_pd(inv_xi, inv_y));  // c g (1/xi - 1/y)
-        if constexpr (Energy) {  // w = c s^2 |xi| g / 2 = (c/2) g (y - xi)^2 / xi
-          const __m512d stretch = _mm512_sub_pd(_mm512_sqrt_pd(y2g), xi);
-          const __m512d ge = _mm512_mul_pd(c_energy, gm);
-          w = _mm512_mask_add_pd(w, intact, w, _mm512_div_pd(_mm512_mul_pd(ge, _mm512_mul_pd(stretch, stretch)), xi));
-        }
-      }
-      f0 = _mm512_fmadd_pd(coef, d0, f0);
-      f1 = _mm512_fmadd_pd(coef, d1, f1);
-      f2 = _mm512_fmadd_pd(coef, d2, f2);
-    };
-    std::int64_t k = 0;
-    for (; k + 8 <= n; k += 8) chunk(k, __mmask8(0xFF), row_nbr + k);
-    if (k < n) {
-      const auto m = static_cast<__mmask8>((1u << (n - k)) - 1u);
-      alignas(32) std::int32_t tail[8];
-      _mm256_store_si256(reinterpret_cast<__m256i*>(tail), _mm256_maskz_loadu_epi32(m, row_nbr + k));
-      chunk(k, m, tail);
-    }
-    double sums[4];
-    lane_sums(f0, f1, f2, w, sums);
-    force[3 * i] = constants.c_row * sums[0];
-    force[3 * i + 1] = constants.c_row * sums[1];
-    force[3 * i + 2] = constants.c_row * sums[2];
-    if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * sums[3];
-    if (newly) book_breaks(L, v, i, newly, tally);
+  void operator()(const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) const {
+    for (std::int32_t first : rows.blocks)
+      for (std::int32_t l = 0; l < 4; ++l) row(v, first + l, force, tally);
+    for (std::int32_t i : rows.rest) row(v, i, force, tally);
   }
-}
-#endif
+};
 
 #if defined(PERI_AVX2)
-// Lane sums of a, b, c and d in one fixed order: out = {sum a, sum b, sum c, sum d}.
-inline void lane_sums4(__m256d a, __m256d b, __m256d c, __m256d d, double out[4]) {
-  const __m256d ab = _mm256_hadd_pd(a, b);  // a0+a1 b0+b1 a2+a3 b2+b3
-  const __m256d cd = _mm256_hadd_pd(c, d);
-  const __m256d s = _mm256_add_pd(_mm256_permute2f128_pd(ab, cd, 0x20), _mm256_permute2f128_pd(ab, cd, 0x31));
-  _mm256_storeu_pd(out, s);
+// The vector loop (AVX2 + FMA): four rows at a time, one per lane. Lane l walks the bonds of its
+// row in CSR order and sums them in that order (one fused multiply-add per bond and component),
+// so a node's force is the same bits whichever way its row is loaded (a block of four neighbouring
+// rows or a staged group, below) and whichever rank computes it.
+
+// All-ones lanes where bit l of the index is set.
+struct LaneMasks {
+  alignas(32) std::int64_t bits[16][4];
+  constexpr LaneMasks() : bits{} {
+    for (int m = 0; m < 16; ++m)
+      for (int l = 0; l < 4; ++l) bits[m][l] = (m >> l & 1) ? -1 : 0;
+  }
+};
+constexpr LaneMasks kLaneMasks;
+inline __m256d lane_mask(unsigned bits) { return _mm256_load_pd(reinterpret_cast<const double*>(kLaneMasks.bits[bits])); }
+
+// Four bonds, lane l the k-th bond of row l: y = x_j - x_i and the family pattern's slots.
+struct Bonds4 {
+  __m256d d0, d1, d2;
+  __m256d xi2, measure, inv_xi, measure_per_xi2;  // |xi|^2, w V_j, 1/|xi|, w V_j / |xi|^2
+  unsigned dead;  // bit l: lane l's bond is broken already, or lane l is idle
+};
+
+// One bond law on four lanes.
+// Membrane (eq. 15): f_hat / y = 2 c g (1 - r^2) w V_j / xi^2 with r = xi^2 / y^2 = lambda^-2:
+// one division, no square root, and the failure test (eq. 11) is r <= lambda_0^-2.
+// PMB: f_hat / y = c g (1/xi - 1/y). The law's constant c multiplies the row's sum (c_row).
+template <ModelKind K, bool Conical, bool Linear, bool Energy>
+struct Avx2Law {
+  double c_row;
+  __m256d zero, one, c_energy, tiny, r_max, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon;
+  explicit Avx2Law(const BondLaw& L)
+      : c_row(K == ModelKind::Membrane ? 2.0 * L.c : L.c),
+        zero(_mm256_setzero_pd()),
+        one(_mm256_set1_pd(1.0)),
+        c_energy(_mm256_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c)),
+        tiny(_mm256_set1_pd(1e-12)),
+        r_max(_mm256_set1_pd(1e12)),
+        crit0(_mm256_set1_pd(L.critical0)),
+        crit0_sq(_mm256_set1_pd(L.critical0 * L.critical0)),
+        inv_crit0_sq(_mm256_set1_pd(1.0 / (L.critical0 * L.critical0))),  // 0 if unbreakable
+        crit_slope(_mm256_set1_pd(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0)),
+        inv_horizon(_mm256_set1_pd(1.0 / L.horizon)) {}
+
+  // Adds the four bonds to the lane sums f (force / c_row) and w (energy density); returns the
+  // lanes whose bond reaches the failure test now (eq. 11; eq. 29 if linear), which add nothing.
+  __attribute__((always_inline)) unsigned add(const Bonds4& b, __m256d& f0, __m256d& f1, __m256d& f2,
+                                              __m256d& w) const {
+    const __m256d s2 = b.xi2;
+    // (x^2 + z^2) + y^2: two independent products, a shorter dependency chain than nested FMAs.
+    const __m256d y2 = _mm256_add_pd(_mm256_fmadd_pd(b.d2, b.d2, _mm256_mul_pd(b.d0, b.d0)), _mm256_mul_pd(b.d1, b.d1));
+    __m256d xi = zero, g = one;
+    if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm256_sqrt_pd(s2);
+    if constexpr (Conical) g = _mm256_max_pd(zero, _mm256_fnmadd_pd(xi, inv_horizon, one));
+    // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
+    __m256d ratio = one, y2g = y2;
+    if constexpr (K == ModelKind::Membrane) ratio = _mm256_min_pd(_mm256_div_pd(s2, y2), r_max);
+    else y2g = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));
+    __m256d reached;
+    if constexpr (Linear) {
+      const __m256d lc = _mm256_fmadd_pd(crit_slope, xi, crit0);
+      reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(_mm256_mul_pd(lc, lc), s2), _CMP_GE_OQ);
+    } else if constexpr (K == ModelKind::Membrane) {
+      reached = _mm256_cmp_pd(ratio, inv_crit0_sq, _CMP_LE_OQ);
+    } else {
+      reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(crit0_sq, s2), _CMP_GE_OQ);
+    }
+    const unsigned fresh = static_cast<unsigned>(_mm256_movemask_pd(reached)) & ~b.dead & 0xFu;
+    const __m256d dead = _mm256_or_pd(reached, lane_mask(b.dead));  // all ones where the bond adds nothing
+    __m256d coef;
+    if constexpr (K == ModelKind::Membrane) {
+      __m256d a = b.measure_per_xi2;
+      if constexpr (Conical) a = _mm256_mul_pd(g, a);
+      coef = _mm256_andnot_pd(dead, _mm256_fnmadd_pd(a, _mm256_mul_pd(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
+      if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g (y^2 - xi^2)^2 / (xi^2 y^2)
+        const __m256d y2e = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));  // as ScalarLoop
+        const __m256d e = _mm256_sub_pd(y2e, s2);
+        const __m256d ge = _mm256_mul_pd(c_energy, Conical ? _mm256_mul_pd(g, b.measure) : b.measure);
+        w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(e, e)), _mm256_mul_pd(s2, y2e))));
+      }
+    } else {
+      const __m256d gm = Conical ? _mm256_mul_pd(g, b.measure) : b.measure;
+      // 1/y as a square root and a division (AVX2 has no double-precision reciprocal square
+      // root estimate; the single-precision one and three Newton steps ran at 0.64 of this).
+      const __m256d y = _mm256_sqrt_pd(y2g);
+      const __m256d inv_y = _mm256_div_pd(one, y);
+      coef = _mm256_andnot_pd(dead, _mm256_mul_pd(gm, _mm256_sub_pd(b.inv_xi, inv_y)));  // c g (1/xi - 1/y)
+      if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
+        const __m256d stretch = _mm256_sub_pd(y, xi);
+        const __m256d ge = _mm256_mul_pd(c_energy, gm);
+        w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(stretch, stretch)), xi)));
+      }
+    }
+    f0 = _mm256_fmadd_pd(coef, b.d0, f0);
+    f1 = _mm256_fmadd_pd(coef, b.d1, f1);
+    f2 = _mm256_fmadd_pd(coef, b.d2, f2);
+    return fresh;
+  }
+
+  // Writes the rows' force densities and energy (lanes 0 .. count-1) and books their newly broken
+  // bonds (`L`: the law this was built from).
+  void finish(const BondLaw& L, const BondView& v, const std::int32_t rows[4], int count, __m256d f0, __m256d f1,
+              __m256d f2, __m256d w, const int newly[4], double* force, BondTally& tally) const {
+    alignas(32) double s0[4], s1[4], s2[4], se[4];
+    _mm256_store_pd(s0, f0);
+    _mm256_store_pd(s1, f1);
+    _mm256_store_pd(s2, f2);
+    _mm256_store_pd(se, w);
+    for (int l = 0; l < count; ++l) {
+      const std::int32_t i = rows[l];
+      force[3 * i] = c_row * s0[l];
+      force[3 * i + 1] = c_row * s1[l];
+      force[3 * i + 2] = c_row * s2[l];
+      if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * se[l];
+      if (newly[l]) book_breaks(L, v, i, newly[l], tally);
+    }
+  }
+};
+
+// Marks the fresh lanes' bonds (bond k of rows[l], CSR positions flag_row[l] + k) as broken now.
+inline void mark_fresh(unsigned fresh, std::uint8_t* const flag_row[4], std::int64_t k, int newly[4]) {
+  for (int l = 0; l < 4; ++l)
+    if (fresh >> l & 1) {
+      flag_row[l][k] |= kBroken | kJustBroken;
+      ++newly[l];
+    }
 }
 
-// The same bond law four bonds at a time (AVX2 + FMA, for CPUs without AVX-512): the arithmetic
-// of loop_avx512 on 256-bit vectors. Per bond two 128-bit loads of the neighbour's padded position,
-// (x, y) and (z, 0), merged into 256-bit registers and transposed, the family pattern's slots
-// loaded contiguously, the flag byte. Masks are whole-lane bit patterns (all ones = true). PMB:
-// 1/y as a square root and a division (AVX2 has no double-precision reciprocal square root
-// estimate; the single-precision one and three Newton steps ran at 0.64 of this).
-template <ModelKind K, bool Conical, bool Linear, bool Energy>
-void loop_avx2(const BondLaw& L, const BondView& v, const std::int32_t* rows, std::size_t nrows,
-               double* force, BondTally& tally) {
-  const double* __restrict x = v.x;
-  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
-  const VectorLawConstants<K, Linear> constants(L);
-  const __m256d c_energy = _mm256_set1_pd(constants.c_energy);
-  const __m256d tiny = _mm256_set1_pd(1e-12), r_max = _mm256_set1_pd(1e12);
-  const __m256d crit0 = _mm256_set1_pd(constants.crit0), crit0_sq = _mm256_set1_pd(constants.crit0_sq);
-  const __m256d inv_crit0_sq = _mm256_set1_pd(constants.inv_crit0_sq), crit_slope = _mm256_set1_pd(constants.crit_slope);
-  const __m256d inv_horizon = _mm256_set1_pd(constants.inv_horizon);
-  const __m256i bit_broken = _mm256_set1_epi64x(kBroken);
-  for (std::size_t r = 0; r < nrows; ++r) {
-    const std::int32_t i = rows[r];
-    const __m256d xi0 = _mm256_set1_pd(x[4 * i]), xi1 = _mm256_set1_pd(x[4 * i + 1]),
-                  xi2c = _mm256_set1_pd(x[4 * i + 2]);
-    const RowSlices row = row_slices(v, i);
-    const std::int64_t n = row.n;
-    const double *sx = row.xi2, *sm = row.measure, *sr = row.inv_xi, *sa = row.measure_per_xi2;
-    const std::int32_t* __restrict row_nbr = row.neighbor;
-    std::uint8_t* __restrict row_flag = row.flag;
-    __m256d f0 = zero, f1 = zero, f2 = zero, w = zero;
-    int newly = 0;
-    // Four bonds from slot k. Tail: the row's last partial chunk, `live` its lanes (all ones),
-    // jb its neighbour indices, and its pattern slots loaded under the mask.
-    auto chunk = [&]<bool Tail>(std::int64_t k, const std::int32_t* jb, __m256i live, std::uint32_t flags)
-                     __attribute__((always_inline)) {
-      // (x, y) of two neighbours per 256-bit register, transposed in registers.
-      auto xy = [x](std::int32_t j0, std::int32_t j1) {
-        return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j0))),
-                                    _mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j1)), 1);
-      };
-      auto z = [x](std::int32_t j0, std::int32_t j1) {
-        return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j0) + 2)),
-                                    _mm_loadu_pd(x + 4 * static_cast<std::int64_t>(j1) + 2), 1);
-      };
-      const __m256d m0 = xy(jb[0], jb[2]), m1 = xy(jb[1], jb[3]);  // x0 y0 x2 y2 | x1 y1 x3 y3
-      const __m256d n0 = z(jb[0], jb[2]), n1 = z(jb[1], jb[3]);    // z0 0 z2 0 | z1 0 z3 0
-      const __m256d d0 = _mm256_sub_pd(_mm256_unpacklo_pd(m0, m1), xi0);
-      const __m256d d1 = _mm256_sub_pd(_mm256_unpackhi_pd(m0, m1), xi1);
-      const __m256d d2 = _mm256_sub_pd(_mm256_unpacklo_pd(n0, n1), xi2c);
-      __m256d s2;
-      if constexpr (Tail) s2 = _mm256_blendv_pd(one, _mm256_maskload_pd(sx + k, live), _mm256_castsi256_pd(live));
-      else s2 = _mm256_loadu_pd(sx + k);  // 1 in idle lanes: no 0/0
-      auto slots = [&](const double* s) {
-        if constexpr (Tail) return _mm256_maskload_pd(s + k, live);
-        else return _mm256_loadu_pd(s + k);
-      };
-      const __m256d y2 = _mm256_add_pd(_mm256_fmadd_pd(d2, d2, _mm256_mul_pd(d0, d0)), _mm256_mul_pd(d1, d1));
-      __m256d xi = zero, g = one;
-      if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm256_sqrt_pd(s2);
-      if constexpr (Conical) g = _mm256_max_pd(zero, _mm256_fnmadd_pd(xi, inv_horizon, one));
-      __m256d ratio = one, y2g = y2;
-      if constexpr (K == ModelKind::Membrane) ratio = _mm256_min_pd(_mm256_div_pd(s2, y2), r_max);
-      else y2g = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));
-      __m256d reached;  // eq. (11), as in loop_avx512
-      if constexpr (Linear) {
-        const __m256d lc = _mm256_fmadd_pd(crit_slope, xi, crit0);
-        reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(_mm256_mul_pd(lc, lc), s2), _CMP_GE_OQ);
-      } else if constexpr (K == ModelKind::Membrane) {
-        reached = _mm256_cmp_pd(ratio, inv_crit0_sq, _CMP_LE_OQ);
-      } else {
-        reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(crit0_sq, s2), _CMP_GE_OQ);
-      }
-      if constexpr (Tail) reached = _mm256_and_pd(reached, _mm256_castsi256_pd(live));
-      const __m256i flag_lanes = _mm256_cvtepu8_epi64(_mm_cvtsi32_si128(static_cast<int>(flags)));
-      const __m256d was = _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_and_si256(flag_lanes, bit_broken), bit_broken));
-      const int fresh = _mm256_movemask_pd(_mm256_andnot_pd(was, reached));
-      if (fresh) [[unlikely]] {
-        for (int l = 0; l < 4; ++l)
-          if (fresh >> l & 1) row_flag[k + l] |= kBroken | kJustBroken;
-        newly += __builtin_popcount(static_cast<unsigned>(fresh));
-      }
-      __m256d dead = _mm256_or_pd(was, reached);  // all ones where the bond adds nothing
-      if constexpr (Tail) dead = _mm256_or_pd(dead, _mm256_castsi256_pd(_mm256_xor_si256(live, _mm256_set1_epi64x(-1))));
-      __m256d coef;
-      if constexpr (K == ModelKind::Membrane) {
-        __m256d a = slots(sa);  // w V_j / xi^2
-        if constexpr (Conical) a = _mm256_mul_pd(g, a);
-        coef = _mm256_andnot_pd(dead, _mm256_fnmadd_pd(a, _mm256_mul_pd(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
-        if constexpr (Energy) {  // eq. (13), as in loop_avx512
-          const __m256d meas = slots(sm);
-          const __m256d y2e = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));
-          const __m256d e = _mm256_sub_pd(y2e, s2);
-          const __m256d ge = _mm256_mul_pd(c_energy, Conical ? _mm256_mul_pd(g, meas) : meas);
-          w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(e, e)), _mm256_mul_pd(s2, y2e))));
-        }
-      } else {
-        const __m256d meas = slots(sm);
-        const __m256d gm = Conical ? _mm256_mul_pd(g, meas) : meas;
-        __m256d inv_xi;
-        if constexpr (Tail) inv_xi = _mm256_blendv_pd(one, slots(sr), _mm256_castsi256_pd(live));
-        else inv_xi = slots(sr);
-        const __m256d y = _mm256_sqrt_pd(y2g);
-        const __m256d inv_y = _mm256_div_pd(one, y);
-        coef = _mm256_andnot_pd(dead, _mm256_mul_pd(gm, _mm256_sub_pd(inv_xi, inv_y)));  // c g (1/xi - 1/y)
-        if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
-          const __m256d stretch = _mm256_sub_pd(y, xi);
-          const __m256d ge = _mm256_mul_pd(c_energy, gm);
-          w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(stretch, stretch)), xi)));
-        }
-      }
-      f0 = _mm256_fmadd_pd(coef, d0, f0);
-      f1 = _mm256_fmadd_pd(coef, d1, f1);
-      f2 = _mm256_fmadd_pd(coef, d2, f2);
-    };
-    std::int64_t k = 0;
-    const __m256i all = _mm256_set1_epi64x(-1);
-    for (; k + 4 <= n; k += 4) {
-      std::uint32_t flags;
-      std::memcpy(&flags, row_flag + k, 4);
-      chunk.template operator()<false>(k, row_nbr + k, all, flags);
-    }
-    if (k < n) {
-      // Idle lanes repeat the row's last bond (no data-dependent branch); `live` masks them out.
-      std::int32_t tail[4];
-      std::uint32_t flags = 0;
-      for (int l = 0; l < 4; ++l) {
-        const std::int64_t b = std::min<std::int64_t>(k + l, n - 1);
-        tail[l] = row_nbr[b];
-        flags |= static_cast<std::uint32_t>(row_flag[b]) << (8 * l);
-      }
-      const __m256i live = _mm256_cmpgt_epi64(_mm256_set1_epi64x(n - k), _mm256_setr_epi64x(0, 1, 2, 3));
-      chunk.template operator()<true>(k, tail, live, flags);
-    }
-    double sums[4];
-    lane_sums4(f0, f1, f2, w, sums);
-    force[3 * i] = constants.c_row * sums[0];
-    force[3 * i + 1] = constants.c_row * sums[1];
-    force[3 * i + 2] = constants.c_row * sums[2];
-    if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * sums[3];
-    if (newly) book_breaks(L, v, i, newly, tally);
+// A block: rows i .. i+3, one family pattern, the k-th neighbours of the four rows consecutive
+// local nodes j .. j+3 (a run of a grid row). Per four bonds: one vector load of each coordinate
+// plane at j, the pattern's slots broadcast, the four flag bytes (a row apart) as lane bits.
+template <bool Intact, class Law>
+void block_avx2(const Law& law, const BondLaw& L, const BondView& v, std::int32_t i, double* force, BondTally& tally) {
+  const FamilyPatterns& P = *v.patterns;
+  const double* __restrict px = v.x;
+  const double* __restrict py = v.x + v.x_stride;
+  const double* __restrict pz = v.x + 2 * v.x_stride;
+  const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0, slot0 = P.begin[P.of_row[i]];
+  const double *sx = P.xi2.data() + slot0, *sm = P.measure.data() + slot0, *sr = P.inv_xi.data() + slot0,
+               *sa = P.measure_per_xi2.data() + slot0;
+  const std::int32_t* __restrict nbr = v.neighbor + b0;
+  std::uint8_t* const flag_row[4] = {v.broken + b0, v.broken + b0 + n, v.broken + b0 + 2 * n, v.broken + b0 + 3 * n};
+  const std::uint8_t *fl0 = flag_row[0], *fl1 = flag_row[1], *fl2 = flag_row[2], *fl3 = flag_row[3];
+  const __m256d xi0 = _mm256_loadu_pd(px + i), xi1 = _mm256_loadu_pd(py + i), xi2 = _mm256_loadu_pd(pz + i);
+  __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
+  int newly[4] = {0, 0, 0, 0};
+  for (std::int64_t k = 0; k < n; ++k) {
+    const std::int64_t j = nbr[k];
+    Bonds4 b;
+    b.d0 = _mm256_sub_pd(_mm256_loadu_pd(px + j), xi0);
+    b.d1 = _mm256_sub_pd(_mm256_loadu_pd(py + j), xi1);
+    b.d2 = _mm256_sub_pd(_mm256_loadu_pd(pz + j), xi2);
+    b.xi2 = _mm256_broadcast_sd(sx + k);
+    b.measure = _mm256_broadcast_sd(sm + k);
+    b.inv_xi = _mm256_broadcast_sd(sr + k);
+    b.measure_per_xi2 = _mm256_broadcast_sd(sa + k);
+    if constexpr (Intact) b.dead = 0;
+    else b.dead = (fl0[k] & kBroken) | (fl1[k] & kBroken) << 1 | (fl2[k] & kBroken) << 2 | (fl3[k] & kBroken) << 3;
+    const unsigned fresh = law.add(b, f0, f1, f2, w);
+    if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
   }
+  const std::int32_t rows[4] = {i, i + 1, i + 2, i + 3};
+  law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
+}
+
+// Any one to four rows (`count`), one per lane: each lane's neighbour positions and pattern slots
+// gathered element by element, evaluated by the same law as a block. A lane past its row's end
+// (or past `count`) repeats its last bond, flagged dead.
+template <class Law>
+void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::int32_t* group, int count,
+                double* force, BondTally& tally) {
+  const FamilyPatterns& P = *v.patterns;
+  const double* px = v.x;
+  const double* py = v.x + v.x_stride;
+  const double* pz = v.x + 2 * v.x_stride;
+  std::int32_t rows[4];
+  std::int64_t n[4], b0[4], slot0[4], nmax = 0;
+  std::uint8_t* flag_row[4];
+  for (int l = 0; l < 4; ++l) {
+    rows[l] = group[std::min(l, count - 1)];
+    b0[l] = v.offsets[rows[l]];
+    n[l] = v.offsets[rows[l] + 1] - b0[l];
+    slot0[l] = P.begin[P.of_row[rows[l]]];
+    flag_row[l] = v.broken + b0[l];
+    if (l < count) nmax = std::max(nmax, n[l]);
+  }
+  const unsigned idle = 0xFu & ~((1u << count) - 1u);
+  const __m256d xi0 = _mm256_setr_pd(px[rows[0]], px[rows[1]], px[rows[2]], px[rows[3]]);
+  const __m256d xi1 = _mm256_setr_pd(py[rows[0]], py[rows[1]], py[rows[2]], py[rows[3]]);
+  const __m256d xi2 = _mm256_setr_pd(pz[rows[0]], pz[rows[1]], pz[rows[2]], pz[rows[3]]);
+  __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
+  int newly[4] = {0, 0, 0, 0};
+  for (std::int64_t k = 0; k < nmax; ++k) {
+    std::int64_t b[4], s[4];
+    std::int32_t j[4];
+    unsigned dead = idle;
+    for (int l = 0; l < 4; ++l) {
+      const std::int64_t kk = std::min(k, n[l] - 1);
+      b[l] = b0[l] + kk;
+      s[l] = slot0[l] + kk;
+      j[l] = v.neighbor[b[l]];
+      dead |= (static_cast<unsigned>(k != kk) | (v.broken[b[l]] & kBroken)) << l;
+    }
+    auto gather = [&](const double* a, const auto* at) {
+      return _mm256_setr_pd(a[at[0]], a[at[1]], a[at[2]], a[at[3]]);
+    };
+    Bonds4 bonds;
+    bonds.d0 = _mm256_sub_pd(gather(px, j), xi0);
+    bonds.d1 = _mm256_sub_pd(gather(py, j), xi1);
+    bonds.d2 = _mm256_sub_pd(gather(pz, j), xi2);
+    bonds.xi2 = gather(P.xi2.data(), s);
+    bonds.measure = gather(P.measure.data(), s);
+    bonds.inv_xi = gather(P.inv_xi.data(), s);
+    bonds.measure_per_xi2 = gather(P.measure_per_xi2.data(), s);
+    bonds.dead = dead;
+    const unsigned fresh = law.add(bonds, f0, f1, f2, w);
+    if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
+  }
+  law.finish(L, v, rows, count, f0, f1, f2, w, newly, force, tally);
+}
+
+template <ModelKind K, bool Conical, bool Linear, bool Energy>
+void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) {
+  const Avx2Law<K, Conical, Linear, Energy> law(L);
+  const std::size_t nblocks = rows.blocks.size();
+  constexpr std::size_t kAhead = 2;  // blocks ahead (1, 2 and 4 measured alike)
+  for (std::size_t q = 0; q < nblocks; ++q) {
+    const std::int32_t first = rows.blocks[q];
+    // A block reads a quarter of the CSR neighbour stream (lane 0's row), a pattern the hardware
+    // prefetcher does not follow: fetch the next block's row and flags while this one runs.
+    if (q + kAhead < nblocks) {
+      const std::int32_t next = rows.blocks[q + kAhead];
+      const char* nbr = reinterpret_cast<const char*>(v.neighbor + v.offsets[next]);
+      const char* nbr_end = reinterpret_cast<const char*>(v.neighbor + v.offsets[next + 1]);
+      for (const char* p = nbr; p < nbr_end; p += 64) _mm_prefetch(p, _MM_HINT_T0);
+      const char* fl = reinterpret_cast<const char*>(v.broken + v.offsets[next]);
+      const char* fl_end = reinterpret_cast<const char*>(v.broken + v.offsets[next + 4]);
+      for (const char* p = fl; p < fl_end; p += 64) _mm_prefetch(p, _MM_HINT_T0);
+    }
+    // Blocks without a broken bond (most, in most runs) skip the flag bytes.
+    const std::uint8_t* flags = v.broken + v.offsets[first];
+    const std::int64_t nflags = v.offsets[first + 4] - v.offsets[first];
+    std::uint8_t any = 0;
+    for (std::int64_t b = 0; b < nflags; ++b) any |= flags[b];
+    if (any) block_avx2<false>(law, L, v, first, force, tally);
+    else block_avx2<true>(law, L, v, first, force, tally);
+  }
+  const std::size_t nrest = rows.rest.size();
+  for (std::size_t r = 0; r < nrest; r += 4)
+    group_avx2(law, L, v, rows.rest.data() + r, static_cast<int>(std::min<std::size_t>(4, nrest - r)), force,
+               tally);
 }
 #endif
 
 template <ModelKind K, bool Conical, bool Linear, bool Hard, bool Energy>
-void loop(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t n, double* force,
-          BondTally& t) {
-#if defined(PERI_AVX512)
+void loop(const BondLaw& law, const BondView& v, const RowBlocks& rows, double* force, BondTally& t) {
+#if defined(PERI_AVX2)
   if constexpr (!Hard)
-    if (v.patterns) return loop_avx512<K, Conical, Linear, Energy>(law, v, rows, n, force, t);
-#elif defined(PERI_AVX2)
-  if constexpr (!Hard)
-    if (v.patterns) return loop_avx2<K, Conical, Linear, Energy>(law, v, rows, n, force, t);
+    if (v.patterns) return loop_avx2<K, Conical, Linear, Energy>(law, v, rows, force, t);
 #endif
-  loop_scalar<K, Conical, Linear, Hard, Energy>(law, v, rows, n, force, t);
+  const ScalarLoop<K, Conical, Linear, Hard, Energy> scalar{law};
+  scalar(v, rows, force, t);
 }
 
 template <ModelKind K, bool Conical, bool Linear, bool Hard>
-void dispatch_tail(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t n,
-                   double* force, bool energy, BondTally& t) {
-  if (energy) loop<K, Conical, Linear, Hard, true>(law, v, rows, n, force, t);
-  else loop<K, Conical, Linear, Hard, false>(law, v, rows, n, force, t);
+void dispatch_tail(const BondLaw& law, const BondView& v, const RowBlocks& rows, double* force, bool energy,
+                   BondTally& t) {
+  if (energy) loop<K, Conical, Linear, Hard, true>(law, v, rows, force, t);
+  else loop<K, Conical, Linear, Hard, false>(law, v, rows, force, t);
 }
 
 template <ModelKind K, bool Conical>
-void dispatch_linear(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t n,
-                     double* force, bool energy, BondTally& t) {
+void dispatch_linear(const BondLaw& law, const BondView& v, const RowBlocks& rows, double* force, bool energy,
+                     BondTally& t) {
   const bool hard = K == ModelKind::Membrane && law.hardening;
   if (law.linear_critical) {
-    if (hard) dispatch_tail<K, Conical, true, true>(law, v, rows, n, force, energy, t);
-    else dispatch_tail<K, Conical, true, false>(law, v, rows, n, force, energy, t);
+    if (hard) dispatch_tail<K, Conical, true, true>(law, v, rows, force, energy, t);
+    else dispatch_tail<K, Conical, true, false>(law, v, rows, force, energy, t);
   } else {
-    if (hard) dispatch_tail<K, Conical, false, true>(law, v, rows, n, force, energy, t);
-    else dispatch_tail<K, Conical, false, false>(law, v, rows, n, force, energy, t);
+    if (hard) dispatch_tail<K, Conical, false, true>(law, v, rows, force, energy, t);
+    else dispatch_tail<K, Conical, false, false>(law, v, rows, force, energy, t);
   }
 }
 
 template <ModelKind K>
-void dispatch_conical(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t n,
-                      double* force, bool energy, BondTally& t) {
-  if (law.conical) dispatch_linear<K, true>(law, v, rows, n, force, energy, t);
-  else dispatch_linear<K, false>(law, v, rows, n, force, energy, t);
+void dispatch_conical(const BondLaw& law, const BondView& v, const RowBlocks& rows, double* force, bool energy,
+                      BondTally& t) {
+  if (law.conical) dispatch_linear<K, true>(law, v, rows, force, energy, t);
+  else dispatch_linear<K, false>(law, v, rows, force, energy, t);
 }
 
 }  // namespace
 
 const char* bond_kernel_isa() {
-#if defined(PERI_AVX512)
-  return "avx512";
-#elif defined(PERI_AVX2)
+#if defined(PERI_AVX2)
   return "avx2";
 #else
   return "portable";
 #endif
 }
 
-void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end, double* x) {
-  for (std::int64_t i = begin; i < end; ++i) {
-    for (int c = 0; c < 3; ++c) x[4 * i + c] = X[3 * i + c] + u[3 * i + c];
-    x[4 * i + 3] = 0.0;
+void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
+                       std::int64_t stride, double* x) {
+  for (int c = 0; c < 3; ++c) {
+    double* __restrict plane = x + c * stride;
+    for (std::int64_t i = begin; i < end; ++i) plane[i] = X[3 * i + c] + u[3 * i + c];
   }
 }
 
-void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* rows,
-                 std::size_t nrows, double* force, bool with_energy, BondTally& tally) {
+RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nrows) {
+  RowBlocks plan;
+  auto block_at = [&](std::size_t r) {
+    if (!v.patterns || r + 4 > nrows) return false;
+    const std::int32_t i = rows[r];
+    const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
+    for (std::int32_t l = 1; l < 4; ++l) {
+      if (rows[r + l] != i + l || v.patterns->of_row[i + l] != v.patterns->of_row[i]) return false;
+      const std::int64_t bl = v.offsets[i + l];
+      if (v.offsets[i + l + 1] - bl != n) return false;
+      for (std::int64_t k = 0; k < n; ++k)
+        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + l) return false;
+    }
+    return true;
+  };
+  for (std::size_t r = 0; r < nrows;) {
+    if (block_at(r)) {
+      plan.blocks.push_back(rows[r]);
+      r += 4;
+    } else {
+      plan.rest.push_back(rows[r++]);
+    }
+  }
+  return plan;
+}
+
+void bond_forces(const BondLaw& law, const BondView& view, const RowBlocks& rows, double* force,
+                 bool with_energy, BondTally& tally) {
   if (law.kind == ModelKind::Membrane)
-    dispatch_conical<ModelKind::Membrane>(law, view, rows, nrows, force, with_energy, tally);
+    dispatch_conical<ModelKind::Membrane>(law, view, rows, force, with_energy, tally);
   else
-    dispatch_conical<ModelKind::PMB>(law, view, rows, nrows, force, with_energy, tally);
+    dispatch_conical<ModelKind::PMB>(law, view, rows, force, with_energy, tally);
+}
+
+void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* rows, std::size_t nrows,
+                 double* force, bool with_energy, BondTally& tally) {
+  bond_forces(law, view, plan_rows(view, rows, nrows), force, with_energy, tally);
 }
 
 double bond_energy(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows) {

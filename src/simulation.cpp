@@ -217,6 +217,16 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   for (std::int32_t r : domain_.interior_rows) interior_by_body_[domain_.body[r]].push_back(r);
   for (std::int32_t r : domain_.boundary_rows) boundary_by_body_[domain_.body[r]].push_back(r);
   lattice_setup();
+  interior_plan_.resize(nb);
+  boundary_plan_.resize(nb);
+  {
+    const BondView topology = bond_view();
+    for (std::size_t b = 0; b < nb; ++b) {
+      if (marder_[b]) continue;
+      interior_plan_[b] = plan_rows(topology, interior_by_body_[b].data(), interior_by_body_[b].size());
+      boundary_plan_[b] = plan_rows(topology, boundary_by_body_[b].data(), boundary_by_body_[b].size());
+    }
+  }
   inv_density_.resize(domain_.owned);
   mass_.resize(domain_.owned);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
@@ -235,7 +245,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     MPI_Allreduce(&local, &energy_floor_, 1, MPI_DOUBLE, MPI_SUM, comm_);
   }
   force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
-  positions_.assign(4 * static_cast<std::size_t>(domain_.local()), 0.0);
+  positions_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);
   damage_.assign(domain_.owned, 0.0);
   // Boundary nodes' per-step figures (increment, old velocity, force at the start of the step)
   // are kept for those nodes only: slot s of bc_slot_ for node i, 3 components each.
@@ -435,7 +445,7 @@ Simulation::~Simulation() = default;
 BondView Simulation::bond_view() {
   return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
                   domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
-                  positions_.data()};
+                  positions_.data(), domain_.local()};
 }
 
 std::vector<std::string> Simulation::derived_lines() const {
@@ -498,11 +508,9 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     std::optional<LocalArray> vel;
     if (has_kelvin_) vel.emplace(state_->velocity());
     view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, positions_.data());
+    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, domain_.local(), positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
-      if (!marder_[b])
-        bond_forces(laws[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(),
-                    force_.data(), with_energy, t);
+      if (!marder_[b]) bond_forces(laws[b], view, interior_plan_[b], force_.data(), with_energy, t);
     if (has_lattice_) lattice_forces(view, true, with_energy, t, vel ? vel->data() : nullptr);
   }
   PetscLogEventBegin(events().halo, 0, 0, 0, 0);
@@ -513,11 +521,9 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     std::optional<LocalArray> vel;
     if (has_kelvin_) vel.emplace(state_->velocity());
     view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), positions_.data());
+    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), domain_.local(), positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
-      if (!marder_[b])
-        bond_forces(laws[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(),
-                    force_.data(), with_energy, t);
+      if (!marder_[b]) bond_forces(laws[b], view, boundary_plan_[b], force_.data(), with_energy, t);
     if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
   }
   if (has_lattice_) lattice_reduce();
@@ -647,7 +653,7 @@ void Simulation::add_tool_forces(double t, bool book) {
   for (std::size_t k = 0; k < tools_.size(); ++k) {
     const RigidCylinder& tool = tools_[k];
     ContactTally c;
-    cylinder_contact(tool, t, dt_, positions_.data(), v, domain_.volume.data(), inv_density_.data(), domain_.owned,
+    cylinder_contact(tool, t, dt_, positions_.data(), domain_.local(), v, domain_.volume.data(), inv_density_.data(), domain_.owned,
                      force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
     tally_.strain_energy += c.energy;
     // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.

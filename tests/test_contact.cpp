@@ -24,7 +24,8 @@ RigidCylinder tool(double friction) {
 
 // Three nodes at t = 1e-4: inside at radius 0.5 mm (+x of the axis), inside at 0.8 mm (+y), outside.
 struct Nodes {
-  std::vector<double> x{2e-4 + 5e-4, 0, 0, 0, 2e-4, 8e-4, 1e-5, 0, 2e-4 + 1.5e-3, 0, 0, 0};
+  // Positions as planes (x of the three nodes, then y, then z: current_positions' layout).
+  std::vector<double> x{2e-4 + 5e-4, 2e-4, 2e-4 + 1.5e-3, 0, 8e-4, 0, 0, 1e-5, 0};
   std::vector<double> v{2.0, 3.0, -1.0, 2.0, 0.0, 0.0, 9.0, 9.0, 9.0};  // node 0 slides along y and z
   std::vector<double> volume{2e-10, 3e-10, 4e-10};
   std::vector<double> inv_density{1.0 / 1200, 1.0 / 1000, 1.0 / 1200};
@@ -35,7 +36,7 @@ TEST(Contact, PenaltyNormalForceAndEnergy) {
   Nodes n;
   std::vector<double> f(9, 0.0);
   ContactTally tally;
-  cylinder_contact(t, 1e-4, 1e-7, n.x.data(), n.v.data(), n.volume.data(), n.inv_density.data(), 3, f.data(), tally);
+  cylinder_contact(t, 1e-4, 1e-7, n.x.data(), 3, n.v.data(), n.volume.data(), n.inv_density.data(), 3, f.data(), tally);
   EXPECT_EQ(tally.nodes, 2);
   // Node 0: depth 0.5 mm along +x: rho k p = 1200 * 1e12 * 5e-4.
   EXPECT_NEAR(f[0], 1200 * 1e12 * 5e-4, 1e-9 * 1200 * 1e12 * 5e-4);
@@ -60,7 +61,7 @@ TEST(Contact, CoulombFrictionOpposesTangentialSlidingAndIsCapped) {
     const RigidCylinder t = tool(mu);
     std::vector<double> f(9, 0.0);
     ContactTally tally;
-    cylinder_contact(t, 1e-4, dt, n.x.data(), n.v.data(), n.volume.data(), n.inv_density.data(), 3, f.data(), tally);
+    cylinder_contact(t, 1e-4, dt, n.x.data(), 3, n.v.data(), n.volume.data(), n.inv_density.data(), 3, f.data(), tally);
     ASSERT_EQ(tally.friction.size(), 1u);  // node 1 does not move relative to the tool's surface
     const NodeFriction& nf = tally.friction[0];
     EXPECT_EQ(nf.node, 0);
@@ -80,7 +81,7 @@ TEST(Contact, CoulombFrictionOpposesTangentialSlidingAndIsCapped) {
     // The same friction given back (a resumed run) gives the same forces, bit for bit.
     std::vector<double> g(9, 0.0);
     ContactTally again;
-    cylinder_contact(t, 1e-4, dt, n.x.data(), n.v.data(), n.volume.data(), n.inv_density.data(), 3, g.data(), again,
+    cylinder_contact(t, 1e-4, dt, n.x.data(), 3, n.v.data(), n.volume.data(), n.inv_density.data(), 3, g.data(), again,
                      &tally.friction);
     EXPECT_EQ(f, g);
     EXPECT_EQ(again.force[0], tally.force[0]);

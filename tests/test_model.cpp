@@ -261,7 +261,7 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   PatternBuilder builder;
   builder.add_row(xi2, measure, 1.3);
   const FamilyPatterns patterns = builder.finish();
-  std::vector<double> x(4 * n);
+  std::vector<double> x(3 * n);
   std::vector<BondLaw> laws(4);
   for (auto& l : laws) {
     l.c = 2.0;
@@ -274,8 +274,8 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   laws[3].kind = ModelKind::PMB;
   const std::int32_t row = 0;
   for (const BondLaw& law : laws) {
-    BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), &patterns, x.data()};
-    current_positions(X.data(), u.data(), 0, n, x.data());
+    BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), &patterns, x.data(), n};
+    current_positions(X.data(), u.data(), 0, n, n, x.data());
     std::vector<double> F(3 * n, 0.0);
     BondTally t;
     bond_forces(law, v, &row, 1, F.data(), true, t);
@@ -304,24 +304,24 @@ TEST(Forces, BreakingIsIrreversibleAndBooksEnergy) {
   law.horizon = 2;
   law.breaks = true;
   law.critical0 = law.critical_delta = 2.0;
-  std::vector<double> x(8);
-  BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), nullptr, x.data()};
+  std::vector<double> x(6);
+  BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), nullptr, x.data(), 2};
   std::vector<double> F(6);
   const std::int32_t row = 0;
   BondTally t;
-  current_positions(X.data(), u.data(), 0, 2, x.data());
+  current_positions(X.data(), u.data(), 0, 2, 2, x.data());
   bond_forces(law, v, &row, 1, F.data(), false, t);
   EXPECT_EQ(broken[0], 0);
   EXPECT_GT(F[0], 0);
   u[3] = 1.0;  // stretch exactly lambda_0 = 2: breaks (eq. 11: intact only while lambda < lambda_0)
-  current_positions(X.data(), u.data(), 0, 2, x.data());
+  current_positions(X.data(), u.data(), 0, 2, 2, x.data());
   bond_forces(law, v, &row, 1, F.data(), false, t);
   EXPECT_EQ(broken[0], 1);
   EXPECT_EQ(F[0], 0.0);
   EXPECT_EQ(t.newly_broken, 1);
   EXPECT_NEAR(t.dissipated, 0.5 * law.energy(1.0, 4.0), 1e-15);  // half per end
   u[3] = 0.0;  // back to the reference length: stays broken
-  current_positions(X.data(), u.data(), 0, 2, x.data());
+  current_positions(X.data(), u.data(), 0, 2, 2, x.data());
   bond_forces(law, v, &row, 1, F.data(), false, t);
   EXPECT_EQ(broken[0], 1);
   EXPECT_EQ(F[0], 0.0);
@@ -355,15 +355,15 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
     laws[3].critical_delta = laws[2].critical_delta;
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
-    std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(4 * static_cast<std::size_t>(d.local()));
+    std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(3 * static_cast<std::size_t>(d.local()));
     for (double& c : u) c = 4e-6 * U(rng);  // strains up to about 1%: some bonds break
-    current_positions(d.X.data(), u.data(), 0, d.local(), x.data());
+    current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
     std::vector<std::int32_t> rows(d.owned);
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
     for (const BondLaw& law : laws) {
       std::vector<std::uint8_t> broken(d.bonds.broken.size(), 0);
       BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
-                 broken.data(), &d.bonds.patterns, x.data()};
+                 broken.data(), &d.bonds.patterns, x.data(), d.local()};
       std::vector<double> F(3 * static_cast<std::size_t>(d.owned));
       BondTally t;
       bond_forces(law, v, rows.data(), rows.size(), F.data(), true, t);
@@ -374,8 +374,8 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
         for (std::int64_t b = d.bonds.offsets[i]; b < d.bonds.offsets[i + 1]; ++b) {
           const std::int32_t j = d.bonds.neighbor[b];
           double xi[3], r[3], raw_xi2 = 0, y2 = 0;
+          reference_offset(nodes.bodies[0], &d.X[3 * i], &d.X[3 * j], xi);
           for (int c = 0; c < 3; ++c) {
-            xi[c] = d.X[3 * j + c] - d.X[3 * i + c];
             r[c] = xi[c] + u[3 * j + c] - u[3 * i + c];
             raw_xi2 += xi[c] * xi[c];
             y2 += r[c] * r[c];

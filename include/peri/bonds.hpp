@@ -38,6 +38,13 @@ class CellList {
   std::vector<std::int64_t> sorted_;  // node ids grouped by cell, natural order inside a cell
 };
 
+/// Reference bond vector xi = X_j - X_i snapped to the body's lattice: each component the nearest
+/// integer multiple of the grid's unit along it (dx on square and cubic grids; dx/2 and
+/// dx sqrt(3)/2 along x and y on hexagonal ones). The raw differences of the stored coordinates
+/// vary in their last bits from row to row; snapped, every row of a grid sees the same offsets,
+/// weights and family patterns bit for bit wherever it sits, and xi(j, i) == -xi(i, j).
+void reference_offset(const BodyGeometry& g, const double* Xi, const double* Xj, double xi[3]);
+
 /// Quadrature weight of neighbour j (reference offset xi from i) in body geometry g: the fraction
 /// of j's cell inside the horizon disc/ball of i (1 for Quadrature::Full inside, 0 outside).
 /// Symmetric: weight(xi) == weight(-xi) bit for bit.

@@ -32,7 +32,7 @@ struct ContactTally {
 };
 
 /// Adds the tool's contact force densities to `force` (stride 3) for nodes [0, n) at time t.
-/// x: current positions (stride 4: x, y, z, pad); v: velocities (stride 3, the half-step
+/// x: current positions (planes x, y, ... `x_stride` apart, as current_positions); v: velocities (stride 3, the half-step
 /// velocities of velocity Verlet); volume and inv_density per node; dt the time step.
 /// Normal: rho k p along the outward radial direction (p the depth inside the cylinder).
 /// Friction (Coulomb, regularized for an explicit step): opposite to the velocity relative to
@@ -43,9 +43,9 @@ struct ContactTally {
 /// With `given` (sorted by node), friction is not computed but taken from it (nodes not listed
 /// get none): a run resumed from a checkpoint applies the friction forces the interrupted run
 /// computed from its half-step velocities, which a checkpoint does not hold.
-void cylinder_contact(const RigidCylinder& tool, double time, double dt, const double* x, const double* v,
-                      const double* volume, const double* inv_density, std::int32_t n, double* force,
-                      ContactTally& tally, const std::vector<NodeFriction>* given = nullptr);
+void cylinder_contact(const RigidCylinder& tool, double time, double dt, const double* x, std::int64_t x_stride,
+                      const double* v, const double* volume, const double* inv_density, std::int32_t n,
+                      double* force, ContactTally& tally, const std::vector<NodeFriction>* given = nullptr);
 
 /// Work done on the nodes over one step of length dt by the friction forces of `tally`, with v the
 /// velocities at the end of the step (the mean of the two half-step velocities the force acts

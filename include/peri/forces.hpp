@@ -20,7 +20,8 @@ struct BondView {
   const std::int32_t* neighbor = nullptr;
   std::uint8_t* broken = nullptr;
   const FamilyPatterns* patterns = nullptr;  ///< nullptr: |xi|^2 from X, measure V_j (weight 1)
-  const double* x = nullptr;        ///< 4 * local current positions (X + u, 0) (bond_forces only)
+  const double* x = nullptr;        ///< current positions, three planes (bond_forces only)
+  std::int64_t x_stride = 0;        ///< doubles from one plane of x to the next
 
   /// Reference |xi|^2 of bond b of row i.
   double xi2(std::int32_t i, std::int64_t b) const noexcept {
@@ -35,9 +36,27 @@ struct BondView {
   }
 };
 
-/// Current positions x = X + u of local nodes [begin, end), padded to four doubles per node
-/// (x, y, z, 0) so the kernel loads a neighbour with one vector load (what bond_forces reads).
-void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end, double* x);
+/// Current positions x = X + u of local nodes [begin, end) as three planes, `stride` doubles apart
+/// (x of every node, then y, then z: what bond_forces reads). The vector loop loads the x of four
+/// consecutive nodes with one load.
+void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
+                       std::int64_t stride, double* x);
+
+/// A list of owned rows grouped for the vector loop. `blocks`: the first row of each run of four
+/// consecutive local rows that share a family pattern and whose k-th neighbours are four
+/// consecutive local nodes for every k (interior runs of a grid row, in the natural order a
+/// partition keeps): the loop loads their neighbours' positions with one vector load per
+/// coordinate. `rest`: every other row (edges, partition boundaries, irregular node sets), which
+/// the loop copies into lanes first. Each row's force is the same bits either way.
+struct RowBlocks {
+  std::vector<std::int32_t> blocks;
+  std::vector<std::int32_t> rest;
+  std::size_t rows() const { return 4 * blocks.size() + rest.size(); }
+};
+
+/// Groups `rows` (in their order) into blocks and the rest. O(bonds); the bond topology never
+/// changes (bonds only break), so callers plan once and reuse the plan every step.
+RowBlocks plan_rows(const BondView& view, const std::int32_t* rows, std::size_t nrows);
 
 /// Sums a bond loop produces (this rank's owned rows).
 struct BondTally {
@@ -54,14 +73,17 @@ struct BondTally {
   }
 };
 
-/// The vector loop this build runs for bond laws without hardening: "avx512", "avx2" (AVX2 + FMA)
-/// or "portable" (the scalar loop, which also serves hardening laws). Chosen at compile time
-/// (-march); the paths agree to round-off, and each is bit-identical on any rank count.
+/// The vector loop this build runs for bond laws without hardening: "avx2" (AVX2 + FMA, also on
+/// CPUs with AVX-512) or "portable" (the scalar loop, which also serves hardening laws). Chosen at
+/// compile time (-march); the paths agree to round-off, and each is bit-identical on any rank count.
 const char* bond_kernel_isa();
 
 /// Force densities (N/m^3) on `rows`, written to force[3*row..]; bonds reaching the failure test
 /// are broken (irreversibly) first. With `with_energy`, strain energy is summed too. Reads the
 /// current positions `view.x` (of the rows and their neighbours) and the family patterns.
+void bond_forces(const BondLaw& law, const BondView& view, const RowBlocks& rows, double* force,
+                 bool with_energy, BondTally& tally);
+/// The same for a plain list of rows (plans it first: for tests and one-off calls).
 void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* rows,
                  std::size_t nrows, double* force, bool with_energy, BondTally& tally);
 

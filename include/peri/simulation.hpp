@@ -197,10 +197,11 @@ class Simulation : public EquilibriumModel {
   bool stage_started_ = false;
   std::vector<double> density_;         // per body
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
+  std::vector<RowBlocks> interior_plan_, boundary_plan_;  // the same rows grouped for the bond loop
   std::vector<double> inv_density_, mass_;  // per owned node
   std::vector<double> force_;               // force densities, 3 * owned
   double energy_floor_ = 0;                 // smallest energy scale of the balance (sum m c_l^2 1e-20)
-  std::vector<double> positions_;           // current positions (X + u, 0), 4 * local (bond kernel input)
+  std::vector<double> positions_;           // current positions X + u, planes x, y, z of local() each (bond kernel input)
   std::vector<RigidCylinder> tools_;        // scene tools, stiffness per unit mass
   std::vector<ContactTally> tool_contact_;  // per tool: this rank's contact at time_ (forces, friction)
   std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
