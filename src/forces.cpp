@@ -252,10 +252,12 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, std::int32_
   law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
 }
 
-// Any one to four rows (`count`), one per lane: each lane's neighbour positions and pattern slots
-// gathered element by element, evaluated by the same law as a block. A lane past its row's end
-// (or past `count`) repeats its last bond, flagged dead.
-template <class Law>
+// Any one to four rows (`count`), one per lane: each lane's neighbour positions gathered element
+// by element, evaluated by the same law as a block. `Shared`: four rows of one family pattern
+// (plan_rows sorts the other rows by pattern), whose slots are broadcast as in a block; otherwise
+// the slots are gathered too, and a lane past its row's end (or past `count`) repeats its last
+// bond, flagged dead.
+template <bool Shared, class Law>
 void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::int32_t* group, int count,
                 double* force, BondTally& tally) {
   const FamilyPatterns& P = *v.patterns;
@@ -284,7 +286,7 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
     std::int32_t j[4];
     unsigned dead = idle;
     for (int l = 0; l < 4; ++l) {
-      const std::int64_t kk = std::min(k, n[l] - 1);
+      const std::int64_t kk = Shared ? k : std::min(k, n[l] - 1);
       b[l] = b0[l] + kk;
       s[l] = slot0[l] + kk;
       j[l] = v.neighbor[b[l]];
@@ -293,14 +295,18 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
     auto gather = [&](const double* a, const auto* at) {
       return _mm256_setr_pd(a[at[0]], a[at[1]], a[at[2]], a[at[3]]);
     };
+    auto slots = [&](const std::vector<double>& a) {
+      if constexpr (Shared) return _mm256_broadcast_sd(a.data() + s[0]);
+      else return gather(a.data(), s);
+    };
     Bonds4 bonds;
     bonds.d0 = _mm256_sub_pd(gather(px, j), xi0);
     bonds.d1 = _mm256_sub_pd(gather(py, j), xi1);
     bonds.d2 = _mm256_sub_pd(gather(pz, j), xi2);
-    bonds.xi2 = gather(P.xi2.data(), s);
-    bonds.measure = gather(P.measure.data(), s);
-    bonds.inv_xi = gather(P.inv_xi.data(), s);
-    bonds.measure_per_xi2 = gather(P.measure_per_xi2.data(), s);
+    bonds.xi2 = slots(P.xi2);
+    bonds.measure = slots(P.measure);
+    bonds.inv_xi = slots(P.inv_xi);
+    bonds.measure_per_xi2 = slots(P.measure_per_xi2);
     bonds.dead = dead;
     const unsigned fresh = law.add(bonds, f0, f1, f2, w);
     if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
@@ -335,9 +341,15 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
     else block_avx2<true>(law, L, v, first, force, tally);
   }
   const std::size_t nrest = rows.rest.size();
-  for (std::size_t r = 0; r < nrest; r += 4)
-    group_avx2(law, L, v, rows.rest.data() + r, static_cast<int>(std::min<std::size_t>(4, nrest - r)), force,
-               tally);
+  const FamilyPatterns& P = *v.patterns;
+  for (std::size_t r = 0; r < nrest; r += 4) {
+    const std::int32_t* group = rows.rest.data() + r;
+    const int count = static_cast<int>(std::min<std::size_t>(4, nrest - r));
+    const bool shared = count == 4 && P.of_row[group[0]] == P.of_row[group[1]] &&
+                        P.of_row[group[0]] == P.of_row[group[2]] && P.of_row[group[0]] == P.of_row[group[3]];
+    if (shared) group_avx2<true>(law, L, v, group, count, force, tally);
+    else group_avx2<false>(law, L, v, group, count, force, tally);
+  }
 }
 #endif
 
@@ -419,6 +431,12 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
       plan.rest.push_back(rows[r++]);
     }
   }
+  // The rest by family pattern (stable: in list order within one), so that most groups of four
+  // share a pattern and the loop broadcasts its slots (the order does not change any row's sum).
+  if (v.patterns)
+    std::stable_sort(plan.rest.begin(), plan.rest.end(), [&](std::int32_t a, std::int32_t b) {
+      return v.patterns->of_row[a] < v.patterns->of_row[b];
+    });
   return plan;
 }
 

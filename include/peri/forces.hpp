@@ -46,8 +46,9 @@ void current_positions(const double* X, const double* u, std::int32_t begin, std
 /// consecutive local rows that share a family pattern and whose k-th neighbours are four
 /// consecutive local nodes for every k (interior runs of a grid row, in the natural order a
 /// partition keeps): the loop loads their neighbours' positions with one vector load per
-/// coordinate. `rest`: every other row (edges, partition boundaries, irregular node sets), which
-/// the loop copies into lanes first. Each row's force is the same bits either way.
+/// coordinate. `rest`: every other row (edges, partition boundaries, irregular node sets), sorted
+/// by family pattern; the loop gathers their lanes element by element. Each row's force is the
+/// same bits either way.
 struct RowBlocks {
   std::vector<std::int32_t> blocks;
   std::vector<std::int32_t> rest;
