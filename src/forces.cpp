@@ -6,7 +6,6 @@
 #include <immintrin.h>
 #endif
 #include <cmath>
-#include <cstring>
 #include <limits>
 
 namespace peri {
