@@ -89,7 +89,7 @@ struct ScalarLoop {
 // The vector loop (AVX2 + FMA): four rows at a time, one per lane. Lane l walks the bonds of its
 // row in CSR order and sums them in that order (one fused multiply-add per bond and component),
 // so a node's force is the same bits whichever way its row is loaded (a block of four neighbouring
-// rows or a staged group, below) and whichever rank computes it.
+// rows or a gathered group, below) and whichever rank computes it.
 
 // All-ones lanes where bit l of the index is set.
 struct LaneMasks {
@@ -321,15 +321,15 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
   for (std::size_t q = 0; q < nblocks; ++q) {
     const std::int32_t first = rows.blocks[q];
     // A block reads a quarter of the CSR neighbour stream (lane 0's row), a pattern the hardware
-    // prefetcher does not follow: fetch the next block's row and flags while this one runs.
+    // prefetcher does not follow: fetch the neighbour row and flags of the block kAhead on.
     if (q + kAhead < nblocks) {
-      const std::int32_t next = rows.blocks[q + kAhead];
-      const char* nbr = reinterpret_cast<const char*>(v.neighbor + v.offsets[next]);
-      const char* nbr_end = reinterpret_cast<const char*>(v.neighbor + v.offsets[next + 1]);
-      for (const char* p = nbr; p < nbr_end; p += 64) _mm_prefetch(p, _MM_HINT_T0);
-      const char* fl = reinterpret_cast<const char*>(v.broken + v.offsets[next]);
-      const char* fl_end = reinterpret_cast<const char*>(v.broken + v.offsets[next + 4]);
-      for (const char* p = fl; p < fl_end; p += 64) _mm_prefetch(p, _MM_HINT_T0);
+      auto prefetch = [](const void* begin, const void* end) {
+        for (auto* p = static_cast<const char*>(begin); p < static_cast<const char*>(end); p += 64)
+          _mm_prefetch(p, _MM_HINT_T0);
+      };
+      const std::int32_t ahead = rows.blocks[q + kAhead];
+      prefetch(v.neighbor + v.offsets[ahead], v.neighbor + v.offsets[ahead + 1]);
+      prefetch(v.broken + v.offsets[ahead], v.broken + v.offsets[ahead + 4]);
     }
     // Blocks without a broken bond (most, in most runs) skip the flag bytes.
     const std::uint8_t* flags = v.broken + v.offsets[first];
