@@ -79,8 +79,8 @@ struct ScalarLoop {
     if (newly) book_breaks(L, v, i, newly, tally);
   }
   void operator()(const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) const {
-    for (std::int32_t first : rows.blocks)
-      for (std::int32_t l = 0; l < 4; ++l) row(v, first + l, force, tally);
+    for (const RowBlock& blk : rows.blocks)
+      for (std::int32_t l = 0; l < 4; ++l) row(v, blk.first + l * blk.stride, force, tally);
     for (std::int32_t i : rows.rest) row(v, i, force, tally);
   }
 };
@@ -214,30 +214,40 @@ inline void mark_fresh(unsigned fresh, std::uint8_t* const flag_row[4], std::int
     }
 }
 
-// A block: rows i .. i+3, one family pattern, the k-th neighbours of the four rows consecutive
-// local nodes j .. j+3 (a run of a grid row). Per four bonds: one vector load of each coordinate
-// plane at j, the pattern's slots broadcast, the four flag bytes (a row apart) as lane bits.
-template <bool Intact, class Law>
-void block_avx2(const Law& law, const BondLaw& L, const BondView& v, std::int32_t i, double* force, BondTally& tally) {
+// A block (RowBlock): rows i + l s, one family pattern, the k-th neighbours of the four rows
+// nodes j + l s. Per four bonds: the neighbours' positions (one vector load of each coordinate
+// plane at j if s = 1, `Unit`; else four loads each), the pattern's slots broadcast, the four flag
+// bytes as lane bits unless the block has no broken bond (`Intact`).
+template <bool Intact, bool Unit, class Law>
+void block_avx2(const Law& law, const BondLaw& L, const BondView& v, RowBlock blk, double* force, BondTally& tally) {
   const FamilyPatterns& P = *v.patterns;
   const double* __restrict px = v.x;
   const double* __restrict py = v.x + v.x_stride;
   const double* __restrict pz = v.x + 2 * v.x_stride;
+  const std::int32_t i = blk.first;
+  const std::int64_t s = Unit ? 1 : blk.stride;
+  const std::int32_t rows[4] = {i, static_cast<std::int32_t>(i + s), static_cast<std::int32_t>(i + 2 * s),
+                                static_cast<std::int32_t>(i + 3 * s)};
+  auto lanes = [s](const double* p, std::int64_t at) {
+    if constexpr (Unit) return _mm256_loadu_pd(p + at);
+    else return _mm256_setr_pd(p[at], p[at + s], p[at + 2 * s], p[at + 3 * s]);
+  };
   const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0, slot0 = P.begin[P.of_row[i]];
   const double *sx = P.xi2.data() + slot0, *sm = P.measure.data() + slot0, *sr = P.inv_xi.data() + slot0,
                *sa = P.measure_per_xi2.data() + slot0;
   const std::int32_t* __restrict nbr = v.neighbor + b0;
-  std::uint8_t* const flag_row[4] = {v.broken + b0, v.broken + b0 + n, v.broken + b0 + 2 * n, v.broken + b0 + 3 * n};
+  std::uint8_t* const flag_row[4] = {v.broken + b0, v.broken + v.offsets[rows[1]], v.broken + v.offsets[rows[2]],
+                                     v.broken + v.offsets[rows[3]]};
   const std::uint8_t *fl0 = flag_row[0], *fl1 = flag_row[1], *fl2 = flag_row[2], *fl3 = flag_row[3];
-  const __m256d xi0 = _mm256_loadu_pd(px + i), xi1 = _mm256_loadu_pd(py + i), xi2 = _mm256_loadu_pd(pz + i);
+  const __m256d xi0 = lanes(px, i), xi1 = lanes(py, i), xi2 = lanes(pz, i);
   __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < n; ++k) {
     const std::int64_t j = nbr[k];
     Bonds4 b;
-    b.d0 = _mm256_sub_pd(_mm256_loadu_pd(px + j), xi0);
-    b.d1 = _mm256_sub_pd(_mm256_loadu_pd(py + j), xi1);
-    b.d2 = _mm256_sub_pd(_mm256_loadu_pd(pz + j), xi2);
+    b.d0 = _mm256_sub_pd(lanes(px, j), xi0);
+    b.d1 = _mm256_sub_pd(lanes(py, j), xi1);
+    b.d2 = _mm256_sub_pd(lanes(pz, j), xi2);
     b.xi2 = _mm256_broadcast_sd(sx + k);
     b.measure = _mm256_broadcast_sd(sm + k);
     b.inv_xi = _mm256_broadcast_sd(sr + k);
@@ -247,7 +257,6 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, std::int32_
     const unsigned fresh = law.add(b, f0, f1, f2, w);
     if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
   }
-  const std::int32_t rows[4] = {i, i + 1, i + 2, i + 3};
   law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
 }
 
@@ -318,26 +327,37 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
   const Avx2Law<K, Conical, Linear, Energy> law(L);
   const std::size_t nblocks = rows.blocks.size();
   constexpr std::size_t kAhead = 2;  // blocks ahead (1, 2 and 4 measured alike)
+  auto for_rows = [&v](RowBlock blk, auto&& visit) {  // visit(flags of the row, end of them)
+    for (std::int32_t l = 0; l < 4; ++l) {
+      const std::int32_t r = blk.first + l * blk.stride;
+      visit(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]);
+    }
+  };
   for (std::size_t q = 0; q < nblocks; ++q) {
-    const std::int32_t first = rows.blocks[q];
-    // A block reads a quarter of the CSR neighbour stream (lane 0's row), a pattern the hardware
-    // prefetcher does not follow: fetch the neighbour row and flags of the block kAhead on.
+    const RowBlock blk = rows.blocks[q];
+    // A block reads a quarter (or less) of the CSR neighbour stream (lane 0's row), a pattern the
+    // hardware prefetcher does not follow: fetch the neighbour row and flags of the block kAhead on.
     if (q + kAhead < nblocks) {
       auto prefetch = [](const void* begin, const void* end) {
         for (auto* p = static_cast<const char*>(begin); p < static_cast<const char*>(end); p += 64)
           _mm_prefetch(p, _MM_HINT_T0);
       };
-      const std::int32_t ahead = rows.blocks[q + kAhead];
-      prefetch(v.neighbor + v.offsets[ahead], v.neighbor + v.offsets[ahead + 1]);
-      prefetch(v.broken + v.offsets[ahead], v.broken + v.offsets[ahead + 4]);
+      const RowBlock ahead = rows.blocks[q + kAhead];
+      prefetch(v.neighbor + v.offsets[ahead.first], v.neighbor + v.offsets[ahead.first + 1]);
+      for_rows(ahead, prefetch);
     }
     // Blocks without a broken bond (most, in most runs) skip the flag bytes.
-    const std::uint8_t* flags = v.broken + v.offsets[first];
-    const std::int64_t nflags = v.offsets[first + 4] - v.offsets[first];
     std::uint8_t any = 0;
-    for (std::int64_t b = 0; b < nflags; ++b) any |= flags[b];
-    if (any) block_avx2<false>(law, L, v, first, force, tally);
-    else block_avx2<true>(law, L, v, first, force, tally);
+    for_rows(blk, [&any](const std::uint8_t* flag, const std::uint8_t* end) {
+      for (; flag < end; ++flag) any |= *flag;
+    });
+    if (blk.stride == 1) {
+      if (any) block_avx2<false, true>(law, L, v, blk, force, tally);
+      else block_avx2<true, true>(law, L, v, blk, force, tally);
+    } else {
+      if (any) block_avx2<false, false>(law, L, v, blk, force, tally);
+      else block_avx2<true, false>(law, L, v, blk, force, tally);
+    }
   }
   const std::size_t nrest = rows.rest.size();
   const FamilyPatterns& P = *v.patterns;
@@ -409,35 +429,51 @@ void current_positions(const double* X, const double* u, std::int32_t begin, std
 
 RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nrows) {
   RowBlocks plan;
-  auto block_at = [&](std::size_t r) {
-    if (!v.patterns || r + 4 > nrows) return false;
-    const std::int32_t i = rows[r];
+  if (!v.patterns) {
+    plan.rest.assign(rows, rows + nrows);
+    return plan;
+  }
+  const FamilyPatterns& P = *v.patterns;
+  // Whether list entries a[0..3] form a block: rows a[0] + l s, one pattern, neighbours j + l s.
+  auto block_at = [&](const std::int32_t* a, std::size_t left) {
+    if (left < 4) return std::int32_t{0};
+    const std::int32_t i = a[0], s = a[1] - a[0];
+    if (s <= 0) return std::int32_t{0};
     const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
     for (std::int32_t l = 1; l < 4; ++l) {
-      if (rows[r + l] != i + l || v.patterns->of_row[i + l] != v.patterns->of_row[i]) return false;
-      const std::int64_t bl = v.offsets[i + l];
-      if (v.offsets[i + l + 1] - bl != n) return false;
+      if (a[l] != i + l * s || P.of_row[a[l]] != P.of_row[i]) return std::int32_t{0};
+      const std::int64_t bl = v.offsets[a[l]];
+      if (v.offsets[a[l] + 1] - bl != n) return std::int32_t{0};
       for (std::int64_t k = 0; k < n; ++k)
-        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + l) return false;
+        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + l * s) return std::int32_t{0};
     }
-    return true;
+    return s;
   };
+  // Runs of consecutive rows in list order first (stride 1).
+  std::vector<std::int32_t> others;
   for (std::size_t r = 0; r < nrows;) {
-    if (block_at(r)) {
-      plan.blocks.push_back(rows[r]);
+    if (block_at(rows + r, nrows - r) == 1) {
+      plan.blocks.push_back({rows[r], 1});
       r += 4;
     } else {
-      plan.rest.push_back(rows[r++]);
+      others.push_back(rows[r++]);
     }
   }
-  // The rest by family pattern within windows of 4096 rows of the list (stable: in list order
-  // within a pattern), so that most groups of four share a pattern and the loop broadcasts its
-  // slots, while a window's neighbours stay in cache (the order does not change any row's sum).
-  if (v.patterns) {
-    constexpr std::size_t kWindow = 4096;
-    for (std::size_t w = 0; w < plan.rest.size(); w += kWindow)
-      std::stable_sort(plan.rest.begin() + w, plan.rest.begin() + std::min(plan.rest.size(), w + kWindow),
-                       [&](std::int32_t a, std::int32_t b) { return v.patterns->of_row[a] < v.patterns->of_row[b]; });
+  // The others by family pattern within windows of 4096 rows of the list (stable: in list order
+  // within a pattern), so that rows a grid row apart along an edge meet (strided blocks) and most
+  // remaining groups of four share a pattern (the loop broadcasts its slots), while a window's
+  // neighbours stay in cache. The order does not change any row's sum.
+  constexpr std::size_t kWindow = 4096;
+  for (std::size_t w = 0; w < others.size(); w += kWindow)
+    std::stable_sort(others.begin() + w, others.begin() + std::min(others.size(), w + kWindow),
+                     [&](std::int32_t a, std::int32_t b) { return P.of_row[a] < P.of_row[b]; });
+  for (std::size_t r = 0; r < others.size();) {
+    if (const std::int32_t s = block_at(others.data() + r, others.size() - r)) {
+      plan.blocks.push_back({others[r], s});
+      r += 4;
+    } else {
+      plan.rest.push_back(others[r++]);
+    }
   }
   return plan;
 }

@@ -42,21 +42,28 @@ struct BondView {
 void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
                        std::int64_t stride, double* x);
 
-/// A list of owned rows grouped for the vector loop. `blocks`: the first row of each run of four
-/// consecutive local rows that share a family pattern and whose k-th neighbours are four
-/// consecutive local nodes for every k (interior runs of a grid row, in the natural order a
-/// partition keeps): the loop loads their neighbours' positions with one vector load per
-/// coordinate. `rest`: every other row (edges, partition boundaries, irregular node sets), sorted
-/// by family pattern; the loop gathers their lanes element by element. Each row's force is the
-/// same bits either way.
+/// Four rows that the vector loop evaluates as one block: rows first + l * stride (l = 0..3), one
+/// family pattern, and for every k the k-th neighbours of the four rows are nodes j + l * stride.
+/// Stride 1: interior runs of a grid row (in the natural order a partition keeps), whose
+/// neighbours' positions the loop loads with one vector load per coordinate. Larger strides: rows
+/// a grid row apart, e.g. along a body's edge, whose neighbours it gathers.
+struct RowBlock {
+  std::int32_t first;
+  std::int32_t stride;
+};
+
+/// A list of owned rows grouped for the vector loop: `blocks`, and `rest`, every other row
+/// (corners, partition boundaries, irregular node sets), sorted by family pattern, whose lanes
+/// the loop gathers element by element. Each row's force is the same bits either way.
 struct RowBlocks {
-  std::vector<std::int32_t> blocks;
+  std::vector<RowBlock> blocks;
   std::vector<std::int32_t> rest;
   std::size_t rows() const { return 4 * blocks.size() + rest.size(); }
 };
 
-/// Groups `rows` (in their order) into blocks and the rest. O(bonds); the bond topology never
-/// changes (bonds only break), so callers plan once and reuse the plan every step.
+/// Groups `rows` into blocks (first runs of consecutive rows in list order, then, among the
+/// others sorted by pattern, runs of rows a constant stride apart) and the rest. O(bonds); the
+/// bond topology never changes (bonds only break), so callers plan once and reuse the plan.
 RowBlocks plan_rows(const BondView& view, const std::int32_t* rows, std::size_t nrows);
 
 /// Sums a bond loop produces (this rank's owned rows).
