@@ -6,6 +6,7 @@
 #include <benchmark/benchmark.h>
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <random>
 
@@ -60,7 +61,8 @@ void kernel(benchmark::State& st, const char* model, const char* quadrature) {
   st.counters["bonds"] = static_cast<double>(d.bonds.size());
   st.counters["bond_updates/s"] = benchmark::Counter(static_cast<double>(d.bonds.size()), benchmark::Counter::kIsIterationInvariantRate);
   st.counters["bytes_per_bond"] = d.bonds.bytes_per_bond();
-  st.counters["block_rows"] = 4.0 * static_cast<double>(plan.blocks.size()) / static_cast<double>(plan.rows());
+  st.counters["block_rows"] = static_cast<double>(plan.run_rows()) / static_cast<double>(plan.rows());
+  st.counters["rows_per_run"] = static_cast<double>(plan.run_rows()) / static_cast<double>(std::max<std::size_t>(1, plan.runs.size()));
 }
 
 // Full explicit step (halo exchange, kernel, Verlet update, boundary logic) through Simulation.

@@ -79,8 +79,8 @@ struct ScalarLoop {
     if (newly) book_breaks(L, v, i, newly, tally);
   }
   void operator()(const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) const {
-    for (const RowBlock& blk : rows.blocks)
-      for (std::int32_t l = 0; l < 4; ++l) row(v, blk.first + l * blk.stride, force, tally);
+    for (const RowRun& run : rows.runs)
+      for (std::int32_t l = 0; l < run.count; ++l) row(v, run.first + l * run.stride, force, tally);
     for (std::int32_t i : rows.rest) row(v, i, force, tally);
   }
 };
@@ -214,32 +214,38 @@ inline void mark_fresh(unsigned fresh, std::uint8_t* const flag_row[4], std::int
     }
 }
 
-// A block (RowBlock): rows i + l s, one family pattern, the k-th neighbours of the four rows
-// nodes j + l s. Per four bonds: the neighbours' positions (one vector load of each coordinate
-// plane at j if s = 1, `Unit`; else four loads each), the pattern's slots broadcast, the four flag
-// bytes as lane bits unless the block has no broken bond (`Intact`).
+// What the blocks of one run (RowRun) share: the neighbour list of its first row (n bonds) and
+// its family pattern's slots.
+struct RunSlots {
+  const std::int32_t* __restrict neighbor;
+  std::int64_t n;
+  const double *xi2, *measure, *inv_xi, *measure_per_xi2;
+};
+
+// A block of a run: rows i + l s, the k-th neighbours of the four rows nodes j + shift + l s with
+// j the run's k-th neighbour. Per four bonds: the neighbours' positions (one vector load of each
+// coordinate plane if s = 1, `Unit`; else four loads each), the pattern's slots broadcast, the
+// four flag bytes as lane bits unless the block has no broken bond (`Intact`).
 template <bool Intact, bool Unit, class Law>
-void block_avx2(const Law& law, const BondLaw& L, const BondView& v, RowBlock blk, double* force, BondTally& tally) {
-  const FamilyPatterns& P = *v.patterns;
-  const double* __restrict px = v.x;
-  const double* __restrict py = v.x + v.x_stride;
-  const double* __restrict pz = v.x + 2 * v.x_stride;
-  const std::int32_t i = blk.first;
-  const std::int64_t s = Unit ? 1 : blk.stride;
+void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
+                std::int32_t stride, std::int64_t shift, double* force, BondTally& tally) {
+  const double* __restrict px = v.x + shift;
+  const double* __restrict py = v.x + v.x_stride + shift;
+  const double* __restrict pz = v.x + 2 * v.x_stride + shift;
+  const std::int64_t s = Unit ? 1 : stride;
   const std::int32_t rows[4] = {i, static_cast<std::int32_t>(i + s), static_cast<std::int32_t>(i + 2 * s),
                                 static_cast<std::int32_t>(i + 3 * s)};
   auto lanes = [s](const double* p, std::int64_t at) {
     if constexpr (Unit) return _mm256_loadu_pd(p + at);
     else return _mm256_setr_pd(p[at], p[at + s], p[at + 2 * s], p[at + 3 * s]);
   };
-  const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0, slot0 = P.begin[P.of_row[i]];
-  const double *sx = P.xi2.data() + slot0, *sm = P.measure.data() + slot0, *sr = P.inv_xi.data() + slot0,
-               *sa = P.measure_per_xi2.data() + slot0;
-  const std::int32_t* __restrict nbr = v.neighbor + b0;
-  std::uint8_t* const flag_row[4] = {v.broken + b0, v.broken + v.offsets[rows[1]], v.broken + v.offsets[rows[2]],
-                                     v.broken + v.offsets[rows[3]]};
+  const std::int64_t n = run.n;
+  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
+  const std::int32_t* __restrict nbr = run.neighbor;
+  std::uint8_t* const flag_row[4] = {v.broken + v.offsets[rows[0]], v.broken + v.offsets[rows[1]],
+                                     v.broken + v.offsets[rows[2]], v.broken + v.offsets[rows[3]]};
   const std::uint8_t *fl0 = flag_row[0], *fl1 = flag_row[1], *fl2 = flag_row[2], *fl3 = flag_row[3];
-  const __m256d xi0 = lanes(px, i), xi1 = lanes(py, i), xi2 = lanes(pz, i);
+  const __m256d xi0 = lanes(v.x, i), xi1 = lanes(v.x + v.x_stride, i), xi2 = lanes(v.x + 2 * v.x_stride, i);
   __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < n; ++k) {
@@ -258,6 +264,16 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, RowBlock bl
     if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
   }
   law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
+}
+
+// Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
+inline bool any_flag(const std::uint8_t* begin, const std::uint8_t* end) {
+  __m256i acc = _mm256_setzero_si256();
+  for (; begin + 32 <= end; begin += 32)
+    acc = _mm256_or_si256(acc, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(begin)));
+  std::uint8_t tail = 0;
+  for (; begin < end; ++begin) tail |= *begin;
+  return tail != 0 || !_mm256_testz_si256(acc, acc);
 }
 
 // Any one to four rows (`count`), one per lane: each lane's neighbour positions gathered element
@@ -325,42 +341,35 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
 template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) {
   const Avx2Law<K, Conical, Linear, Energy> law(L);
-  const std::size_t nblocks = rows.blocks.size();
-  constexpr std::size_t kAhead = 2;  // blocks ahead (1, 2 and 4 measured alike)
-  auto for_rows = [&v](RowBlock blk, auto&& visit) {  // visit(flags of the row, end of them)
-    for (std::int32_t l = 0; l < 4; ++l) {
-      const std::int32_t r = blk.first + l * blk.stride;
-      visit(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]);
-    }
-  };
-  for (std::size_t q = 0; q < nblocks; ++q) {
-    const RowBlock blk = rows.blocks[q];
-    // A block reads a quarter (or less) of the CSR neighbour stream (lane 0's row), a pattern the
-    // hardware prefetcher does not follow: fetch the neighbour row and flags of the block kAhead on.
-    if (q + kAhead < nblocks) {
-      auto prefetch = [](const void* begin, const void* end) {
-        for (auto* p = static_cast<const char*>(begin); p < static_cast<const char*>(end); p += 64)
-          _mm_prefetch(p, _MM_HINT_T0);
-      };
-      const RowBlock ahead = rows.blocks[q + kAhead];
-      prefetch(v.neighbor + v.offsets[ahead.first], v.neighbor + v.offsets[ahead.first + 1]);
-      for_rows(ahead, prefetch);
-    }
-    // Blocks without a broken bond (most, in most runs) skip the flag bytes.
-    std::uint8_t any = 0;
-    for_rows(blk, [&any](const std::uint8_t* flag, const std::uint8_t* end) {
-      for (; flag < end; ++flag) any |= *flag;
-    });
-    if (blk.stride == 1) {
-      if (any) block_avx2<false, true>(law, L, v, blk, force, tally);
-      else block_avx2<true, true>(law, L, v, blk, force, tally);
+  const FamilyPatterns& P = *v.patterns;
+  for (const RowRun& run : rows.runs) {
+    const std::int64_t b0 = v.offsets[run.first], slot0 = P.begin[P.of_row[run.first]];
+    const RunSlots slots{v.neighbor + b0,           v.offsets[run.first + 1] - b0,  P.xi2.data() + slot0,
+                         P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
+    if (run.stride == 1) {
+      // Blocks without a broken bond (most, in most runs) skip the flag bytes: the run's flags
+      // are one range of the CSR arrays, and so are each block's.
+      const bool intact = !any_flag(v.broken + b0, v.broken + v.offsets[run.first + run.count]);
+      for (std::int32_t q = 0; q < run.count; q += 4) {
+        const std::int32_t i = run.first + q;
+        if (intact || !any_flag(v.broken + v.offsets[i], v.broken + v.offsets[i + 4]))
+          block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
+        else
+          block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
+      }
     } else {
-      if (any) block_avx2<false, false>(law, L, v, blk, force, tally);
-      else block_avx2<true, false>(law, L, v, blk, force, tally);
+      for (std::int32_t q = 0; q < run.count; q += 4) {
+        const std::int32_t i = run.first + q * run.stride;
+        bool any = false;
+        for (std::int32_t l = 0; l < 4; ++l)
+          any = any || any_flag(v.broken + v.offsets[i + l * run.stride], v.broken + v.offsets[i + l * run.stride + 1]);
+        const std::int64_t shift = static_cast<std::int64_t>(q) * run.stride;
+        if (any) block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+        else block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+      }
     }
   }
   const std::size_t nrest = rows.rest.size();
-  const FamilyPatterns& P = *v.patterns;
   for (std::size_t r = 0; r < nrest; r += 4) {
     const std::int32_t* group = rows.rest.data() + r;
     const int count = static_cast<int>(std::min<std::size_t>(4, nrest - r));
@@ -434,33 +443,36 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     return plan;
   }
   const FamilyPatterns& P = *v.patterns;
-  // Whether list entries a[0..3] form a block: rows a[0] + l s, one pattern, neighbours j + l s.
-  auto block_at = [&](const std::int32_t* a, std::size_t left) {
-    if (left < 4) return std::int32_t{0};
-    const std::int32_t i = a[0], s = a[1] - a[0];
-    if (s <= 0) return std::int32_t{0};
-    const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
-    for (std::int32_t l = 1; l < 4; ++l) {
-      if (a[l] != i + l * s || P.of_row[a[l]] != P.of_row[i]) return std::int32_t{0};
+  // Whether list entries a[0..3] continue a run from row `first` with stride s whose next row is
+  // its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by (q + l) s.
+  auto continues = [&](std::int32_t first, std::int32_t s, std::int32_t q, const std::int32_t* a, std::size_t left) {
+    if (left < 4 || s <= 0) return false;
+    const std::int64_t b0 = v.offsets[first], n = v.offsets[first + 1] - b0;
+    for (std::int32_t l = 0; l < 4; ++l) {
+      const std::int64_t shift = static_cast<std::int64_t>(q + l) * s;
+      if (a[l] != first + shift || P.of_row[a[l]] != P.of_row[first]) return false;
       const std::int64_t bl = v.offsets[a[l]];
-      if (v.offsets[a[l] + 1] - bl != n) return std::int32_t{0};
+      if (v.offsets[a[l] + 1] - bl != n) return false;
       for (std::int64_t k = 0; k < n; ++k)
-        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + l * s) return std::int32_t{0};
+        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + shift) return false;
     }
-    return s;
+    return true;
+  };
+  // Takes the longest run starting at list entry a[0] with stride s (0 if there is none).
+  auto take_run = [&](const std::int32_t* a, std::size_t left, std::int32_t s) {
+    std::int32_t count = 0;
+    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count))) count += 4;
+    if (count > 0) plan.runs.push_back({a[0], s, count});
+    return count;
   };
   // Runs of consecutive rows in list order first (stride 1).
   std::vector<std::int32_t> others;
   for (std::size_t r = 0; r < nrows;) {
-    if (block_at(rows + r, nrows - r) == 1) {
-      plan.blocks.push_back({rows[r], 1});
-      r += 4;
-    } else {
-      others.push_back(rows[r++]);
-    }
+    if (const std::int32_t count = take_run(rows + r, nrows - r, 1)) r += static_cast<std::size_t>(count);
+    else others.push_back(rows[r++]);
   }
   // The others by family pattern within windows of 4096 rows of the list (stable: in list order
-  // within a pattern), so that rows a grid row apart along an edge meet (strided blocks) and most
+  // within a pattern), so that rows a grid row apart along an edge meet (strided runs) and most
   // remaining groups of four share a pattern (the loop broadcasts its slots), while a window's
   // neighbours stay in cache. The order does not change any row's sum.
   constexpr std::size_t kWindow = 4096;
@@ -468,12 +480,10 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     std::stable_sort(others.begin() + w, others.begin() + std::min(others.size(), w + kWindow),
                      [&](std::int32_t a, std::int32_t b) { return P.of_row[a] < P.of_row[b]; });
   for (std::size_t r = 0; r < others.size();) {
-    if (const std::int32_t s = block_at(others.data() + r, others.size() - r)) {
-      plan.blocks.push_back({others[r], s});
-      r += 4;
-    } else {
-      plan.rest.push_back(others[r++]);
-    }
+    const std::size_t left = others.size() - r;
+    const std::int32_t s = left >= 2 ? others[r + 1] - others[r] : 0;
+    if (const std::int32_t count = s > 0 ? take_run(others.data() + r, left, s) : 0) r += static_cast<std::size_t>(count);
+    else plan.rest.push_back(others[r++]);
   }
   return plan;
 }

@@ -42,27 +42,35 @@ struct BondView {
 void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
                        std::int64_t stride, double* x);
 
-/// Four rows that the vector loop evaluates as one block: rows first + l * stride (l = 0..3), one
-/// family pattern, and for every k the k-th neighbours of the four rows are nodes j + l * stride.
-/// Stride 1: interior runs of a grid row (in the natural order a partition keeps), whose
-/// neighbours' positions the loop loads with one vector load per coordinate. Larger strides: rows
-/// a grid row apart, e.g. along a body's edge, whose neighbours it gathers.
-struct RowBlock {
+/// Rows that the vector loop evaluates four at a time (a block, one row per lane): rows
+/// first + l * stride (l = 0 .. count-1, count a multiple of 4), one family pattern, and for every
+/// k the k-th neighbour of row l is node j + l * stride, j that of row `first`. So the loop reads
+/// one neighbour list for the whole run. Stride 1: interior runs of a grid row (in the natural
+/// order a partition keeps), whose neighbours' positions the loop loads with one vector load per
+/// coordinate. Larger strides: rows a grid row apart, e.g. along a body's edge, whose neighbours
+/// it gathers.
+struct RowRun {
   std::int32_t first;
   std::int32_t stride;
+  std::int32_t count;
 };
 
-/// A list of owned rows grouped for the vector loop: `blocks`, and `rest`, every other row
+/// A list of owned rows grouped for the vector loop: `runs`, and `rest`, every other row
 /// (corners, partition boundaries, irregular node sets), sorted by family pattern, whose lanes
 /// the loop gathers element by element. Each row's force is the same bits either way.
 struct RowBlocks {
-  std::vector<RowBlock> blocks;
+  std::vector<RowRun> runs;
   std::vector<std::int32_t> rest;
-  std::size_t rows() const { return 4 * blocks.size() + rest.size(); }
+  std::size_t run_rows() const {
+    std::size_t n = 0;
+    for (const RowRun& r : runs) n += static_cast<std::size_t>(r.count);
+    return n;
+  }
+  std::size_t rows() const { return run_rows() + rest.size(); }
 };
 
-/// Groups `rows` into blocks (first runs of consecutive rows in list order, then, among the
-/// others sorted by pattern, runs of rows a constant stride apart) and the rest. O(bonds); the
+/// Groups `rows` into runs (first of consecutive rows in list order, then, among the others
+/// sorted by pattern, of rows a constant stride apart) and the rest. O(bonds); the
 /// bond topology never changes (bonds only break), so callers plan once and reuse the plan.
 RowBlocks plan_rows(const BondView& view, const std::int32_t* rows, std::size_t nrows);
 
