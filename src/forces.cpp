@@ -138,7 +138,8 @@ struct Avx2Law {
     // (x^2 + z^2) + y^2: two independent products, a shorter dependency chain than nested FMAs.
     const __m256d y2 = _mm256_add_pd(_mm256_fmadd_pd(b.d2, b.d2, _mm256_mul_pd(b.d0, b.d0)), _mm256_mul_pd(b.d1, b.d1));
     __m256d xi = zero, g = one;
-    if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm256_sqrt_pd(s2);
+    // |xi| = |xi|^2 / |xi|: a multiplication by the pattern's 1/|xi|, not a square root.
+    if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm256_mul_pd(s2, b.inv_xi);
     if constexpr (Conical) g = _mm256_max_pd(zero, _mm256_fnmadd_pd(xi, inv_horizon, one));
     // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
     __m256d ratio = one, y2g = y2;
