@@ -239,10 +239,16 @@ FamilyPatterns PatternBuilder::finish() {
   return std::move(p_);
 }
 
+void BondFamilies::summarize_rows() {
+  row_broken.assign(static_cast<std::size_t>(rows()), 0);
+  for (std::int64_t i = 0; i < rows(); ++i)
+    for (std::int64_t b = offsets[i]; b < offsets[i + 1]; ++b) row_broken[i] |= broken[b] ? 1 : 0;
+}
+
 double BondFamilies::bytes_per_bond() const {
   if (neighbor.empty()) return 0;
   const double bytes = offsets.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) +
-                       broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
+                       broken.size() + row_broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
                        patterns.begin.size() * sizeof(std::int64_t) +
                        (patterns.xi2.size() + patterns.inv_xi.size() + patterns.measure.size() +
                         patterns.measure_per_xi2.size()) * sizeof(double);

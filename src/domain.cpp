@@ -108,6 +108,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
     (touches_ghost ? d.boundary_rows : d.interior_rows).push_back(r);
   }
   d.bonds.patterns = patterns.finish();
+  d.bonds.summarize_rows();
   return d;
 }
 

@@ -29,6 +29,7 @@ void book_breaks(const BondLaw& L, const BondView& v, std::int32_t i, int newly,
   }
   tally.dissipated += 0.5 * v.volume[i] * diss;
   tally.newly_broken += newly;
+  if (v.row_broken) v.row_broken[i] = 1;
 }
 
 // The portable loop, specialised at compile time on the law's shape so that no per-bond branch on
@@ -347,13 +348,17 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
     const std::int64_t b0 = v.offsets[run.first], slot0 = P.begin[P.of_row[run.first]];
     const RunSlots slots{v.neighbor + b0,           v.offsets[run.first + 1] - b0,  P.xi2.data() + slot0,
                          P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
+    // Blocks without a broken bond (most, in most runs) skip the flag bytes: known from the rows'
+    // summary bytes (BondFamilies::row_broken) where the view has them, else from the flags.
+    const std::uint8_t* summary = v.row_broken;
     if (run.stride == 1) {
-      // Blocks without a broken bond (most, in most runs) skip the flag bytes: the run's flags
-      // are one range of the CSR arrays, and so are each block's.
-      const bool intact = !any_flag(v.broken + b0, v.broken + v.offsets[run.first + run.count]);
+      // The run's rows, and each block's, are one range of the summary (and of the flags).
+      const bool intact = summary ? !any_flag(summary + run.first, summary + run.first + run.count)
+                                  : !any_flag(v.broken + b0, v.broken + v.offsets[run.first + run.count]);
       for (std::int32_t q = 0; q < run.count; q += 4) {
         const std::int32_t i = run.first + q;
-        if (intact || !any_flag(v.broken + v.offsets[i], v.broken + v.offsets[i + 4]))
+        if (intact || (summary ? !any_flag(summary + i, summary + i + 4)
+                               : !any_flag(v.broken + v.offsets[i], v.broken + v.offsets[i + 4])))
           block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
         else
           block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
@@ -362,8 +367,10 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
       for (std::int32_t q = 0; q < run.count; q += 4) {
         const std::int32_t i = run.first + q * run.stride;
         bool any = false;
-        for (std::int32_t l = 0; l < 4; ++l)
-          any = any || any_flag(v.broken + v.offsets[i + l * run.stride], v.broken + v.offsets[i + l * run.stride + 1]);
+        for (std::int32_t l = 0; l < 4; ++l) {
+          const std::int32_t r = i + l * run.stride;
+          any = any || (summary ? summary[r] != 0 : any_flag(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]));
+        }
         const std::int64_t shift = static_cast<std::int64_t>(q) * run.stride;
         if (any) block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
         else block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);

@@ -175,6 +175,7 @@ void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* 
     if (newly) {
       if (!law.reversible) tally.dissipated += energy_before - energy;
       tally.newly_broken += newly;
+      if (v.row_broken) v.row_broken[i] = 1;
     }
     if (with_energy) tally.strain_energy += energy;
     double fi[3] = {0, 0, 0};

@@ -128,6 +128,7 @@ std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pair
       found += hit;
     }
   }
+  d.bonds.summarize_rows();
   return found;
 }
 

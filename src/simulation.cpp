@@ -445,7 +445,7 @@ Simulation::~Simulation() = default;
 BondView Simulation::bond_view() {
   return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
                   domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
-                  positions_.data(), domain_.local()};
+                  positions_.data(), domain_.local(), domain_.bonds.row_broken.data()};
 }
 
 std::vector<std::string> Simulation::derived_lines() const {
@@ -1110,6 +1110,7 @@ void Simulation::run_release(const Stage& stage) {
       }
       energy += 0.5 * domain_.volume[i] * view.measure(i, b) * law.energy(view.xi2(i, b), y2);  // eq. (5), one end
       domain_.bonds.broken[b] = 1;
+      domain_.bonds.row_broken[i] = 1;
       ++released;
     }
   }

@@ -59,6 +59,7 @@ void Simulation::lattice_setup() {
     for (std::int64_t k = b0; k < b1; ++k)
       if (!inside(i) || !inside(domain_.bonds.neighbor[k])) domain_.bonds.broken[k] |= kMarderUnbreakable;
   }
+  domain_.bonds.summarize_rows();
 }
 
 void Simulation::lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,

@@ -413,6 +413,30 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       EXPECT_EQ(t2.newly_broken, 0);
       EXPECT_EQ(F2, F);
       EXPECT_EQ(t2.strain_energy, t.strain_energy);
+      // With the rows' summary bytes (as Simulation passes them) the loop skips the flags of rows
+      // marked intact: the same bits and the same bonds broken, and afterwards exactly the rows
+      // with a broken bond are marked; a second call (blocks with broken bonds) agrees too.
+      std::vector<std::uint8_t> broken_s(d.bonds.broken.size(), 0), summary(d.owned, 0);
+      BondView vs = v;
+      vs.broken = broken_s.data();
+      vs.row_broken = summary.data();
+      std::vector<double> Fs(F.size());
+      BondTally ts;
+      bond_forces(law, vs, rows.data(), rows.size(), Fs.data(), true, ts);
+      EXPECT_EQ(Fs, F);
+      EXPECT_EQ(broken_s, broken);
+      EXPECT_EQ(ts.newly_broken, t.newly_broken);
+      std::int64_t mismarked = 0, marked = 0;
+      for (std::int32_t i = 0; i < d.owned; ++i) {
+        bool any = false;
+        for (std::int64_t b = d.bonds.offsets[i]; b < d.bonds.offsets[i + 1]; ++b) any = any || broken[b] != 0;
+        mismarked += (summary[i] != 0) != any;
+        marked += summary[i] != 0;
+      }
+      EXPECT_EQ(mismarked, 0);
+      EXPECT_GT(marked, 0);
+      bond_forces(law, vs, rows.data(), rows.size(), Fs.data(), true, ts);
+      EXPECT_EQ(Fs, F);
     }
   }
 }

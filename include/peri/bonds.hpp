@@ -109,9 +109,15 @@ struct BondFamilies {
   std::vector<std::int64_t> offsets{0};  ///< rows + 1
   std::vector<std::int32_t> neighbor;    ///< one per ordered bond
   std::vector<std::uint8_t> broken;      ///< 1 = broken (irreversible)
+  /// Per row: 0 only if every flag byte of the row is 0 (1 may also mean none is). Whoever sets a
+  /// flag sets its row's byte too (or calls summarize_rows); the vector loop then reads no flag
+  /// bytes of rows whose byte is 0.
+  std::vector<std::uint8_t> row_broken;
   FamilyPatterns patterns;               ///< reference |xi|^2 and w_ij V_j of every bond
   std::int64_t rows() const { return static_cast<std::int64_t>(offsets.size()) - 1; }
   std::int64_t size() const { return static_cast<std::int64_t>(neighbor.size()); }
+  /// Recomputes row_broken from the flags.
+  void summarize_rows();
   double bytes_per_bond() const;
 };
 

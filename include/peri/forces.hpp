@@ -22,6 +22,7 @@ struct BondView {
   const FamilyPatterns* patterns = nullptr;  ///< nullptr: |xi|^2 from X, measure V_j (weight 1)
   const double* x = nullptr;        ///< current positions, three planes (bond_forces only)
   std::int64_t x_stride = 0;        ///< doubles from one plane of x to the next
+  std::uint8_t* row_broken = nullptr;  ///< BondFamilies::row_broken, or nullptr: flags are read
 
   /// Reference |xi|^2 of bond b of row i.
   double xi2(std::int32_t i, std::int64_t b) const noexcept {
