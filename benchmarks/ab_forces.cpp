@@ -1,0 +1,133 @@
+// Two versions of the bond loop (src/forces.cpp) in one process, called alternately on the same
+// domain: A B B A A B ... Built by benchmarks/ab_forces.sh, which compiles each version into its
+// own namespace (periA, periB); both must compile against the current headers. Prints figures
+// (medians over the pairs, the median and quartiles of the per-pair ratio A time / B time, the
+// largest relative force difference); asserts nothing.
+//   ab_forces MODEL N PAIRS NOISE   (MODEL membrane | pmb; N x N nodes, dx = 1 mm; displacements
+//                                    uniform in +-NOISE m)
+#include <petscsys.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "peri/forces.hpp"
+#include "peri/simulation.hpp"
+
+// The two versions' entry points; their argument types are layout-identical to peri's.
+namespace periA {
+struct BondLaw;
+struct BondView;
+struct RowBlocks;
+struct BondTally;
+void bond_forces(const BondLaw&, const BondView&, const RowBlocks&, double*, bool, BondTally&);
+}  // namespace periA
+namespace periB {
+struct BondLaw;
+struct BondView;
+struct RowBlocks;
+struct BondTally;
+void bond_forces(const BondLaw&, const BondView&, const RowBlocks&, double*, bool, BondTally&);
+}  // namespace periB
+
+namespace {
+
+template <class T, class U>
+const T& as(const U& x) {
+  return *reinterpret_cast<const T*>(&x);
+}
+
+double quantile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 5) {
+    std::fprintf(stderr, "usage: ab_forces MODEL N PAIRS NOISE (e.g. membrane 400 200 1e-5)\n");
+    return 2;
+  }
+  const std::string model = argv[1];
+  const int n = std::atoi(argv[2]), pairs = std::atoi(argv[3]);
+  const double noise = std::atof(argv[4]);
+  if ((model != "membrane" && model != "pmb") || n < 8 || pairs < 1 || !(noise >= 0)) {
+    std::fprintf(stderr, "ab_forces: bad arguments (MODEL membrane|pmb, N >= 8, PAIRS >= 1, NOISE >= 0)\n");
+    return 2;
+  }
+  int pargc = 1;
+  if (PetscInitialize(&pargc, &argv, nullptr, nullptr)) return 1;
+  using namespace peri;
+  char text[1024];
+  std::snprintf(text, sizeof text,
+                "name: ab\nmaterials:\n  m: {model: %s, density: 1200, bulk_modulus: 800.0e6, critical_stretch: %s}\n"
+                "bodies:\n  sheet: {material: m, origin: [0, 0, 0], size: [%.17g, %.17g], thickness: 0.0005, "
+                "spacing: 0.001, quadrature: partial_area}\nstages:\n  - {name: run, steps: 1}\n",
+                model.c_str(), model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3);
+  {
+    const Scene scene = parse_scene(text, "ab_forces");
+    const Nodes nodes = discretize(scene);
+    const CellList cells(nodes, reach(nodes.bodies[0]));
+    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+    Domain d = build_domain(scene, nodes, cells, part, 0);
+    const BondLaw law = calibrate(scene.materials[0], nodes.bodies[0], "ab_forces");
+    std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(u.size());
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<double> U(-noise, noise);
+    for (double& c : u) c = U(rng);
+    current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
+    std::vector<std::int32_t> rows(d.owned);
+    for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
+    const BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
+                     d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local(), d.bonds.row_broken.data()};
+    const RowBlocks plan = plan_rows(v, rows.data(), rows.size());
+    std::vector<double> fa(3 * static_cast<std::size_t>(d.owned)), fb(fa.size());
+    BondTally ta, tb;
+    auto run_a = [&] {
+      periA::bond_forces(as<periA::BondLaw>(law), as<periA::BondView>(v), as<periA::RowBlocks>(plan), fa.data(),
+                         false, reinterpret_cast<periA::BondTally&>(ta));
+    };
+    auto run_b = [&] {
+      periB::bond_forces(as<periB::BondLaw>(law), as<periB::BondView>(v), as<periB::RowBlocks>(plan), fb.data(),
+                         false, reinterpret_cast<periB::BondTally&>(tb));
+    };
+    auto seconds = [](auto&& f) {
+      const auto t0 = std::chrono::steady_clock::now();
+      f();
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    };
+    for (int w = 0; w < 3; ++w) run_a(), run_b();
+    double diff = 0;
+    for (std::size_t k = 0; k < fa.size(); ++k)
+      diff = std::max(diff, std::fabs(fa[k] - fb[k]) / std::max(std::fabs(fa[k]), 1e-300));
+    std::vector<double> sa, sb, ratio;
+    for (int p = 0; p < pairs; ++p) {
+      double a, b;
+      if (p % 2) {  // alternate which goes first
+        b = seconds(run_b);
+        a = seconds(run_a);
+      } else {
+        a = seconds(run_a);
+        b = seconds(run_b);
+      }
+      sa.push_back(a);
+      sb.push_back(b);
+      ratio.push_back(a / b);
+    }
+    const double bonds = static_cast<double>(d.bonds.size());
+    std::printf("%s %d x %d, %.0f ordered bonds, %d pairs:\n", model.c_str(), n, n, bonds, pairs);
+    std::printf("  bond updates/s, median   A %.3e   B %.3e\n", bonds / quantile(sa, 0.5), bonds / quantile(sb, 0.5));
+    std::printf("  bond updates/s, fastest  A %.3e   B %.3e\n", bonds / quantile(sa, 0.0), bonds / quantile(sb, 0.0));
+    std::printf("  speed-up B over A per pair: median %.3f, quartiles %.3f - %.3f\n", quantile(ratio, 0.5),
+                quantile(ratio, 0.25), quantile(ratio, 0.75));
+    std::printf("  largest relative force difference %.2e\n", diff);
+  }
+  PetscFinalize();
+  return 0;
+}
