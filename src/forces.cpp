@@ -268,6 +268,54 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
   law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
 }
 
+// Two intact blocks of a stride-1 run side by side, rows i .. i+7: per k one neighbour index and
+// one broadcast of each slot serve eight bonds. Each lane's arithmetic is that of block_avx2.
+template <class Law>
+void block_pair_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
+                     std::int64_t shift, double* force, BondTally& tally) {
+  const double* __restrict px = v.x + shift;
+  const double* __restrict py = v.x + v.x_stride + shift;
+  const double* __restrict pz = v.x + 2 * v.x_stride + shift;
+  const std::int32_t rows_a[4] = {i, i + 1, i + 2, i + 3}, rows_b[4] = {i + 4, i + 5, i + 6, i + 7};
+  const std::int64_t n = run.n;
+  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
+  const std::int32_t* __restrict nbr = run.neighbor;
+  const __m256d xa0 = _mm256_loadu_pd(v.x + i), xa1 = _mm256_loadu_pd(v.x + v.x_stride + i),
+                xa2 = _mm256_loadu_pd(v.x + 2 * v.x_stride + i);
+  const __m256d xb0 = _mm256_loadu_pd(v.x + i + 4), xb1 = _mm256_loadu_pd(v.x + v.x_stride + i + 4),
+                xb2 = _mm256_loadu_pd(v.x + 2 * v.x_stride + i + 4);
+  __m256d fa0 = law.zero, fa1 = law.zero, fa2 = law.zero, wa = law.zero;
+  __m256d fb0 = law.zero, fb1 = law.zero, fb2 = law.zero, wb = law.zero;
+  int newly_a[4] = {0, 0, 0, 0}, newly_b[4] = {0, 0, 0, 0};
+  std::uint8_t* const flags_a[4] = {v.broken + v.offsets[i], v.broken + v.offsets[i + 1], v.broken + v.offsets[i + 2],
+                                    v.broken + v.offsets[i + 3]};
+  std::uint8_t* const flags_b[4] = {v.broken + v.offsets[i + 4], v.broken + v.offsets[i + 5],
+                                    v.broken + v.offsets[i + 6], v.broken + v.offsets[i + 7]};
+  for (std::int64_t k = 0; k < n; ++k) {
+    const std::int64_t j = nbr[k];
+    Bonds4 a, b;
+    a.xi2 = b.xi2 = _mm256_broadcast_sd(sx + k);
+    a.measure = b.measure = _mm256_broadcast_sd(sm + k);
+    a.inv_xi = b.inv_xi = _mm256_broadcast_sd(sr + k);
+    a.measure_per_xi2 = b.measure_per_xi2 = _mm256_broadcast_sd(sa + k);
+    a.dead = b.dead = 0;
+    a.d0 = _mm256_sub_pd(_mm256_loadu_pd(px + j), xa0);
+    a.d1 = _mm256_sub_pd(_mm256_loadu_pd(py + j), xa1);
+    a.d2 = _mm256_sub_pd(_mm256_loadu_pd(pz + j), xa2);
+    b.d0 = _mm256_sub_pd(_mm256_loadu_pd(px + j + 4), xb0);
+    b.d1 = _mm256_sub_pd(_mm256_loadu_pd(py + j + 4), xb1);
+    b.d2 = _mm256_sub_pd(_mm256_loadu_pd(pz + j + 4), xb2);
+    const unsigned fresh_a = law.add(a, fa0, fa1, fa2, wa);
+    const unsigned fresh_b = law.add(b, fb0, fb1, fb2, wb);
+    if (fresh_a | fresh_b) [[unlikely]] {
+      mark_fresh(fresh_a, flags_a, k, newly_a);
+      mark_fresh(fresh_b, flags_b, k, newly_b);
+    }
+  }
+  law.finish(L, v, rows_a, 4, fa0, fa1, fa2, wa, newly_a, force, tally);
+  law.finish(L, v, rows_b, 4, fb0, fb1, fb2, wb, newly_b, force, tally);
+}
+
 // Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
 inline bool any_flag(const std::uint8_t* begin, const std::uint8_t* end) {
   __m256i acc = _mm256_setzero_si256();
@@ -355,7 +403,10 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
       // The run's rows, and each block's, are one range of the summary (and of the flags).
       const bool intact = summary ? !any_flag(summary + run.first, summary + run.first + run.count)
                                   : !any_flag(v.broken + b0, v.broken + v.offsets[run.first + run.count]);
-      for (std::int32_t q = 0; q < run.count; q += 4) {
+      std::int32_t q = 0;
+      if (intact)
+        for (; q + 8 <= run.count; q += 8) block_pair_avx2(law, L, v, slots, run.first + q, q, force, tally);
+      for (; q < run.count; q += 4) {
         const std::int32_t i = run.first + q;
         if (intact || (summary ? !any_flag(summary + i, summary + i + 4)
                                : !any_flag(v.broken + v.offsets[i], v.broken + v.offsets[i + 4])))
