@@ -498,9 +498,14 @@ const char* bond_kernel_isa() {
 
 void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
                        std::int64_t stride, double* x) {
-  for (int c = 0; c < 3; ++c) {
-    double* __restrict plane = x + c * stride;
-    for (std::int64_t i = begin; i < end; ++i) plane[i] = X[3 * i + c] + u[3 * i + c];
+  // One pass over X and u (a pass per plane re-read both from memory three times).
+  double* __restrict px = x;
+  double* __restrict py = x + stride;
+  double* __restrict pz = x + 2 * stride;
+  for (std::int64_t i = begin; i < end; ++i) {
+    px[i] = X[3 * i] + u[3 * i];
+    py[i] = X[3 * i + 1] + u[3 * i + 1];
+    pz[i] = X[3 * i + 2] + u[3 * i + 2];
   }
 }
 
