@@ -404,36 +404,37 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
     const std::int64_t b0 = v.offsets[run.first], slot0 = P.begin[P.of_row[run.first]];
     const RunSlots slots{v.neighbor + b0,           v.offsets[run.first + 1] - b0,  P.xi2.data() + slot0,
                          P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
-    // Blocks without a broken bond (most, in most runs) skip the flag bytes: known from the rows'
-    // summary bytes (BondFamilies::row_broken) where the view has them, else from the flags.
-    const std::uint8_t* summary = v.row_broken;
+    // Blocks without a broken bond (most, in most runs) skip the flag bytes. Whether rows
+    // first + l s (l < count) have none: from the rows' summary bytes (BondFamilies::row_broken)
+    // where the view has them, else from the flags; for s = 1 either is one range.
+    auto intact = [&v](std::int32_t first, std::int32_t s, std::int32_t count) {
+      if (s == 1)
+        return v.row_broken ? !any_flag(v.row_broken + first, v.row_broken + first + count)
+                            : !any_flag(v.broken + v.offsets[first], v.broken + v.offsets[first + count]);
+      for (std::int32_t l = 0; l < count; ++l) {
+        const std::int32_t r = first + l * s;
+        if (v.row_broken ? v.row_broken[r] != 0 : any_flag(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]))
+          return false;
+      }
+      return true;
+    };
     if (run.stride == 1) {
-      // The run's rows, and each block's, are one range of the summary (and of the flags).
-      const bool intact = summary ? !any_flag(summary + run.first, summary + run.first + run.count)
-                                  : !any_flag(v.broken + b0, v.broken + v.offsets[run.first + run.count]);
+      const bool whole_run = intact(run.first, 1, run.count);
       std::int32_t q = 0;
-      if (intact)
+      if (whole_run)
         for (; q + 4 * kBlocksAtOnce <= run.count; q += 4 * kBlocksAtOnce)
           blocks_avx2<kBlocksAtOnce>(law, L, v, slots, run.first + q, q, force, tally);
       for (; q < run.count; q += 4) {
         const std::int32_t i = run.first + q;
-        if (intact || (summary ? !any_flag(summary + i, summary + i + 4)
-                               : !any_flag(v.broken + v.offsets[i], v.broken + v.offsets[i + 4])))
-          block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
-        else
-          block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
+        if (whole_run || intact(i, 1, 4)) block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
+        else block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
       }
     } else {
       for (std::int32_t q = 0; q < run.count; q += 4) {
         const std::int32_t i = run.first + q * run.stride;
-        bool any = false;
-        for (std::int32_t l = 0; l < 4; ++l) {
-          const std::int32_t r = i + l * run.stride;
-          any = any || (summary ? summary[r] != 0 : any_flag(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]));
-        }
         const std::int64_t shift = static_cast<std::int64_t>(q) * run.stride;
-        if (any) block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
-        else block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+        if (intact(i, run.stride, 4)) block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+        else block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
       }
     }
   }
