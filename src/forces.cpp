@@ -4,9 +4,14 @@
 #if defined(__AVX2__) && defined(__FMA__)
 #define PERI_AVX2 1
 #include <immintrin.h>
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+#define PERI_AVX512VL 1  // eight-lane blocks, and PMB's 1/|y| from the rsqrt14 estimate
+#endif
 #endif
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 namespace peri {
 namespace {
@@ -103,106 +108,196 @@ struct LaneMasks {
 constexpr LaneMasks kLaneMasks;
 inline __m256d lane_mask(unsigned bits) { return _mm256_load_pd(reinterpret_cast<const double*>(kLaneMasks.bits[bits])); }
 
-// Four bonds, lane l the k-th bond of row l: y = x_j - x_i and the family pattern's slots.
-struct Bonds4 {
-  __m256d d0, d1, d2;
-  __m256d xi2, measure, inv_xi, measure_per_xi2;  // |xi|^2, w V_j, 1/|xi|, w V_j / |xi|^2
+// The operations the law uses, on W = 4 lanes (AVX2; lane masks as vectors) or W = 8 (AVX-512;
+// lane masks as mask registers). Every lane of either computes the same operations in the same
+// order, so a bond's coefficient is the same bits whichever width evaluates it (on AMD Zen 4 an
+// eight-lane operation is one instruction over two cycles: twice the bonds in flight for the same
+// scheduler entries, which is what bounds this loop's long dependency chain).
+struct Simd4 {
+  static constexpr int W = 4;
+  using V = __m256d;
+  using M = __m256d;
+  static V zero() { return _mm256_setzero_pd(); }
+  static V set1(double a) { return _mm256_set1_pd(a); }
+  static V broadcast(const double* a) { return _mm256_broadcast_sd(a); }
+  static V loadu(const double* a) { return _mm256_loadu_pd(a); }
+  static void storeu(double* a, V x) { _mm256_storeu_pd(a, x); }
+  static V add(V a, V b) { return _mm256_add_pd(a, b); }
+  static V sub(V a, V b) { return _mm256_sub_pd(a, b); }
+  static V mul(V a, V b) { return _mm256_mul_pd(a, b); }
+  static V div(V a, V b) { return _mm256_div_pd(a, b); }
+  static V min(V a, V b) { return _mm256_min_pd(a, b); }
+  static V max(V a, V b) { return _mm256_max_pd(a, b); }
+  static V sqrt(V a) { return _mm256_sqrt_pd(a); }
+  static V fmadd(V a, V b, V c) { return _mm256_fmadd_pd(a, b, c); }
+  static V fnmadd(V a, V b, V c) { return _mm256_fnmadd_pd(a, b, c); }
+#if defined(PERI_AVX512VL)
+  static V rsqrt14(V a) { return _mm256_rsqrt14_pd(a); }
+#endif
+  static M ge(V a, V b) { return _mm256_cmp_pd(a, b, _CMP_GE_OQ); }
+  static M le(V a, V b) { return _mm256_cmp_pd(a, b, _CMP_LE_OQ); }
+  static unsigned bits(M m) { return static_cast<unsigned>(_mm256_movemask_pd(m)); }
+  static M with_lanes(M m, unsigned lanes) { return _mm256_or_pd(m, lane_mask(lanes)); }
+  static V zero_where(M m, V a) { return _mm256_andnot_pd(m, a); }
+};
+#if defined(PERI_AVX512VL)
+#define PERI_AVX512 1
+struct Simd8 {
+  static constexpr int W = 8;
+  using V = __m512d;
+  using M = __mmask8;
+  static V zero() { return _mm512_setzero_pd(); }
+  static V set1(double a) { return _mm512_set1_pd(a); }
+  static V broadcast(const double* a) { return _mm512_set1_pd(*a); }
+  static V loadu(const double* a) { return _mm512_loadu_pd(a); }
+  static void storeu(double* a, V x) { _mm512_storeu_pd(a, x); }
+  static V add(V a, V b) { return _mm512_add_pd(a, b); }
+  static V sub(V a, V b) { return _mm512_sub_pd(a, b); }
+  static V mul(V a, V b) { return _mm512_mul_pd(a, b); }
+  static V div(V a, V b) { return _mm512_div_pd(a, b); }
+  static V min(V a, V b) { return _mm512_min_pd(a, b); }
+  static V max(V a, V b) { return _mm512_max_pd(a, b); }
+  static V sqrt(V a) { return _mm512_sqrt_pd(a); }
+  static V fmadd(V a, V b, V c) { return _mm512_fmadd_pd(a, b, c); }
+  static V fnmadd(V a, V b, V c) { return _mm512_fnmadd_pd(a, b, c); }
+  static V rsqrt14(V a) { return _mm512_rsqrt14_pd(a); }
+  static M ge(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_GE_OQ); }
+  static M le(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_LE_OQ); }
+  static unsigned bits(M m) { return m; }
+  static M with_lanes(M m, unsigned lanes) { return static_cast<M>(m | lanes); }
+  static V zero_where(M m, V a) { return _mm512_maskz_mov_pd(static_cast<M>(~m), a); }
+};
+using SimdWide = Simd8;
+#else
+using SimdWide = Simd4;
+#endif
+
+// W bonds, lane l the k-th bond of row l: y = x_j - x_i and the family pattern's slots.
+template <class S>
+struct Bonds {
+  typename S::V d0, d1, d2;
+  typename S::V xi2, measure, inv_xi, measure_per_xi2;  // |xi|^2, w V_j, 1/|xi|, w V_j / |xi|^2
   unsigned dead;  // bit l: lane l's bond is broken already, or lane l is idle
 };
+using Bonds4 = Bonds<Simd4>;
 
-// One bond law on four lanes.
+// One bond law on the lanes of S.
 // Membrane (eq. 15): f_hat / y = 2 c g (1 - r^2) w V_j / xi^2 with r = xi^2 / y^2 = lambda^-2:
 // one division, no square root, and the failure test (eq. 11) is r <= lambda_0^-2.
 // PMB: f_hat / y = c g (1/xi - 1/y). The law's constant c multiplies the row's sum (c_row).
-template <ModelKind K, bool Conical, bool Linear, bool Energy>
-struct Avx2Law {
+template <class S, ModelKind K, bool Conical, bool Linear, bool Energy>
+struct VecLaw {
+  using Simd = S;
+  using V = typename S::V;
+  using M = typename S::M;
+  static constexpr int W = S::W;
   double c_row;
-  __m256d zero, one, c_energy, tiny, r_max, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon;
-  explicit Avx2Law(const BondLaw& L)
+  V zero, one, half, c_energy, tiny, r_max, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon;
+  explicit VecLaw(const BondLaw& L)
       : c_row(K == ModelKind::Membrane ? 2.0 * L.c : L.c),
-        zero(_mm256_setzero_pd()),
-        one(_mm256_set1_pd(1.0)),
-        c_energy(_mm256_set1_pd(K == ModelKind::Membrane ? L.c : 0.5 * L.c)),
-        tiny(_mm256_set1_pd(1e-12)),
-        r_max(_mm256_set1_pd(1e12)),
-        crit0(_mm256_set1_pd(L.critical0)),
-        crit0_sq(_mm256_set1_pd(L.critical0 * L.critical0)),
-        inv_crit0_sq(_mm256_set1_pd(1.0 / (L.critical0 * L.critical0))),  // 0 if unbreakable
-        crit_slope(_mm256_set1_pd(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0)),
-        inv_horizon(_mm256_set1_pd(1.0 / L.horizon)) {}
+        zero(S::zero()),
+        one(S::set1(1.0)),
+        half(S::set1(0.5)),
+        c_energy(S::set1(K == ModelKind::Membrane ? L.c : 0.5 * L.c)),
+        tiny(S::set1(1e-12)),
+        r_max(S::set1(1e12)),
+        crit0(S::set1(L.critical0)),
+        crit0_sq(S::set1(L.critical0 * L.critical0)),
+        inv_crit0_sq(S::set1(1.0 / (L.critical0 * L.critical0))),  // 0 if unbreakable
+        crit_slope(S::set1(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0)),
+        inv_horizon(S::set1(1.0 / L.horizon)) {}
 
   // Adds the four bonds to the lane sums f (force / c_row) and w (energy density); returns the
   // lanes whose bond reaches the failure test now (eq. 11; eq. 29 if linear), which add nothing.
-  __attribute__((always_inline)) unsigned add(const Bonds4& b, __m256d& f0, __m256d& f1, __m256d& f2,
-                                              __m256d& w) const {
-    const __m256d s2 = b.xi2;
-    // (x^2 + z^2) + y^2: two independent products, a shorter dependency chain than nested FMAs.
-    const __m256d y2 = _mm256_add_pd(_mm256_fmadd_pd(b.d2, b.d2, _mm256_mul_pd(b.d0, b.d0)), _mm256_mul_pd(b.d1, b.d1));
-    __m256d xi = zero, g = one;
-    // |xi| = |xi|^2 / |xi|: a multiplication by the pattern's 1/|xi|, not a square root.
-    if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = _mm256_mul_pd(s2, b.inv_xi);
-    if constexpr (Conical) g = _mm256_max_pd(zero, _mm256_fnmadd_pd(xi, inv_horizon, one));
-    // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
-    __m256d ratio = one, y2g = y2;
-    if constexpr (K == ModelKind::Membrane) ratio = _mm256_min_pd(_mm256_div_pd(s2, y2), r_max);
-    else y2g = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));
-    __m256d reached;
-    if constexpr (Linear) {
-      const __m256d lc = _mm256_fmadd_pd(crit_slope, xi, crit0);
-      reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(_mm256_mul_pd(lc, lc), s2), _CMP_GE_OQ);
-    } else if constexpr (K == ModelKind::Membrane) {
-      reached = _mm256_cmp_pd(ratio, inv_crit0_sq, _CMP_LE_OQ);
-    } else {
-      reached = _mm256_cmp_pd(y2g, _mm256_mul_pd(crit0_sq, s2), _CMP_GE_OQ);
-    }
-    const unsigned fresh = static_cast<unsigned>(_mm256_movemask_pd(reached)) & ~b.dead & 0xFu;
-    const __m256d dead = _mm256_or_pd(reached, lane_mask(b.dead));  // all ones where the bond adds nothing
-    __m256d coef;
-    if constexpr (K == ModelKind::Membrane) {
-      __m256d a = b.measure_per_xi2;
-      if constexpr (Conical) a = _mm256_mul_pd(g, a);
-      coef = _mm256_andnot_pd(dead, _mm256_fnmadd_pd(a, _mm256_mul_pd(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
-      if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g (y^2 - xi^2)^2 / (xi^2 y^2)
-        const __m256d y2e = _mm256_max_pd(y2, _mm256_mul_pd(tiny, s2));  // as ScalarLoop
-        const __m256d e = _mm256_sub_pd(y2e, s2);
-        const __m256d ge = _mm256_mul_pd(c_energy, Conical ? _mm256_mul_pd(g, b.measure) : b.measure);
-        w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(e, e)), _mm256_mul_pd(s2, y2e))));
-      }
-    } else {
-      const __m256d gm = Conical ? _mm256_mul_pd(g, b.measure) : b.measure;
-      // 1/y as a square root and a division (AVX2 has no double-precision reciprocal square
-      // root estimate; the single-precision one and three Newton steps ran at 0.64 of this).
-      const __m256d y = _mm256_sqrt_pd(y2g);
-      const __m256d inv_y = _mm256_div_pd(one, y);
-      coef = _mm256_andnot_pd(dead, _mm256_mul_pd(gm, _mm256_sub_pd(b.inv_xi, inv_y)));  // c g (1/xi - 1/y)
-      if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
-        const __m256d stretch = _mm256_sub_pd(y, xi);
-        const __m256d ge = _mm256_mul_pd(c_energy, gm);
-        w = _mm256_add_pd(w, _mm256_andnot_pd(dead, _mm256_div_pd(_mm256_mul_pd(ge, _mm256_mul_pd(stretch, stretch)), xi)));
-      }
-    }
-    f0 = _mm256_fmadd_pd(coef, b.d0, f0);
-    f1 = _mm256_fmadd_pd(coef, b.d1, f1);
-    f2 = _mm256_fmadd_pd(coef, b.d2, f2);
+  __attribute__((always_inline)) unsigned add(const Bonds<S>& b, V& f0, V& f1, V& f2,
+                                              V& w) const {
+    unsigned fresh;
+    const V coef = coefficient(b, w, fresh);
+    f0 = S::fmadd(coef, b.d0, f0);
+    f1 = S::fmadd(coef, b.d1, f1);
+    f2 = S::fmadd(coef, b.d2, f2);
     return fresh;
   }
 
+  // The four bonds' f_hat / (y c_row), zero where the bond adds nothing; adds their energy
+  // density to w; `fresh`: the lanes whose bond reaches the failure test now.
+  __attribute__((always_inline)) V coefficient(const Bonds<S>& b, V& w, unsigned& fresh) const {
+    const V s2 = b.xi2;
+    // (x^2 + z^2) + y^2: two independent products, a shorter dependency chain than nested FMAs.
+    const V y2 = S::add(S::fmadd(b.d2, b.d2, S::mul(b.d0, b.d0)), S::mul(b.d1, b.d1));
+    V xi = zero, g = one;
+    // |xi| = |xi|^2 / |xi|: a multiplication by the pattern's 1/|xi|, not a square root.
+    if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = S::mul(s2, b.inv_xi);
+    if constexpr (Conical) g = S::max(zero, S::fnmadd(xi, inv_horizon, one));
+    // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
+    V ratio = one, y2g = y2;
+    if constexpr (K == ModelKind::Membrane) ratio = S::min(S::div(s2, y2), r_max);
+    else y2g = S::max(y2, S::mul(tiny, s2));
+    M reached;
+    if constexpr (Linear) {
+      const V lc = S::fmadd(crit_slope, xi, crit0);
+      reached = S::ge(y2g, S::mul(S::mul(lc, lc), s2));
+    } else if constexpr (K == ModelKind::Membrane) {
+      reached = S::le(ratio, inv_crit0_sq);
+    } else {
+      reached = S::ge(y2g, S::mul(crit0_sq, s2));
+    }
+    fresh = static_cast<unsigned>(S::bits(reached)) & ~b.dead & ((1u << W) - 1u);
+    const M dead = S::with_lanes(reached, b.dead);  // all ones where the bond adds nothing
+    V coef;
+    if constexpr (K == ModelKind::Membrane) {
+      V a = b.measure_per_xi2;
+      if constexpr (Conical) a = S::mul(g, a);
+      coef = S::zero_where(dead, S::fnmadd(a, S::mul(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
+      if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g (y^2 - xi^2)^2 / (xi^2 y^2)
+        const V y2e = S::max(y2, S::mul(tiny, s2));  // as ScalarLoop
+        const V e = S::sub(y2e, s2);
+        const V ge = S::mul(c_energy, Conical ? S::mul(g, b.measure) : b.measure);
+        w = S::add(w, S::zero_where(dead, S::div(S::mul(ge, S::mul(e, e)), S::mul(s2, y2e))));
+      }
+    } else {
+      const V gm = Conical ? S::mul(g, b.measure) : b.measure;
+#if defined(PERI_AVX512VL)
+      // 1/y from AVX-512VL's 14-bit reciprocal square root estimate and two Newton steps
+      // r <- r + r (1/2 - (y^2/2) r^2) (relative error 2^-14 -> 2^-27 -> round-off): no square
+      // root, no division, which bound this law (the divider alone: 13.3 cycles per four bonds).
+      const V half_y2 = S::mul(half, y2g);
+      V inv_y = S::rsqrt14(y2g);
+      inv_y = S::fmadd(inv_y, S::fnmadd(S::mul(half_y2, inv_y), inv_y, half), inv_y);
+      inv_y = S::fmadd(inv_y, S::fnmadd(S::mul(half_y2, inv_y), inv_y, half), inv_y);
+      const V y = S::mul(y2g, inv_y);
+#else
+      // 1/y as a square root and a division (AVX2 has no double-precision reciprocal square
+      // root estimate; the single-precision one and three Newton steps ran at 0.64 of this).
+      const V y = S::sqrt(y2g);
+      const V inv_y = S::div(one, y);
+#endif
+      coef = S::zero_where(dead, S::mul(gm, S::sub(b.inv_xi, inv_y)));  // c g (1/xi - 1/y)
+      if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
+        const V stretch = S::sub(y, xi);
+        const V ge = S::mul(c_energy, gm);
+        w = S::add(w, S::zero_where(dead, S::div(S::mul(ge, S::mul(stretch, stretch)), xi)));
+      }
+    }
+    return coef;
+  }
+
   // Writes the rows' force densities and energy (lanes 0 .. count-1) and books their newly broken
-  // bonds (`L`: the law this was built from).
-  void finish(const BondLaw& L, const BondView& v, const std::int32_t rows[4], int count, __m256d f0, __m256d f1,
-              __m256d f2, __m256d w, const int newly[4], double* force, BondTally& tally) const {
-    alignas(32) double s0[4], s1[4], s2[4], se[4];
-    _mm256_store_pd(s0, f0);
-    _mm256_store_pd(s1, f1);
-    _mm256_store_pd(s2, f2);
-    _mm256_store_pd(se, w);
+  // bonds (`L`: the law this was built from; `newly`: nullptr if none).
+  void finish(const BondLaw& L, const BondView& v, const std::int32_t* rows, int count, V f0, V f1, V f2, V w,
+              const int* newly, double* force, BondTally& tally) const {
+    double s0[W], s1[W], s2[W], se[W];
+    S::storeu(s0, f0);
+    S::storeu(s1, f1);
+    S::storeu(s2, f2);
+    S::storeu(se, w);
     for (int l = 0; l < count; ++l) {
       const std::int32_t i = rows[l];
       force[3 * i] = c_row * s0[l];
       force[3 * i + 1] = c_row * s1[l];
       force[3 * i + 2] = c_row * s2[l];
       if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * se[l];
-      if (newly[l]) book_breaks(L, v, i, newly[l], tally);
+      if (newly && newly[l]) book_breaks(L, v, i, newly[l], tally);
     }
   }
 };
@@ -268,38 +363,42 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
   law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
 }
 
-// G intact blocks of a stride-1 run side by side, rows i .. i + 4G - 1: per k one neighbour index
-// and one broadcast of each slot serve 4G bonds. Each lane's arithmetic is that of block_avx2.
-template <int G, class Law>
-void blocks_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
-                 std::int64_t shift, double* force, BondTally& tally) {
+// G intact blocks of W = Wide::W rows of a stride-1 run side by side, rows i .. i + G W - 1: per
+// k one neighbour index and one broadcast of each slot serve G W bonds. Each lane's arithmetic is
+// that of block_avx2.
+template <int G, class Wide, class Narrow>
+void blocks_wide(const Wide& law, const Narrow& narrow, const BondLaw& L, const BondView& v, const RunSlots& run,
+                 std::int32_t i, std::int64_t shift, double* force, BondTally& tally) {
+  using S = typename Wide::Simd;
+  using V = typename S::V;
+  constexpr int W = S::W;
   const double* __restrict px = v.x + shift;
   const double* __restrict py = v.x + v.x_stride + shift;
   const double* __restrict pz = v.x + 2 * v.x_stride + shift;
   const std::int64_t n = run.n;
   const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
   const std::int32_t* __restrict nbr = run.neighbor;
-  __m256d x0[G], x1[G], x2[G], f0[G], f1[G], f2[G], w[G];
+  V x0[G], x1[G], x2[G], f0[G], f1[G], f2[G], w[G];
   for (int g = 0; g < G; ++g) {
-    x0[g] = _mm256_loadu_pd(v.x + i + 4 * g);
-    x1[g] = _mm256_loadu_pd(v.x + v.x_stride + i + 4 * g);
-    x2[g] = _mm256_loadu_pd(v.x + 2 * v.x_stride + i + 4 * g);
+    x0[g] = S::loadu(v.x + i + W * g);
+    x1[g] = S::loadu(v.x + v.x_stride + i + W * g);
+    x2[g] = S::loadu(v.x + 2 * v.x_stride + i + W * g);
     f0[g] = f1[g] = f2[g] = w[g] = law.zero;
   }
   bool broke = false;
   for (std::int64_t k = 0; k < n; ++k) {
     const std::int64_t j = nbr[k];
-    Bonds4 b;
-    b.xi2 = _mm256_broadcast_sd(sx + k);
-    b.measure = _mm256_broadcast_sd(sm + k);
-    b.inv_xi = _mm256_broadcast_sd(sr + k);
-    b.measure_per_xi2 = _mm256_broadcast_sd(sa + k);
+    Bonds<S> b;
+    b.xi2 = S::broadcast(sx + k);
+    b.measure = S::broadcast(sm + k);
+    b.inv_xi = S::broadcast(sr + k);
+    b.measure_per_xi2 = S::broadcast(sa + k);
     b.dead = 0;
     unsigned fresh = 0;
     for (int g = 0; g < G; ++g) {
-      b.d0 = _mm256_sub_pd(_mm256_loadu_pd(px + j + 4 * g), x0[g]);
-      b.d1 = _mm256_sub_pd(_mm256_loadu_pd(py + j + 4 * g), x1[g]);
-      b.d2 = _mm256_sub_pd(_mm256_loadu_pd(pz + j + 4 * g), x2[g]);
+      b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
+      b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
+      b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
       fresh |= law.add(b, f0[g], f1[g], f2[g], w[g]);
     }
     if (fresh) [[unlikely]] {
@@ -309,16 +408,15 @@ void blocks_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunS
   }
   if (!broke) {
     for (int g = 0; g < G; ++g) {
-      const std::int32_t rows[4] = {i + 4 * g, i + 4 * g + 1, i + 4 * g + 2, i + 4 * g + 3};
-      const int newly[4] = {0, 0, 0, 0};
-      law.finish(L, v, rows, 4, f0[g], f1[g], f2[g], w[g], newly, force, tally);
+      std::int32_t rows[W];
+      for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
+      law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally);
     }
     return;
   }
   // A bond reached the failure test (nothing is flagged yet): these rows again, block by block,
   // with the flag bookkeeping; the same sums.
-  for (int g = 0; g < G; ++g)
-    block_avx2<true, true>(law, L, v, run, i + 4 * g, 1, shift + 4 * g, force, tally);
+  for (int q = 0; q < G * W; q += 4) block_avx2<true, true>(narrow, L, v, run, i + q, 1, shift + q, force, tally);
 }
 
 // Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
@@ -393,49 +491,227 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
   law.finish(L, v, rows, count, f0, f1, f2, w, newly, force, tally);
 }
 
-// Blocks of an intact run evaluated side by side (ab_forces.sh on a 400 x 400 membrane: two
-// blocks 1.15-1.18 times as fast as one; three 0.91 times two: the lane sums then spill).
-constexpr int kBlocksAtOnce = 2;
+// Whether rows first + l s (l < count) have no broken bond: from the rows' summary bytes
+// (BondFamilies::row_broken) where the view has them, else from the flags; for s = 1 either is
+// one range.
+inline bool rows_intact(const BondView& v, std::int32_t first, std::int32_t s, std::int32_t count) {
+  if (s == 1)
+    return v.row_broken ? !any_flag(v.row_broken + first, v.row_broken + first + count)
+                        : !any_flag(v.broken + v.offsets[first], v.broken + v.offsets[first + count]);
+  for (std::int32_t l = 0; l < count; ++l) {
+    const std::int32_t r = first + l * s;
+    if (v.row_broken ? v.row_broken[r] != 0 : any_flag(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]))
+      return false;
+  }
+  return true;
+}
+
+inline RunSlots run_slots(const BondView& v, const RowRun& run) {
+  const FamilyPatterns& P = *v.patterns;
+  const std::int64_t b0 = v.offsets[run.first], slot0 = P.begin[P.of_row[run.first]];
+  return {v.neighbor + b0,           v.offsets[run.first + 1] - b0,  P.xi2.data() + slot0,
+          P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
+}
+
+// The laws of one loop: four lanes (every block) and the widest this CPU has (blocks of intact
+// stride-1 runs).
+template <ModelKind K, bool Conical, bool Linear, bool Energy>
+struct Laws {
+  VecLaw<Simd4, K, Conical, Linear, Energy> narrow;
+  VecLaw<SimdWide, K, Conical, Linear, Energy> wide;
+  explicit Laws(const BondLaw& L) : narrow(L), wide(L) {}
+};
+
+// Rows of an intact run evaluated at once: eight, as one block of eight lanes (AVX-512) or two
+// blocks of four side by side (AVX2; ab_forces.sh on a 400 x 400 membrane: two blocks 1.15-1.18
+// times as fast as one, three 0.91 times two: the lane sums then spill). Eight lanes against two
+// blocks of four, AVX-512 on AMD Zen 4: 1.29 (PMB).
+constexpr int kWideRows = 8;
+constexpr int kWideBlocks = kWideRows / SimdWide::W;
+
+// One run, block by block. Blocks without a broken bond (most, in most runs) skip the flag bytes.
+template <class Laws>
+void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run, double* force,
+              BondTally& tally) {
+  const auto& law = laws.narrow;
+  const RunSlots slots = run_slots(v, run);
+  if (run.stride == 1) {
+    const bool whole_run = rows_intact(v, run.first, 1, run.count);
+    std::int32_t q = 0;
+    if (whole_run)
+      for (; q + kWideRows <= run.count; q += kWideRows)
+        blocks_wide<kWideBlocks>(laws.wide, law, L, v, slots, run.first + q, q, force, tally);
+    for (; q < run.count; q += 4) {
+      const std::int32_t i = run.first + q;
+      if (whole_run || rows_intact(v, i, 1, 4)) block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
+      else block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
+    }
+  } else {
+    for (std::int32_t q = 0; q < run.count; q += 4) {
+      const std::int32_t i = run.first + q * run.stride;
+      const std::int64_t shift = static_cast<std::int64_t>(q) * run.stride;
+      if (rows_intact(v, i, run.stride, 4)) block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+      else block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+    }
+  }
+}
+
+using SlotSegment = RowBlocks::BoxScratch::Segment;
+
+// G blocks of an intact line of a box (RowBox), side by side: rows i .. i + 4G - 1 at lanes
+// a .. a + 4G - 1, their slots in `segments` (in CSR order; in the natural order a few long ones).
+// Own and Produce slots are evaluated as in block_avx2 (Produce also stores the coefficients at
+// at[k] + a, the partners' places in the ring); Consume slots load the coefficients their
+// partners stored. Returns false, having written nothing but ring entries, if a bond reaches the
+// failure test: the caller then takes these rows through block_avx2, which flags and books it.
+template <int G, class Law>
+bool paired_blocks(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run,
+                        const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
+                        std::int64_t a, double* force, BondTally& tally) {
+  const double* __restrict px = v.x + a;
+  const double* __restrict py = v.x + v.x_stride + a;
+  const double* __restrict pz = v.x + 2 * v.x_stride + a;
+  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
+  const std::int32_t* __restrict nbr = run.neighbor;
+  using S = typename Law::Simd;
+  using V = typename S::V;
+  constexpr int W = S::W;
+  V x0[G], x1[G], x2[G], f0[G], f1[G], f2[G], w[G];
+  for (int g = 0; g < G; ++g) {
+    x0[g] = S::loadu(v.x + i + W * g);
+    x1[g] = S::loadu(v.x + v.x_stride + i + W * g);
+    x2[g] = S::loadu(v.x + 2 * v.x_stride + i + W * g);
+    f0[g] = f1[g] = f2[g] = w[g] = law.zero;
+  }
+  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
+  auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t j = nbr[k];
+      Bonds<S> b;
+      b.xi2 = S::broadcast(sx + k);
+      b.measure = S::broadcast(sm + k);
+      b.inv_xi = S::broadcast(sr + k);
+      b.measure_per_xi2 = S::broadcast(sa + k);
+      b.dead = 0;
+      unsigned fresh = 0;
+      for (int g = 0; g < G; ++g) {
+        b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
+        b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
+        b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
+        unsigned lanes;
+        const V coef = law.coefficient(b, w[g], lanes);
+        fresh |= lanes;
+        if constexpr (decltype(produce)::value) S::storeu(at[k] + a + W * g, coef);
+        f0[g] = S::fmadd(coef, b.d0, f0[g]);
+        f1[g] = S::fmadd(coef, b.d1, f1[g]);
+        f2[g] = S::fmadd(coef, b.d2, f2[g]);
+      }
+      if (fresh) [[unlikely]] return false;
+    }
+    return true;
+  };
+  for (std::size_t s = 0; s < nsegments; ++s) {
+    const SlotSegment seg = segments[s];
+    if (seg.kind == BoxSlot::Consume) {
+      for (std::int64_t k = seg.begin; k < seg.end; ++k) {
+        const std::int64_t j = nbr[k];
+        for (int g = 0; g < G; ++g) {
+          const V coef = S::loadu(at[k] + a + W * g);
+          f0[g] = S::fmadd(coef, S::sub(S::loadu(px + j + W * g), x0[g]), f0[g]);
+          f1[g] = S::fmadd(coef, S::sub(S::loadu(py + j + W * g), x1[g]), f1[g]);
+          f2[g] = S::fmadd(coef, S::sub(S::loadu(pz + j + W * g), x2[g]), f2[g]);
+        }
+      }
+    } else if (seg.kind == BoxSlot::Produce) {
+      if (!evaluate(seg.begin, seg.end, std::true_type{})) return false;
+    } else {
+      if (!evaluate(seg.begin, seg.end, std::false_type{})) return false;
+    }
+  }
+  for (int g = 0; g < G; ++g) {
+    std::int32_t rows[W];
+    for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
+    law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally);
+  }
+  return true;
+}
+
+// The lines of a box in order. A line with a broken bond goes through run_avx2 and produces
+// nothing; an intact line consumes the coefficients of the earlier lines that completed their
+// Produce slots (blocks at least `pad` lanes from the line's ends: their partners are all box
+// rows) and evaluates the rest. A bond reaching the failure test sends its block and the rest of
+// its line through block_avx2, and that line's coefficients are not consumed.
+template <class Laws>
+void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBlocks& rows, const RowBox& box,
+              double* force, BondTally& tally) {
+  RowBlocks::BoxScratch& scratch = rows.box_scratch;
+  const std::int64_t ring_width = box.width + 2 * box.pad;
+  const std::size_t n = box.slots.size();
+  for (std::size_t r = box.run_begin; r < box.run_end; ++r) {
+    const RowRun& run = rows.runs[r];
+    const std::int32_t line = static_cast<std::int32_t>(r - box.run_begin);
+    scratch.produced[line] = 0;
+    if (!rows_intact(v, run.first, 1, run.count)) {
+      run_avx2(laws, L, v, run, force, tally);
+      continue;
+    }
+    // The line's slot kinds as segments: for blocks whose Consume partners all lie in the line,
+    // and for blocks near its ends (whose Consume slots are evaluated instead).
+    scratch.inner.clear();
+    scratch.edge.clear();
+    auto append = [](std::vector<SlotSegment>& list, BoxSlot::Kind kind, std::int32_t k) {
+      if (!list.empty() && list.back().kind == kind && list.back().end == k) ++list.back().end;
+      else list.push_back({kind, k, k + 1});
+    };
+    for (std::size_t k = 0; k < n; ++k) {
+      const BoxSlot& s = box.slots[k];
+      BoxSlot::Kind kind = s.kind;
+      std::int32_t ring_line = line;
+      std::int64_t lane = 0;
+      if (kind == BoxSlot::Produce) {
+        ring_line = line + s.line;
+        lane = s.lane;
+      } else if (kind == BoxSlot::Consume && !(line + s.line >= 0 && scratch.produced[line + s.line])) {
+        kind = BoxSlot::Own;
+      }
+      append(scratch.inner, kind, static_cast<std::int32_t>(k));
+      append(scratch.edge, kind == BoxSlot::Consume ? BoxSlot::Own : kind, static_cast<std::int32_t>(k));
+      scratch.at[k] = scratch.ring.data() + ((ring_line % box.window) * box.columns + s.column) * ring_width + box.pad + lane;
+    }
+    const RunSlots slots = run_slots(v, run);
+    // Blocks at lanes q .. q + rows - 1 whose Consume partners all lie in the line: pad <= q and
+    // q + rows - 1 + pad < width. Eight rows at once where they fit, else four.
+    auto inner = [&](std::int32_t q, int rows) { return q >= box.pad && q + rows - 1 + box.pad < run.count; };
+    std::int32_t q = 0;
+    while (q < run.count) {
+      const bool wide = q + kWideRows <= run.count && inner(q, kWideRows);
+      const std::vector<SlotSegment>& segments = wide || inner(q, 4) ? scratch.inner : scratch.edge;
+      const bool done =
+          wide ? paired_blocks<kWideBlocks>(laws.wide, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
+                                            run.first + q, q, force, tally)
+               : paired_blocks<1>(laws.narrow, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
+                                  run.first + q, q, force, tally);
+      if (!done) break;
+      q += wide ? kWideRows : 4;
+    }
+    scratch.produced[line] = q == run.count;
+    for (; q < run.count; q += 4) block_avx2<true, true>(laws.narrow, L, v, slots, run.first + q, 1, q, force, tally);
+  }
+}
+
 template <ModelKind K, bool Conical, bool Linear, bool Energy>
 void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) {
-  const Avx2Law<K, Conical, Linear, Energy> law(L);
+  const Laws<K, Conical, Linear, Energy> laws(L);
+  const auto& law = laws.narrow;
   const FamilyPatterns& P = *v.patterns;
-  for (const RowRun& run : rows.runs) {
-    const std::int64_t b0 = v.offsets[run.first], slot0 = P.begin[P.of_row[run.first]];
-    const RunSlots slots{v.neighbor + b0,           v.offsets[run.first + 1] - b0,  P.xi2.data() + slot0,
-                         P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
-    // Blocks without a broken bond (most, in most runs) skip the flag bytes. Whether rows
-    // first + l s (l < count) have none: from the rows' summary bytes (BondFamilies::row_broken)
-    // where the view has them, else from the flags; for s = 1 either is one range.
-    auto intact = [&v](std::int32_t first, std::int32_t s, std::int32_t count) {
-      if (s == 1)
-        return v.row_broken ? !any_flag(v.row_broken + first, v.row_broken + first + count)
-                            : !any_flag(v.broken + v.offsets[first], v.broken + v.offsets[first + count]);
-      for (std::int32_t l = 0; l < count; ++l) {
-        const std::int32_t r = first + l * s;
-        if (v.row_broken ? v.row_broken[r] != 0 : any_flag(v.broken + v.offsets[r], v.broken + v.offsets[r + 1]))
-          return false;
-      }
-      return true;
-    };
-    if (run.stride == 1) {
-      const bool whole_run = intact(run.first, 1, run.count);
-      std::int32_t q = 0;
-      if (whole_run)
-        for (; q + 4 * kBlocksAtOnce <= run.count; q += 4 * kBlocksAtOnce)
-          blocks_avx2<kBlocksAtOnce>(law, L, v, slots, run.first + q, q, force, tally);
-      for (; q < run.count; q += 4) {
-        const std::int32_t i = run.first + q;
-        if (whole_run || intact(i, 1, 4)) block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
-        else block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
-      }
+  // Boxes pair their bonds only in calls without energy (the energy would need a second ring).
+  std::size_t box = Energy ? rows.boxes.size() : 0;
+  for (std::size_t r = 0; r < rows.runs.size();) {
+    if (box < rows.boxes.size() && rows.boxes[box].run_begin == r) {
+      box_avx2(laws, L, v, rows, rows.boxes[box], force, tally);
+      r = rows.boxes[box++].run_end;
     } else {
-      for (std::int32_t q = 0; q < run.count; q += 4) {
-        const std::int32_t i = run.first + q * run.stride;
-        const std::int64_t shift = static_cast<std::int64_t>(q) * run.stride;
-        if (intact(i, run.stride, 4)) block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);
-        else block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
-      }
+      run_avx2(laws, L, v, rows.runs[r++], force, tally);
     }
   }
   const std::size_t nrest = rows.rest.size();
@@ -490,7 +766,9 @@ void dispatch_conical(const BondLaw& law, const BondView& v, const RowBlocks& ro
 }  // namespace
 
 const char* bond_kernel_isa() {
-#if defined(PERI_AVX2)
+#if defined(PERI_AVX512)
+  return "avx512";
+#elif defined(PERI_AVX2)
   return "avx2";
 #else
   return "portable";
@@ -510,7 +788,66 @@ void current_positions(const double* X, const double* u, std::int32_t begin, std
   }
 }
 
-RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nrows) {
+namespace {
+
+// The box of stride-1 runs runs[m0 ..] that continue runs[m0] line by line (RowBox), or a box
+// with run_end == run_begin if it has fewer than two lines or no slot pairs across lines.
+RowBox find_box(const BondView& v, const std::vector<RowRun>& runs, std::size_t m0) {
+  RowBox box;
+  box.run_begin = box.run_end = m0;
+  const FamilyPatterns& P = *v.patterns;
+  const RowRun& r0 = runs[m0];
+  if (m0 + 1 >= runs.size() || r0.stride != 1) return box;
+  const std::int64_t S = static_cast<std::int64_t>(runs[m0 + 1].first) - r0.first;
+  const std::int64_t b0 = v.offsets[r0.first], n = v.offsets[r0.first + 1] - b0;
+  if (S <= r0.count || S > std::numeric_limits<std::int32_t>::max()) return box;
+  std::size_t m = m0 + 1;
+  for (; m < runs.size(); ++m) {
+    const RowRun& r = runs[m];
+    const std::int64_t shift = static_cast<std::int64_t>(m - m0) * S;
+    if (r.stride != 1 || r.count != r0.count || r.first != r0.first + shift || P.of_row[r.first] != P.of_row[r0.first])
+      break;
+    const std::int64_t b = v.offsets[r.first];
+    if (v.offsets[r.first + 1] - b != n) break;
+    bool shifted = true;
+    for (std::int64_t k = 0; k < n && shifted; ++k) shifted = v.neighbor[b + k] == v.neighbor[b0 + k] + shift;
+    if (!shifted) break;
+  }
+  if (m - m0 < 2) return box;
+  // Slot k's partner: offset o_k = nbr[k] - first = line S + lane; the mirror slot has -o_k and,
+  // for the coefficient to be the same bits from both ends, the same reference slots.
+  const std::int64_t slot0 = P.begin[P.of_row[r0.first]];
+  std::vector<std::pair<std::int64_t, std::int64_t>> by_offset;  // (offset, k)
+  for (std::int64_t k = 0; k < n; ++k) by_offset.emplace_back(v.neighbor[b0 + k] - static_cast<std::int64_t>(r0.first), k);
+  std::sort(by_offset.begin(), by_offset.end());
+  box.slots.assign(static_cast<std::size_t>(n), BoxSlot{});
+  for (std::int64_t k = 0; k < n; ++k) {
+    const std::int64_t o = v.neighbor[b0 + k] - static_cast<std::int64_t>(r0.first);
+    const std::int64_t line = o >= 0 ? (o + S / 2) / S : -((-o + S / 2) / S);
+    const std::int64_t lane = o - line * S;
+    if (line <= 0 || 2 * std::abs(lane) >= S) continue;
+    const auto mirror = std::lower_bound(by_offset.begin(), by_offset.end(), std::make_pair(-o, std::int64_t{0}));
+    if (mirror == by_offset.end() || mirror->first != -o) continue;
+    const std::int64_t a = slot0 + k, b = slot0 + mirror->second;
+    if (P.xi2[a] != P.xi2[b] || P.measure[a] != P.measure[b] || P.inv_xi[a] != P.inv_xi[b] ||
+        P.measure_per_xi2[a] != P.measure_per_xi2[b])
+      continue;
+    const std::int32_t column = box.columns++;
+    box.slots[k] = {BoxSlot::Produce, static_cast<std::int32_t>(lane), static_cast<std::int32_t>(line), column};
+    box.slots[mirror->second] = {BoxSlot::Consume, static_cast<std::int32_t>(-lane), static_cast<std::int32_t>(-line), column};
+    box.pad = std::max(box.pad, static_cast<std::int32_t>(std::abs(lane)));
+    box.window = std::max(box.window, static_cast<std::int32_t>(line) + 1);
+  }
+  if (box.columns == 0) return box;
+  box.run_end = m;
+  box.line_stride = static_cast<std::int32_t>(S);
+  box.width = r0.count;
+  return box;
+}
+
+}  // namespace
+
+RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nrows, bool pair_bonds) {
   RowBlocks plan;
   if (!v.patterns) {
     plan.rest.assign(rows, rows + nrows);
@@ -559,6 +896,28 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     if (const std::int32_t count = s > 0 ? take_run(others.data() + r, left, s) : 0) r += static_cast<std::size_t>(count);
     else plan.rest.push_back(others[r++]);
   }
+  if (!pair_bonds) return plan;
+  // Boxes among the stride-1 runs (all of which come first, in list order), and their scratch.
+  RowBlocks::BoxScratch& scratch = plan.box_scratch;
+  std::size_t ring = 0, lines = 0, slots = 0;
+  for (std::size_t m = 0; m < plan.runs.size();) {
+    RowBox box = find_box(v, plan.runs, m);
+    if (box.run_end == box.run_begin) {
+      ++m;
+      continue;
+    }
+    m = box.run_end;
+    ring = std::max(ring, static_cast<std::size_t>(box.window) * static_cast<std::size_t>(box.columns) *
+                              static_cast<std::size_t>(box.width + 2 * box.pad));
+    lines = std::max(lines, box.run_end - box.run_begin);
+    slots = std::max(slots, box.slots.size());
+    plan.boxes.push_back(std::move(box));
+  }
+  scratch.ring.assign(ring, 0.0);
+  scratch.produced.assign(lines, 0);
+  scratch.inner.reserve(slots);
+  scratch.edge.reserve(slots);
+  scratch.at.assign(slots, nullptr);
   return plan;
 }
 

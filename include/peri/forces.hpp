@@ -56,12 +56,57 @@ struct RowRun {
   std::int32_t count;
 };
 
+/// A slot k of a box's family pattern: how its bonds are shared between the box's rows.
+struct BoxSlot {
+  enum Kind : std::uint8_t { Own, Produce, Consume };
+  Kind kind = Own;       ///< Own: each end evaluates the bond; Produce / Consume: see RowBox
+  std::int32_t lane = 0;   ///< the partner's lane offset (rows along a line)
+  std::int32_t line = 0;   ///< the partner's line offset (> 0 for Produce, < 0 for Consume)
+  std::int32_t column = 0; ///< the pair's column of the box's coefficient buffer
+};
+
+/// Stride-1 runs (`RowBlocks::runs[run_begin, run_end)`, its lines) of one family pattern and
+/// width whose first rows are `line_stride` apart and whose neighbour lists are the first line's
+/// shifted by that stride: the interior of a grid body (2D), or of each of its planes (3D). Row
+/// (line b, lane a) and its partner of slot k (line b + line, lane a + lane) see each other's bond
+/// as slots k and k' with the same |xi|^2 and w V, so the bond's scalar coefficient is the same
+/// bits from both ends (their y^2 agree, x_i - x_j being exactly -(x_j - x_i)). The loop
+/// evaluates such a bond once, at the end whose line comes first (Produce), keeps the
+/// coefficient in a ring of `window` lines, and the other end (Consume) multiplies it by its own
+/// bond vector in its own CSR order: each row's sum, and so every force, is the same bits as with
+/// every bond evaluated from both ends. Pairs within one line (line offset 0) stay Own.
+struct RowBox {
+  std::size_t run_begin = 0, run_end = 0;
+  std::int32_t line_stride = 0;
+  std::int32_t width = 0;    ///< rows per line
+  std::int32_t pad = 0;      ///< largest |lane| of a paired slot
+  std::int32_t window = 0;   ///< largest line offset of a paired slot + 1
+  std::int32_t columns = 0;  ///< paired bonds per row
+  std::vector<BoxSlot> slots;  ///< one per slot of the pattern
+};
+
 /// A list of owned rows grouped for the vector loop: `runs`, and `rest`, every other row
 /// (corners, partition boundaries, irregular node sets), sorted by family pattern, whose lanes
 /// the loop gathers element by element. Each row's force is the same bits either way.
 struct RowBlocks {
   std::vector<RowRun> runs;
   std::vector<std::int32_t> rest;
+  std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
+  /// The boxes' working memory, sized by plan_rows and reused by every call (no allocation per
+  /// step): the coefficient ring, which lines completed their Produce slots, and a line's slot
+  /// kinds as segments of consecutive slots (for blocks away from the line's ends, and near
+  /// them) and ring addresses.
+  struct BoxScratch {
+    struct Segment {
+      BoxSlot::Kind kind;
+      std::int32_t begin, end;
+    };
+    std::vector<double> ring;
+    std::vector<std::uint8_t> produced;
+    std::vector<Segment> inner, edge;
+    std::vector<double*> at;
+  };
+  mutable BoxScratch box_scratch;
   std::size_t run_rows() const {
     std::size_t n = 0;
     for (const RowRun& r : runs) n += static_cast<std::size_t>(r.count);
@@ -71,9 +116,10 @@ struct RowBlocks {
 };
 
 /// Groups `rows` into runs (first of consecutive rows in list order, then, among the others
-/// sorted by pattern, of rows a constant stride apart) and the rest. O(bonds); the
+/// sorted by pattern, of rows a constant stride apart) and the rest, and consecutive stride-1
+/// runs into boxes (`pair_bonds`; the forces are the same bits without). O(bonds); the
 /// bond topology never changes (bonds only break), so callers plan once and reuse the plan.
-RowBlocks plan_rows(const BondView& view, const std::int32_t* rows, std::size_t nrows);
+RowBlocks plan_rows(const BondView& view, const std::int32_t* rows, std::size_t nrows, bool pair_bonds = true);
 
 /// Sums a bond loop produces (this rank's owned rows).
 struct BondTally {
