@@ -86,7 +86,7 @@ int main(int argc, char** argv) {
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
     const BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
                      d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local(), d.bonds.row_broken.data()};
-    const RowBlocks plan = plan_rows(v, rows.data(), rows.size());
+    const RowBlocks plan = plan_rows(v, rows.data(), rows.size(), !std::getenv("AB_NO_PAIRS"));
     std::vector<double> fa(3 * static_cast<std::size_t>(d.owned)), fb(fa.size());
     BondTally ta, tb;
     auto run_a = [&] {

@@ -2,7 +2,7 @@
 # Two versions of the bond loop side by side in one process (benchmarks/ab_forces.cpp): finer than
 # ab_kernels.py, which alternates whole processes, for changes confined to src/forces.cpp.
 #   benchmarks/ab_forces.sh REV_A REV_B [MODEL N PAIRS NOISE]
-# REV is a git revision, or "work" for the working tree's src/forces.cpp. Defaults: membrane 400
+# REV is a git revision, "work" for the working tree's src/forces.cpp, or a file holding a version. Defaults: membrane 400
 # 200 1e-5. Needs a configured build in build/ (libperi.a and the flags it was compiled with);
 # both versions must compile against the current headers. Prints figures; asserts nothing.
 set -euo pipefail
@@ -19,6 +19,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 source_of() {  # revision -> file with that revision's src/forces.cpp
   if [ "$1" = work ]; then cp "$root/src/forces.cpp" "$work/$2.cpp"
+  elif [ -f "$1" ]; then cp "$1" "$work/$2.cpp"
   else git -C "$root" show "$1:src/forces.cpp" > "$work/$2.cpp"; fi
 }
 source_of "$1" a
