@@ -141,7 +141,6 @@ struct Simd4 {
   static V zero_where(M m, V a) { return _mm256_andnot_pd(m, a); }
 };
 #if defined(PERI_AVX512VL)
-#define PERI_AVX512 1
 struct Simd8 {
   static constexpr int W = 8;
   using V = __m512d;
@@ -766,7 +765,7 @@ void dispatch_conical(const BondLaw& law, const BondView& v, const RowBlocks& ro
 }  // namespace
 
 const char* bond_kernel_isa() {
-#if defined(PERI_AVX512)
+#if defined(PERI_AVX512VL)
   return "avx512";
 #elif defined(PERI_AVX2)
   return "avx2";

@@ -136,8 +136,9 @@ struct BondTally {
   }
 };
 
-/// The vector loop this build runs for bond laws without hardening: "avx2" (AVX2 + FMA, also on
-/// CPUs with AVX-512) or "portable" (the scalar loop, which also serves hardening laws). Chosen at
+/// The vector loop this build runs for bond laws without hardening: "avx512" (AVX-512 F and VL:
+/// intact runs eight lanes at a time, PMB's 1/|y| from the rsqrt14 estimate), "avx2" (AVX2 + FMA,
+/// four lanes) or "portable" (the scalar loop, which also serves hardening laws). Chosen at
 /// compile time (-march); the paths agree to round-off, and each is bit-identical on any rank count.
 const char* bond_kernel_isa();
 
