@@ -362,21 +362,29 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
   law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
 }
 
-// G intact blocks of W = Wide::W rows of a stride-1 run side by side, rows i .. i + G W - 1: per
-// k one neighbour index and one broadcast of each slot serve G W bonds. Each lane's arithmetic is
-// that of block_avx2.
-template <int G, class Wide, class Narrow>
-void blocks_wide(const Wide& law, const Narrow& narrow, const BondLaw& L, const BondView& v, const RunSlots& run,
-                 std::int32_t i, std::int64_t shift, double* force, BondTally& tally) {
-  using S = typename Wide::Simd;
-  using V = typename S::V;
-  constexpr int W = S::W;
-  const double* __restrict px = v.x + shift;
-  const double* __restrict py = v.x + v.x_stride + shift;
-  const double* __restrict pz = v.x + 2 * v.x_stride + shift;
-  const std::int64_t n = run.n;
+using SlotSegment = RowBlocks::BoxScratch::Segment;
+
+// G blocks of W = Law::W rows of an intact stride-1 run side by side, rows i .. i + G W - 1 at
+// lanes a .. a + G W - 1 of the run: per slot one neighbour index and one broadcast of each
+// pattern slot serve G W bonds, each lane's arithmetic that of block_avx2. The slots come in
+// `segments` of one kind, in CSR order (a run outside boxes: one Own segment of all its slots; a
+// line of a box, RowBox: in the natural order a few long ones). Own and Produce slots are
+// evaluated (Produce also stores the coefficients at at[k] + a, the partners' places in the box's
+// ring); Consume slots load the coefficients their partners stored. Returns false, having written
+// nothing but ring entries, if a bond reaches the failure test: the caller then takes these rows
+// through block_avx2, which flags and books it (the same sums).
+template <int G, class Law>
+bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run,
+                   const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
+                   std::int64_t a, double* force, BondTally& tally) {
+  const double* __restrict px = v.x + a;
+  const double* __restrict py = v.x + v.x_stride + a;
+  const double* __restrict pz = v.x + 2 * v.x_stride + a;
   const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
   const std::int32_t* __restrict nbr = run.neighbor;
+  using S = typename Law::Simd;
+  using V = typename S::V;
+  constexpr int W = S::W;
   V x0[G], x1[G], x2[G], f0[G], f1[G], f2[G], w[G];
   for (int g = 0; g < G; ++g) {
     x0[g] = S::loadu(v.x + i + W * g);
@@ -384,38 +392,57 @@ void blocks_wide(const Wide& law, const Narrow& narrow, const BondLaw& L, const 
     x2[g] = S::loadu(v.x + 2 * v.x_stride + i + W * g);
     f0[g] = f1[g] = f2[g] = w[g] = law.zero;
   }
-  bool broke = false;
-  for (std::int64_t k = 0; k < n; ++k) {
-    const std::int64_t j = nbr[k];
-    Bonds<S> b;
-    b.xi2 = S::broadcast(sx + k);
-    b.measure = S::broadcast(sm + k);
-    b.inv_xi = S::broadcast(sr + k);
-    b.measure_per_xi2 = S::broadcast(sa + k);
-    b.dead = 0;
-    unsigned fresh = 0;
-    for (int g = 0; g < G; ++g) {
-      b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
-      b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
-      b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
-      fresh |= law.add(b, f0[g], f1[g], f2[g], w[g]);
+  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
+  auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
+    for (std::int64_t k = k0; k < k1; ++k) {
+      const std::int64_t j = nbr[k];
+      Bonds<S> b;
+      b.xi2 = S::broadcast(sx + k);
+      b.measure = S::broadcast(sm + k);
+      b.inv_xi = S::broadcast(sr + k);
+      b.measure_per_xi2 = S::broadcast(sa + k);
+      b.dead = 0;
+      unsigned fresh = 0;
+      for (int g = 0; g < G; ++g) {
+        b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
+        b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
+        b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
+        unsigned lanes;
+        const V coef = law.coefficient(b, w[g], lanes);
+        fresh |= lanes;
+        if constexpr (decltype(produce)::value) S::storeu(at[k] + a + W * g, coef);
+        f0[g] = S::fmadd(coef, b.d0, f0[g]);
+        f1[g] = S::fmadd(coef, b.d1, f1[g]);
+        f2[g] = S::fmadd(coef, b.d2, f2[g]);
+      }
+      if (fresh) [[unlikely]] return false;
     }
-    if (fresh) [[unlikely]] {
-      broke = true;
-      break;
+    return true;
+  };
+  for (std::size_t s = 0; s < nsegments; ++s) {
+    const SlotSegment seg = segments[s];
+    if (seg.kind == BoxSlot::Consume) {
+      for (std::int64_t k = seg.begin; k < seg.end; ++k) {
+        const std::int64_t j = nbr[k];
+        for (int g = 0; g < G; ++g) {
+          const V coef = S::loadu(at[k] + a + W * g);
+          f0[g] = S::fmadd(coef, S::sub(S::loadu(px + j + W * g), x0[g]), f0[g]);
+          f1[g] = S::fmadd(coef, S::sub(S::loadu(py + j + W * g), x1[g]), f1[g]);
+          f2[g] = S::fmadd(coef, S::sub(S::loadu(pz + j + W * g), x2[g]), f2[g]);
+        }
+      }
+    } else if (seg.kind == BoxSlot::Produce) {
+      if (!evaluate(seg.begin, seg.end, std::true_type{})) return false;
+    } else {
+      if (!evaluate(seg.begin, seg.end, std::false_type{})) return false;
     }
   }
-  if (!broke) {
-    for (int g = 0; g < G; ++g) {
-      std::int32_t rows[W];
-      for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
-      law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally);
-    }
-    return;
+  for (int g = 0; g < G; ++g) {
+    std::int32_t rows[W];
+    for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
+    law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally);
   }
-  // A bond reached the failure test (nothing is flagged yet): these rows again, block by block,
-  // with the flag bookkeeping; the same sums.
-  for (int q = 0; q < G * W; q += 4) block_avx2<true, true>(narrow, L, v, run, i + q, 1, shift + q, force, tally);
+  return true;
 }
 
 // Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
@@ -537,9 +564,13 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRu
   if (run.stride == 1) {
     const bool whole_run = rows_intact(v, run.first, 1, run.count);
     std::int32_t q = 0;
-    if (whole_run)
+    if (whole_run) {
+      const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
       for (; q + kWideRows <= run.count; q += kWideRows)
-        blocks_wide<kWideBlocks>(laws.wide, law, L, v, slots, run.first + q, q, force, tally);
+        if (!intact_blocks<kWideBlocks>(laws.wide, L, v, slots, &all, 1, nullptr, run.first + q, q, force, tally))
+          for (std::int32_t r = q; r < q + kWideRows; r += 4)
+            block_avx2<true, true>(law, L, v, slots, run.first + r, 1, r, force, tally);
+    }
     for (; q < run.count; q += 4) {
       const std::int32_t i = run.first + q;
       if (whole_run || rows_intact(v, i, 1, 4)) block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
@@ -553,86 +584,6 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRu
       else block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
     }
   }
-}
-
-using SlotSegment = RowBlocks::BoxScratch::Segment;
-
-// G blocks of an intact line of a box (RowBox), side by side: rows i .. i + 4G - 1 at lanes
-// a .. a + 4G - 1, their slots in `segments` (in CSR order; in the natural order a few long ones).
-// Own and Produce slots are evaluated as in block_avx2 (Produce also stores the coefficients at
-// at[k] + a, the partners' places in the ring); Consume slots load the coefficients their
-// partners stored. Returns false, having written nothing but ring entries, if a bond reaches the
-// failure test: the caller then takes these rows through block_avx2, which flags and books it.
-template <int G, class Law>
-bool paired_blocks(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run,
-                        const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
-                        std::int64_t a, double* force, BondTally& tally) {
-  const double* __restrict px = v.x + a;
-  const double* __restrict py = v.x + v.x_stride + a;
-  const double* __restrict pz = v.x + 2 * v.x_stride + a;
-  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
-  const std::int32_t* __restrict nbr = run.neighbor;
-  using S = typename Law::Simd;
-  using V = typename S::V;
-  constexpr int W = S::W;
-  V x0[G], x1[G], x2[G], f0[G], f1[G], f2[G], w[G];
-  for (int g = 0; g < G; ++g) {
-    x0[g] = S::loadu(v.x + i + W * g);
-    x1[g] = S::loadu(v.x + v.x_stride + i + W * g);
-    x2[g] = S::loadu(v.x + 2 * v.x_stride + i + W * g);
-    f0[g] = f1[g] = f2[g] = w[g] = law.zero;
-  }
-  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
-  auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
-    for (std::int64_t k = k0; k < k1; ++k) {
-      const std::int64_t j = nbr[k];
-      Bonds<S> b;
-      b.xi2 = S::broadcast(sx + k);
-      b.measure = S::broadcast(sm + k);
-      b.inv_xi = S::broadcast(sr + k);
-      b.measure_per_xi2 = S::broadcast(sa + k);
-      b.dead = 0;
-      unsigned fresh = 0;
-      for (int g = 0; g < G; ++g) {
-        b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
-        b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
-        b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
-        unsigned lanes;
-        const V coef = law.coefficient(b, w[g], lanes);
-        fresh |= lanes;
-        if constexpr (decltype(produce)::value) S::storeu(at[k] + a + W * g, coef);
-        f0[g] = S::fmadd(coef, b.d0, f0[g]);
-        f1[g] = S::fmadd(coef, b.d1, f1[g]);
-        f2[g] = S::fmadd(coef, b.d2, f2[g]);
-      }
-      if (fresh) [[unlikely]] return false;
-    }
-    return true;
-  };
-  for (std::size_t s = 0; s < nsegments; ++s) {
-    const SlotSegment seg = segments[s];
-    if (seg.kind == BoxSlot::Consume) {
-      for (std::int64_t k = seg.begin; k < seg.end; ++k) {
-        const std::int64_t j = nbr[k];
-        for (int g = 0; g < G; ++g) {
-          const V coef = S::loadu(at[k] + a + W * g);
-          f0[g] = S::fmadd(coef, S::sub(S::loadu(px + j + W * g), x0[g]), f0[g]);
-          f1[g] = S::fmadd(coef, S::sub(S::loadu(py + j + W * g), x1[g]), f1[g]);
-          f2[g] = S::fmadd(coef, S::sub(S::loadu(pz + j + W * g), x2[g]), f2[g]);
-        }
-      }
-    } else if (seg.kind == BoxSlot::Produce) {
-      if (!evaluate(seg.begin, seg.end, std::true_type{})) return false;
-    } else {
-      if (!evaluate(seg.begin, seg.end, std::false_type{})) return false;
-    }
-  }
-  for (int g = 0; g < G; ++g) {
-    std::int32_t rows[W];
-    for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
-    law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally);
-  }
-  return true;
 }
 
 // The lines of a box in order. A line with a broken bond goes through run_avx2 and produces
@@ -686,9 +637,9 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
       const bool wide = q + kWideRows <= run.count && inner(q, kWideRows);
       const std::vector<SlotSegment>& segments = wide || inner(q, 4) ? scratch.inner : scratch.edge;
       const bool done =
-          wide ? paired_blocks<kWideBlocks>(laws.wide, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
+          wide ? intact_blocks<kWideBlocks>(laws.wide, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
                                             run.first + q, q, force, tally)
-               : paired_blocks<1>(laws.narrow, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
+               : intact_blocks<1>(laws.narrow, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
                                   run.first + q, q, force, tally);
       if (!done) break;
       q += wide ? kWideRows : 4;
@@ -839,7 +790,6 @@ RowBox find_box(const BondView& v, const std::vector<RowRun>& runs, std::size_t 
   }
   if (box.columns == 0) return box;
   box.run_end = m;
-  box.line_stride = static_cast<std::int32_t>(S);
   box.width = r0.count;
   return box;
 }

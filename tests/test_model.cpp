@@ -332,6 +332,21 @@ TEST(Forces, BreakingIsIrreversibleAndBooksEnergy) {
 // against a direct evaluation of the law per bond from reference positions, measures and
 // quadrature weights, on a grid membrane and a cubic solid with random displacements, for every
 // law shape; and the same bonds broken.
+// A one-body scene on one rank: its nodes, the domain of all of them, and the body's bond law.
+struct OneRankBody {
+  Nodes nodes;
+  Domain d;
+  BondLaw law;
+  explicit OneRankBody(const char* text) {
+    const Scene scene = parse_scene(text, "kernel-test");
+    nodes = discretize(scene);
+    const CellList cells(nodes, reach(nodes.bodies[0]));
+    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+    d = build_domain(scene, nodes, cells, part, 0);
+    law = calibrate(scene.materials[0], nodes.bodies[0], "t");
+  }
+};
+
 TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
   const char* scenes[] = {
       "name: k\nmaterials:\n  m: {model: membrane, density: 1200, bulk_modulus: 8.0e8, critical_stretch: 1.004}\n"
@@ -341,12 +356,10 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       "bodies:\n  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.008, 0.007, 0.006], spacing: 0.001, horizon: 0.003015, quadrature: taper}\n"
       "stages:\n  - {name: r, steps: 1}\n"};
   for (const char* text : scenes) {
-    const Scene scene = parse_scene(text, "kernel-test");
-    const Nodes nodes = discretize(scene);
-    const CellList cells(nodes, reach(nodes.bodies[0]));
-    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
-    Domain d = build_domain(scene, nodes, cells, part, 0);
-    const BondLaw base = calibrate(scene.materials[0], nodes.bodies[0], "t");
+    OneRankBody body(text);
+    const Nodes& nodes = body.nodes;
+    Domain& d = body.d;
+    const BondLaw& base = body.law;
     std::vector<BondLaw> laws(4, base);
     laws[1].conical = true;
     laws[2].linear_critical = true;
@@ -457,12 +470,9 @@ TEST(Forces, PairedBondsGiveTheSameBitsAsBothEnds) {
       "bodies:\n  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.02, 0.012, 0.01], spacing: 0.001, horizon: 0.003015, quadrature: taper}\n"
       "stages:\n  - {name: r, steps: 1}\n"};
   for (const char* text : scenes) {
-    const Scene scene = parse_scene(text, "paired-test");
-    const Nodes nodes = discretize(scene);
-    const CellList cells(nodes, reach(nodes.bodies[0]));
-    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
-    Domain d = build_domain(scene, nodes, cells, part, 0);
-    const BondLaw law = calibrate(scene.materials[0], nodes.bodies[0], "t");
+    OneRankBody body(text);
+    Domain& d = body.d;
+    const BondLaw& law = body.law;
     std::vector<std::int32_t> rows(d.owned);
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
     std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(u.size());

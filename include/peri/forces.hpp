@@ -66,7 +66,7 @@ struct BoxSlot {
 };
 
 /// Stride-1 runs (`RowBlocks::runs[run_begin, run_end)`, its lines) of one family pattern and
-/// width whose first rows are `line_stride` apart and whose neighbour lists are the first line's
+/// width whose first rows are a constant stride apart and whose neighbour lists are the first line's
 /// shifted by that stride: the interior of a grid body (2D), or of each of its planes (3D). Row
 /// (line b, lane a) and its partner of slot k (line b + line, lane a + lane) see each other's bond
 /// as slots k and k' with the same |xi|^2 and w V, so the bond's scalar coefficient is the same
@@ -77,7 +77,6 @@ struct BoxSlot {
 /// every bond evaluated from both ends. Pairs within one line (line offset 0) stay Own.
 struct RowBox {
   std::size_t run_begin = 0, run_end = 0;
-  std::int32_t line_stride = 0;
   std::int32_t width = 0;    ///< rows per line
   std::int32_t pad = 0;      ///< largest |lane| of a paired slot
   std::int32_t window = 0;   ///< largest line offset of a paired slot + 1
