@@ -19,22 +19,31 @@ namespace {
 // Flag values: bit 0 = broken; bit 1 = broken during the current call (energy still to book).
 constexpr std::uint8_t kBroken = 1, kJustBroken = 2;
 
-// Book w_0 = w(lambda_0), the energy a bond holds when it breaks (eqs. 26-27), half per end, for
-// the bonds of row i flagged during this call. A bond is detected at the first step past
-// lambda_0; booking w at that step's larger stretch would gain energy systematically (first
-// order in dt), w_0 is unbiased.
+// w_0 = w(lambda_0) w V_j, the energy a bond of reference length^2 s2 and measure w V_j holds
+// when it breaks (eqs. 26-27). A bond is detected at the first step past lambda_0; booking w at
+// that step's larger stretch would gain energy systematically (first order in dt), w_0 is unbiased.
+inline double breaking_energy(const BondLaw& L, double s2, double measure) {
+  const double lc = L.critical_stretch(std::sqrt(s2));
+  return L.energy(s2, lc * lc * s2) * measure;
+}
+
+// Books `newly` bonds of row i broken during this call, holding `diss` (their breaking_energy
+// summed in CSR order), half per end.
+inline void book_row(const BondView& v, std::int32_t i, int newly, double diss, BondTally& tally) {
+  tally.dissipated += 0.5 * v.volume[i] * diss;
+  tally.newly_broken += newly;
+  if (v.row_broken) v.row_broken[i] = 1;
+}
+
+// Books the bonds of row i flagged kJustBroken during this call (and clears that bit).
 void book_breaks(const BondLaw& L, const BondView& v, std::int32_t i, int newly, BondTally& tally) {
   double diss = 0;
   for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) {
     if (!(v.broken[b] & kJustBroken)) continue;
     v.broken[b] = kBroken;
-    const double s2 = v.xi2(i, b);
-    const double lc = L.critical_stretch(std::sqrt(s2));
-    diss += L.energy(s2, lc * lc * s2) * v.measure(i, b);
+    diss += breaking_energy(L, v.xi2(i, b), v.measure(i, b));
   }
-  tally.dissipated += 0.5 * v.volume[i] * diss;
-  tally.newly_broken += newly;
-  if (v.row_broken) v.row_broken[i] = 1;
+  book_row(v, i, newly, diss, tally);
 }
 
 // The portable loop, specialised at compile time on the law's shape so that no per-bond branch on
@@ -281,22 +290,28 @@ struct VecLaw {
     return coef;
   }
 
-  // Writes the rows' force densities and energy (lanes 0 .. count-1) and books their newly broken
-  // bonds (`L`: the law this was built from; `newly`: nullptr if none).
+  // Writes the rows' force densities and energy (lanes first .. count-1: a run's last block
+  // overlaps the one before it by `first` rows) and books their newly broken bonds (`L`: the law
+  // this was built from; `newly`: nullptr if none; `diss`: their breaking energies if booked as
+  // they broke, else nullptr and flagged kJustBroken).
   void finish(const BondLaw& L, const BondView& v, const std::int32_t* rows, int count, V f0, V f1, V f2, V w,
-              const int* newly, double* force, BondTally& tally) const {
+              const int* newly, double* force, BondTally& tally, int first = 0,
+              const double* diss = nullptr) const {
     double s0[W], s1[W], s2[W], se[W];
     S::storeu(s0, f0);
     S::storeu(s1, f1);
     S::storeu(s2, f2);
     S::storeu(se, w);
-    for (int l = 0; l < count; ++l) {
+    for (int l = first; l < count; ++l) {
       const std::int32_t i = rows[l];
       force[3 * i] = c_row * s0[l];
       force[3 * i + 1] = c_row * s1[l];
       force[3 * i + 2] = c_row * s2[l];
       if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * se[l];
-      if (newly && newly[l]) book_breaks(L, v, i, newly[l], tally);
+      if (newly && newly[l]) {
+        if (diss) book_row(v, i, newly[l], diss[l], tally);
+        else book_breaks(L, v, i, newly[l], tally);
+      }
     }
   }
 };
@@ -321,10 +336,12 @@ struct RunSlots {
 // A block of a run: rows i + l s, the k-th neighbours of the four rows nodes j + shift + l s with
 // j the run's k-th neighbour. Per four bonds: the neighbours' positions (one vector load of each
 // coordinate plane if s = 1, `Unit`; else four loads each), the pattern's slots broadcast, the
-// four flag bytes as lane bits unless the block has no broken bond (`Intact`).
+// four flag bytes as lane bits unless the block has no broken bond (`Intact`). The first `skip`
+// rows were written by the block before (a run's last block ends at the run's end): evaluated
+// again, the same bits (their bonds broken there are flagged now), but not written.
 template <bool Intact, bool Unit, class Law>
 void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
-                std::int32_t stride, std::int64_t shift, double* force, BondTally& tally) {
+                std::int32_t stride, std::int64_t shift, int skip, double* force, BondTally& tally) {
   const double* __restrict px = v.x + shift;
   const double* __restrict py = v.x + v.x_stride + shift;
   const double* __restrict pz = v.x + 2 * v.x_stride + shift;
@@ -359,10 +376,10 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
     const unsigned fresh = law.add(b, f0, f1, f2, w);
     if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
   }
-  law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally);
+  law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally, skip);
 }
 
-using SlotSegment = RowBlocks::BoxScratch::Segment;
+using SlotSegment = RowBlocks::Scratch::Segment;
 
 // G blocks of W = Law::W rows of an intact stride-1 run side by side, rows i .. i + G W - 1 at
 // lanes a .. a + G W - 1 of the run: per slot one neighbour index and one broadcast of each
@@ -372,11 +389,12 @@ using SlotSegment = RowBlocks::BoxScratch::Segment;
 // evaluated (Produce also stores the coefficients at at[k] + a, the partners' places in the box's
 // ring); Consume slots load the coefficients their partners stored. Returns false, having written
 // nothing but ring entries, if a bond reaches the failure test: the caller then takes these rows
-// through block_avx2, which flags and books it (the same sums).
+// through block_avx2, which flags and books it (the same sums). The first `skip` rows were
+// written already (block_avx2).
 template <int G, class Law>
 bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
-                   std::int64_t a, double* force, BondTally& tally) {
+                   std::int64_t a, int skip, double* force, BondTally& tally) {
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
@@ -440,9 +458,80 @@ bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
   for (int g = 0; g < G; ++g) {
     std::int32_t rows[W];
     for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
-    law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally);
+    law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally, g == 0 ? skip : 0);
   }
   return true;
+}
+
+// The broken flags of W consecutive rows of a run (n bonds each, row l's at flags + l n) as one
+// byte per slot k, bit l set if lane l's bond is broken: 32 slots at a time (a flag byte masked
+// to its broken bit, shifted by l within its 16-bit word, stays in its byte), then the tail.
+template <int W>
+inline void dead_lanes(const std::uint8_t* flags, std::int64_t n, std::uint8_t* dead) {
+  const __m256i broken = _mm256_set1_epi8(static_cast<char>(kBroken));
+  std::int64_t k = 0;
+  for (; k + 32 <= n; k += 32) {
+    __m256i acc = _mm256_setzero_si256();
+    for (int l = 0; l < W; ++l) {
+      const __m256i f = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(flags + l * n + k));
+      acc = _mm256_or_si256(acc, _mm256_slli_epi16(_mm256_and_si256(f, broken), l));
+    }
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(dead + k), acc);
+  }
+  for (; k < n; ++k) {
+    unsigned d = 0;
+    for (int l = 0; l < W; ++l) d |= static_cast<unsigned>(flags[l * n + k] & kBroken) << l;
+    dead[k] = static_cast<std::uint8_t>(d);
+  }
+}
+
+// W = Law::W rows i .. i + W - 1 of a stride-1 run (at lanes a .. of the run) with broken bonds
+// among them: each lane's arithmetic that of block_avx2<false, true> (a broken bond adds
+// nothing; a fully broken slot is skipped), the flags read once per block as lane bits
+// (dead_lanes, into `dead`: run.n bytes); bonds reaching the failure test are flagged and their
+// breaking energy summed as they break (the bits of book_breaks).
+template <class Law>
+void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
+                   std::int64_t a, std::uint8_t* __restrict dead, double* force, BondTally& tally) {
+  using S = typename Law::Simd;
+  using V = typename S::V;
+  constexpr int W = S::W;
+  const std::int64_t n = run.n;
+  std::uint8_t* const flags = v.broken + v.offsets[i];
+  dead_lanes<W>(flags, n, dead);
+  const double* __restrict px = v.x + a;
+  const double* __restrict py = v.x + v.x_stride + a;
+  const double* __restrict pz = v.x + 2 * v.x_stride + a;
+  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
+  const std::int32_t* __restrict nbr = run.neighbor;
+  const V x0 = S::loadu(v.x + i), x1 = S::loadu(v.x + v.x_stride + i), x2 = S::loadu(v.x + 2 * v.x_stride + i);
+  V f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
+  int newly[W] = {};
+  double diss[W] = {};
+  for (std::int64_t k = 0; k < n; ++k) {
+    const std::int64_t j = nbr[k];
+    Bonds<S> b;
+    b.d0 = S::sub(S::loadu(px + j), x0);
+    b.d1 = S::sub(S::loadu(py + j), x1);
+    b.d2 = S::sub(S::loadu(pz + j), x2);
+    b.xi2 = S::broadcast(sx + k);
+    b.measure = S::broadcast(sm + k);
+    b.inv_xi = S::broadcast(sr + k);
+    b.measure_per_xi2 = S::broadcast(sa + k);
+    b.dead = dead[k];
+    if (b.dead == (1u << W) - 1u) continue;
+    const unsigned fresh = law.add(b, f0, f1, f2, w);
+    if (fresh) [[unlikely]]
+      for (int l = 0; l < W; ++l)
+        if (fresh >> l & 1) {
+          flags[l * n + k] |= kBroken;
+          ++newly[l];
+          diss[l] += breaking_energy(L, sx[k], sm[k]);
+        }
+  }
+  std::int32_t rows[W];
+  for (int l = 0; l < W; ++l) rows[l] = i + l;
+  law.finish(L, v, rows, W, f0, f1, f2, w, newly, force, tally, 0, diss);
 }
 
 // Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
@@ -555,33 +644,48 @@ struct Laws {
 constexpr int kWideRows = 8;
 constexpr int kWideBlocks = kWideRows / SimdWide::W;
 
-// One run, block by block. Blocks without a broken bond (most, in most runs) skip the flag bytes.
+// Rows q .. of a stride-1 run, four at a time, the last block ending at the run's end. `intact`:
+// these rows had no broken bond when the call began (the rows an overlapping last block shares
+// with the block before may have some now).
+template <class Law>
+void narrow_blocks(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& slots, const RowRun& run,
+                   std::int32_t q, bool intact, double* force, BondTally& tally) {
+  for (; q < run.count; q += 4) {
+    const std::int32_t at = std::min(q, run.count - 4), i = run.first + at;
+    if ((intact && at == q) || rows_intact(v, i, 1, 4)) block_avx2<true, true>(law, L, v, slots, i, 1, at, q - at, force, tally);
+    else block_avx2<false, true>(law, L, v, slots, i, 1, at, q - at, force, tally);
+  }
+}
+
+// One run, block by block. Blocks without a broken bond (most, in most runs) skip the flag bytes;
+// stride-1 blocks of eight rows take the widest lanes either way. `dead`: RowBlocks::Scratch.
 template <class Laws>
-void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run, double* force,
-              BondTally& tally) {
+void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run, std::uint8_t* dead,
+              double* force, BondTally& tally) {
   const auto& law = laws.narrow;
   const RunSlots slots = run_slots(v, run);
   if (run.stride == 1) {
     const bool whole_run = rows_intact(v, run.first, 1, run.count);
+    const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
     std::int32_t q = 0;
-    if (whole_run) {
-      const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
-      for (; q + kWideRows <= run.count; q += kWideRows)
-        if (!intact_blocks<kWideBlocks>(laws.wide, L, v, slots, &all, 1, nullptr, run.first + q, q, force, tally))
-          for (std::int32_t r = q; r < q + kWideRows; r += 4)
-            block_avx2<true, true>(law, L, v, slots, run.first + r, 1, r, force, tally);
-    }
-    for (; q < run.count; q += 4) {
+    for (; q + kWideRows <= run.count; q += kWideRows) {
       const std::int32_t i = run.first + q;
-      if (whole_run || rows_intact(v, i, 1, 4)) block_avx2<true, true>(law, L, v, slots, i, 1, q, force, tally);
-      else block_avx2<false, true>(law, L, v, slots, i, 1, q, force, tally);
+      // A bond reaching the failure test in an intact block: the block again, flagging it.
+      if ((whole_run || rows_intact(v, i, 1, kWideRows)) &&
+          intact_blocks<kWideBlocks>(laws.wide, L, v, slots, &all, 1, nullptr, i, q, 0, force, tally))
+        continue;
+      for (int g = 0; g < kWideBlocks; ++g)
+        damaged_block(laws.wide, L, v, slots, i + g * SimdWide::W, q + g * SimdWide::W, dead, force, tally);
     }
+    narrow_blocks(law, L, v, slots, run, q, whole_run, force, tally);
   } else {
     for (std::int32_t q = 0; q < run.count; q += 4) {
-      const std::int32_t i = run.first + q * run.stride;
-      const std::int64_t shift = static_cast<std::int64_t>(q) * run.stride;
-      if (rows_intact(v, i, run.stride, 4)) block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, force, tally);
-      else block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, force, tally);
+      const std::int32_t at = std::min(q, run.count - 4), i = run.first + at * run.stride;
+      const std::int64_t shift = static_cast<std::int64_t>(at) * run.stride;
+      if (rows_intact(v, i, run.stride, 4))
+        block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, q - at, force, tally);
+      else
+        block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, q - at, force, tally);
     }
   }
 }
@@ -594,7 +698,7 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRu
 template <class Laws>
 void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBlocks& rows, const RowBox& box,
               double* force, BondTally& tally) {
-  RowBlocks::BoxScratch& scratch = rows.box_scratch;
+  RowBlocks::Scratch& scratch = rows.scratch;
   const std::int64_t ring_width = box.width + 2 * box.pad;
   const std::size_t n = box.slots.size();
   for (std::size_t r = box.run_begin; r < box.run_end; ++r) {
@@ -602,7 +706,7 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
     const std::int32_t line = static_cast<std::int32_t>(r - box.run_begin);
     scratch.produced[line] = 0;
     if (!rows_intact(v, run.first, 1, run.count)) {
-      run_avx2(laws, L, v, run, force, tally);
+      run_avx2(laws, L, v, run, scratch.dead_lanes.data(), force, tally);
       continue;
     }
     // The line's slot kinds as segments: for blocks whose Consume partners all lie in the line,
@@ -632,20 +736,22 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
     // Blocks at lanes q .. q + rows - 1 whose Consume partners all lie in the line: pad <= q and
     // q + rows - 1 + pad < width. Eight rows at once where they fit, else four.
     auto inner = [&](std::int32_t q, int rows) { return q >= box.pad && q + rows - 1 + box.pad < run.count; };
+    // Rows q .. of the line are next; a block of four at `at` <= q (the line's last) writes rows q ..
     std::int32_t q = 0;
     while (q < run.count) {
-      const bool wide = q + kWideRows <= run.count && inner(q, kWideRows);
-      const std::vector<SlotSegment>& segments = wide || inner(q, 4) ? scratch.inner : scratch.edge;
+      const bool wide = q + kWideRows <= run.count;
+      const std::int32_t at = wide ? q : std::min(q, run.count - 4);
+      const std::vector<SlotSegment>& segments = inner(at, wide ? kWideRows : 4) ? scratch.inner : scratch.edge;
       const bool done =
           wide ? intact_blocks<kWideBlocks>(laws.wide, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
-                                            run.first + q, q, force, tally)
+                                            run.first + q, q, 0, force, tally)
                : intact_blocks<1>(laws.narrow, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
-                                  run.first + q, q, force, tally);
+                                  run.first + at, at, q - at, force, tally);
       if (!done) break;
-      q += wide ? kWideRows : 4;
+      q = wide ? q + kWideRows : at + 4;
     }
-    scratch.produced[line] = q == run.count;
-    for (; q < run.count; q += 4) block_avx2<true, true>(laws.narrow, L, v, slots, run.first + q, 1, q, force, tally);
+    scratch.produced[line] = q >= run.count;
+    narrow_blocks(laws.narrow, L, v, slots, run, q, true, force, tally);
   }
 }
 
@@ -661,7 +767,7 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
       box_avx2(laws, L, v, rows, rows.boxes[box], force, tally);
       r = rows.boxes[box++].run_end;
     } else {
-      run_avx2(laws, L, v, rows.runs[r++], force, tally);
+      run_avx2(laws, L, v, rows.runs[r++], rows.scratch.dead_lanes.data(), force, tally);
     }
   }
   const std::size_t nrest = rows.rest.size();
@@ -775,7 +881,8 @@ RowBox find_box(const BondView& v, const std::vector<RowRun>& runs, std::size_t 
     const std::int64_t o = v.neighbor[b0 + k] - static_cast<std::int64_t>(r0.first);
     const std::int64_t line = o >= 0 ? (o + S / 2) / S : -((-o + S / 2) / S);
     const std::int64_t lane = o - line * S;
-    if (line <= 0 || 2 * std::abs(lane) >= S) continue;
+    // A partner beyond the box's last line (in 3D: another plane) would only fill the ring.
+    if (line <= 0 || line >= static_cast<std::int64_t>(m - m0) || 2 * std::abs(lane) >= S) continue;
     const auto mirror = std::lower_bound(by_offset.begin(), by_offset.end(), std::make_pair(-o, std::int64_t{0}));
     if (mirror == by_offset.end() || mirror->first != -o) continue;
     const std::int64_t a = slot0 + k, b = slot0 + mirror->second;
@@ -788,7 +895,11 @@ RowBox find_box(const BondView& v, const std::vector<RowRun>& runs, std::size_t 
     box.pad = std::max(box.pad, static_cast<std::int32_t>(std::abs(lane)));
     box.window = std::max(box.window, static_cast<std::int32_t>(line) + 1);
   }
-  if (box.columns == 0) return box;
+  // Pairing pays where many bonds cross lines: a 2D grid (about 40% of its slots pair; eight
+  // lanes with boxes 1.06-1.11 times as fast as without), not a 3D block, where only the bonds
+  // within a plane pair (9% of a 122-bond family at delta = 3 dx; the box's segments and ring
+  // then cost more than they save: 0.85 times as fast, a 64^3 block).
+  if (box.columns == 0 || 4 * box.columns < n) return box;
   box.run_end = m;
   box.width = r0.count;
   return box;
@@ -803,12 +914,13 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     return plan;
   }
   const FamilyPatterns& P = *v.patterns;
-  // Whether list entries a[0..3] continue a run from row `first` with stride s whose next row is
-  // its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by (q + l) s.
-  auto continues = [&](std::int32_t first, std::int32_t s, std::int32_t q, const std::int32_t* a, std::size_t left) {
-    if (left < 4 || s <= 0) return false;
+  // Whether list entries a[0 .. m-1] continue a run from row `first` with stride s whose next row
+  // is its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by (q + l) s.
+  auto continues = [&](std::int32_t first, std::int32_t s, std::int32_t q, const std::int32_t* a, std::size_t left,
+                       std::int32_t m) {
+    if (left < static_cast<std::size_t>(m) || s <= 0) return false;
     const std::int64_t b0 = v.offsets[first], n = v.offsets[first + 1] - b0;
-    for (std::int32_t l = 0; l < 4; ++l) {
+    for (std::int32_t l = 0; l < m; ++l) {
       const std::int64_t shift = static_cast<std::int64_t>(q + l) * s;
       if (a[l] != first + shift || P.of_row[a[l]] != P.of_row[first]) return false;
       const std::int64_t bl = v.offsets[a[l]];
@@ -818,10 +930,13 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     }
     return true;
   };
-  // Takes the longest run starting at list entry a[0] with stride s (0 if there is none).
+  // Takes the longest run (of at least four rows) starting at list entry a[0] with stride s (0 if
+  // there is none).
   auto take_run = [&](const std::int32_t* a, std::size_t left, std::int32_t s) {
     std::int32_t count = 0;
-    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count))) count += 4;
+    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 4)) count += 4;
+    if (count > 0)
+      while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 1)) ++count;
     if (count > 0) plan.runs.push_back({a[0], s, count});
     return count;
   };
@@ -845,9 +960,12 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     if (const std::int32_t count = s > 0 ? take_run(others.data() + r, left, s) : 0) r += static_cast<std::size_t>(count);
     else plan.rest.push_back(others[r++]);
   }
+  RowBlocks::Scratch& scratch = plan.scratch;
+  std::int64_t slots_per_row = 0;
+  for (const RowRun& run : plan.runs) slots_per_row = std::max(slots_per_row, v.offsets[run.first + 1] - v.offsets[run.first]);
+  scratch.dead_lanes.assign(static_cast<std::size_t>(slots_per_row), 0);
   if (!pair_bonds) return plan;
   // Boxes among the stride-1 runs (all of which come first, in list order), and their scratch.
-  RowBlocks::BoxScratch& scratch = plan.box_scratch;
   std::size_t ring = 0, lines = 0, slots = 0;
   for (std::size_t m = 0; m < plan.runs.size();) {
     RowBox box = find_box(v, plan.runs, m);

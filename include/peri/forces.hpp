@@ -43,8 +43,9 @@ struct BondView {
 void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
                        std::int64_t stride, double* x);
 
-/// Rows that the vector loop evaluates four at a time (a block, one row per lane): rows
-/// first + l * stride (l = 0 .. count-1, count a multiple of 4), one family pattern, and for every
+/// Rows that the vector loop evaluates four or eight at a time (a block, one row per lane): rows
+/// first + l * stride (l = 0 .. count-1, count >= 4; the last block ends at the run's end,
+/// overlapping the one before, whose rows it evaluates again but does not write), one family pattern, and for every
 /// k the k-th neighbour of row l is node j + l * stride, j that of row `first`. So the loop reads
 /// one neighbour list for the whole run. Stride 1: interior runs of a grid row (in the natural
 /// order a partition keeps), whose neighbours' positions the loop loads with one vector load per
@@ -91,11 +92,12 @@ struct RowBlocks {
   std::vector<RowRun> runs;
   std::vector<std::int32_t> rest;
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
-  /// The boxes' working memory, sized by plan_rows and reused by every call (no allocation per
-  /// step): the coefficient ring, which lines completed their Produce slots, and a line's slot
-  /// kinds as segments of consecutive slots (for blocks away from the line's ends, and near
-  /// them) and ring addresses.
-  struct BoxScratch {
+  /// The loop's working memory, sized by plan_rows and reused by every call (no allocation per
+  /// step): for the boxes, the coefficient ring, which lines completed their Produce slots, and a
+  /// line's slot kinds as segments of consecutive slots (for blocks away from the line's ends,
+  /// and near them) and ring addresses; for blocks of runs with broken bonds, the broken flags
+  /// of the block's rows as one byte of lane bits per slot.
+  struct Scratch {
     struct Segment {
       BoxSlot::Kind kind;
       std::int32_t begin, end;
@@ -104,8 +106,9 @@ struct RowBlocks {
     std::vector<std::uint8_t> produced;
     std::vector<Segment> inner, edge;
     std::vector<double*> at;
+    std::vector<std::uint8_t> dead_lanes;
   };
-  mutable BoxScratch box_scratch;
+  mutable Scratch scratch;
   std::size_t run_rows() const {
     std::size_t n = 0;
     for (const RowRun& r : runs) n += static_cast<std::size_t>(r.count);
