@@ -3,8 +3,9 @@
 // own namespace (periA, periB); both must compile against the current headers. Prints figures
 // (medians over the pairs, the median and quartiles of the per-pair ratio A time / B time, the
 // largest relative force difference); asserts nothing.
-//   ab_forces MODEL N PAIRS NOISE   (MODEL membrane | pmb; N x N nodes, dx = 1 mm; displacements
-//                                    uniform in +-NOISE m)
+//   ab_forces MODEL N PAIRS NOISE   (MODEL membrane | pmb: N x N nodes of a sheet; solid: N x N x N
+//                                    of a PMB block, horizon 3.015 dx, as compare_lammps.py;
+//                                    dx = 1 mm; displacements uniform in +-NOISE m)
 #include <petscsys.h>
 
 #include <algorithm>
@@ -19,13 +20,15 @@
 #include "peri/forces.hpp"
 #include "peri/simulation.hpp"
 
-// The two versions' entry points; their argument types are layout-identical to peri's.
+// The two versions' entry points; their argument types are layout-identical to peri's (so is the
+// plan each version makes, declared here as peri's: a return type is not part of the symbol).
 namespace periA {
 struct BondLaw;
 struct BondView;
 struct RowBlocks;
 struct BondTally;
 void bond_forces(const BondLaw&, const BondView&, const RowBlocks&, double*, bool, BondTally&);
+peri::RowBlocks plan_rows(const BondView&, const std::int32_t*, std::size_t, bool);
 }  // namespace periA
 namespace periB {
 struct BondLaw;
@@ -33,6 +36,7 @@ struct BondView;
 struct RowBlocks;
 struct BondTally;
 void bond_forces(const BondLaw&, const BondView&, const RowBlocks&, double*, bool, BondTally&);
+peri::RowBlocks plan_rows(const BondView&, const std::int32_t*, std::size_t, bool);
 }  // namespace periB
 
 namespace {
@@ -57,19 +61,26 @@ int main(int argc, char** argv) {
   const std::string model = argv[1];
   const int n = std::atoi(argv[2]), pairs = std::atoi(argv[3]);
   const double noise = std::atof(argv[4]);
-  if ((model != "membrane" && model != "pmb") || n < 8 || pairs < 1 || !(noise >= 0)) {
-    std::fprintf(stderr, "ab_forces: bad arguments (MODEL membrane|pmb, N >= 8, PAIRS >= 1, NOISE >= 0)\n");
+  if ((model != "membrane" && model != "pmb" && model != "solid") || n < 8 || pairs < 1 || !(noise >= 0)) {
+    std::fprintf(stderr, "ab_forces: bad arguments (MODEL membrane|pmb|solid, N >= 8, PAIRS >= 1, NOISE >= 0)\n");
     return 2;
   }
   int pargc = 1;
   if (PetscInitialize(&pargc, &argv, nullptr, nullptr)) return 1;
   using namespace peri;
   char text[1024];
-  std::snprintf(text, sizeof text,
-                "name: ab\nmaterials:\n  m: {model: %s, density: 1200, bulk_modulus: 800.0e6, critical_stretch: %s}\n"
-                "bodies:\n  sheet: {material: m, origin: [0, 0, 0], size: [%.17g, %.17g], thickness: 0.0005, "
-                "spacing: 0.001, quadrature: partial_area}\nstages:\n  - {name: run, steps: 1}\n",
-                model.c_str(), model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3);
+  if (model == "solid")
+    std::snprintf(text, sizeof text,
+                  "name: ab\nmaterials:\n  m: {model: pmb, density: 2200, bulk_modulus: 14.9e9, critical_stretch: 0.5}\n"
+                  "bodies:\n  block: {kind: solid, material: m, origin: [0, 0, 0], size: [%.17g, %.17g, %.17g], "
+                  "spacing: 0.001, horizon: 0.003015, quadrature: taper}\nstages:\n  - {name: run, steps: 1}\n",
+                  n * 1e-3, n * 1e-3, n * 1e-3);
+  else
+    std::snprintf(text, sizeof text,
+                  "name: ab\nmaterials:\n  m: {model: %s, density: 1200, bulk_modulus: 800.0e6, critical_stretch: %s}\n"
+                  "bodies:\n  sheet: {material: m, origin: [0, 0, 0], size: [%.17g, %.17g], thickness: 0.0005, "
+                  "spacing: 0.001, quadrature: partial_area}\nstages:\n  - {name: run, steps: 1}\n",
+                  model.c_str(), model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3);
   {
     const Scene scene = parse_scene(text, "ab_forces");
     const Nodes nodes = discretize(scene);
@@ -86,15 +97,18 @@ int main(int argc, char** argv) {
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
     const BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
                      d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local(), d.bonds.row_broken.data()};
-    const RowBlocks plan = plan_rows(v, rows.data(), rows.size(), !std::getenv("AB_NO_PAIRS"));
+    // Each version plans the rows its own way.
+    const bool pairs_on = !std::getenv("AB_NO_PAIRS");
+    const RowBlocks plan_a = periA::plan_rows(as<periA::BondView>(v), rows.data(), rows.size(), pairs_on);
+    const RowBlocks plan_b = periB::plan_rows(as<periB::BondView>(v), rows.data(), rows.size(), pairs_on);
     std::vector<double> fa(3 * static_cast<std::size_t>(d.owned)), fb(fa.size());
     BondTally ta, tb;
     auto run_a = [&] {
-      periA::bond_forces(as<periA::BondLaw>(law), as<periA::BondView>(v), as<periA::RowBlocks>(plan), fa.data(),
+      periA::bond_forces(as<periA::BondLaw>(law), as<periA::BondView>(v), as<periA::RowBlocks>(plan_a), fa.data(),
                          false, reinterpret_cast<periA::BondTally&>(ta));
     };
     auto run_b = [&] {
-      periB::bond_forces(as<periB::BondLaw>(law), as<periB::BondView>(v), as<periB::RowBlocks>(plan), fb.data(),
+      periB::bond_forces(as<periB::BondLaw>(law), as<periB::BondView>(v), as<periB::RowBlocks>(plan_b), fb.data(),
                          false, reinterpret_cast<periB::BondTally&>(tb));
     };
     auto seconds = [](auto&& f) {
@@ -121,7 +135,8 @@ int main(int argc, char** argv) {
       ratio.push_back(a / b);
     }
     const double bonds = static_cast<double>(d.bonds.size());
-    std::printf("%s %d x %d, %.0f ordered bonds, %d pairs:\n", model.c_str(), n, n, bonds, pairs);
+    std::printf("%s %d x %d%s, %.0f ordered bonds, %d pairs:\n", model.c_str(), n, n,
+                model == "solid" ? (" x " + std::to_string(n)).c_str() : "", bonds, pairs);
     std::printf("  bond updates/s, median   A %.3e   B %.3e\n", bonds / quantile(sa, 0.5), bonds / quantile(sb, 0.5));
     std::printf("  bond updates/s, fastest  A %.3e   B %.3e\n", bonds / quantile(sa, 0.0), bonds / quantile(sb, 0.0));
     std::printf("  speed-up B over A per pair: median %.3f, quartiles %.3f - %.3f\n", quantile(ratio, 0.5),

@@ -257,11 +257,11 @@ struct VecLaw {
       V a = b.measure_per_xi2;
       if constexpr (Conical) a = S::mul(g, a);
       coef = S::zero_where(dead, S::fnmadd(a, S::mul(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
-      if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g (y^2 - xi^2)^2 / (xi^2 y^2)
-        const V y2e = S::max(y2, S::mul(tiny, s2));  // as ScalarLoop
-        const V e = S::sub(y2e, s2);
+      if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g ((y^2 - xi^2) / xi^2)^2 r
+        // (no division beyond r's: the energy steps cost little more than the others)
+        const V e = S::mul(S::sub(y2, s2), S::mul(b.inv_xi, b.inv_xi));
         const V ge = S::mul(c_energy, Conical ? S::mul(g, b.measure) : b.measure);
-        w = S::add(w, S::zero_where(dead, S::div(S::mul(ge, S::mul(e, e)), S::mul(s2, y2e))));
+        w = S::add(w, S::zero_where(dead, S::mul(S::mul(ge, S::mul(e, e)), ratio)));
       }
     } else {
       const V gm = Conical ? S::mul(g, b.measure) : b.measure;
@@ -284,7 +284,7 @@ struct VecLaw {
       if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
         const V stretch = S::sub(y, xi);
         const V ge = S::mul(c_energy, gm);
-        w = S::add(w, S::zero_where(dead, S::div(S::mul(ge, S::mul(stretch, stretch)), xi)));
+        w = S::add(w, S::zero_where(dead, S::mul(S::mul(ge, S::mul(stretch, stretch)), b.inv_xi)));
       }
     }
     return coef;
