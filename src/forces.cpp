@@ -465,18 +465,24 @@ bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
 
 // The broken flags of W consecutive rows of a run (n bonds each, row l's at flags + l n) as one
 // byte per slot k, bit l set if lane l's bond is broken: 32 slots at a time (a flag byte masked
-// to its broken bit, shifted by l within its 16-bit word, stays in its byte), then the tail.
+// to its broken bit, shifted by l within its 16-bit word, stays in its byte), the last 32 ending
+// at n (overlapping the ones before: the same bytes again); fewer than 32 slots one by one.
 template <int W>
 inline void dead_lanes(const std::uint8_t* flags, std::int64_t n, std::uint8_t* dead) {
   const __m256i broken = _mm256_set1_epi8(static_cast<char>(kBroken));
-  std::int64_t k = 0;
-  for (; k + 32 <= n; k += 32) {
+  auto chunk = [&](std::int64_t k) {
     __m256i acc = _mm256_setzero_si256();
     for (int l = 0; l < W; ++l) {
       const __m256i f = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(flags + l * n + k));
       acc = _mm256_or_si256(acc, _mm256_slli_epi16(_mm256_and_si256(f, broken), l));
     }
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(dead + k), acc);
+  };
+  std::int64_t k = 0;
+  for (; k + 32 <= n; k += 32) chunk(k);
+  if (k < n && n >= 32) {
+    chunk(n - 32);
+    return;
   }
   for (; k < n; ++k) {
     unsigned d = 0;
@@ -521,13 +527,15 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     b.dead = dead[k];
     if (b.dead == (1u << W) - 1u) continue;
     const unsigned fresh = law.add(b, f0, f1, f2, w);
-    if (fresh) [[unlikely]]
+    if (fresh) [[unlikely]] {
+      const double w0 = breaking_energy(L, sx[k], sm[k]);  // the slot's, the same for every lane
       for (int l = 0; l < W; ++l)
         if (fresh >> l & 1) {
           flags[l * n + k] |= kBroken;
           ++newly[l];
-          diss[l] += breaking_energy(L, sx[k], sm[k]);
+          diss[l] += w0;
         }
+    }
   }
   std::int32_t rows[W];
   for (int l = 0; l < W; ++l) rows[l] = i + l;
