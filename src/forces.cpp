@@ -185,6 +185,7 @@ template <class S>
 struct Bonds {
   typename S::V d0, d1, d2;
   typename S::V xi2, measure, inv_xi, measure_per_xi2;  // |xi|^2, w V_j, 1/|xi|, w V_j / |xi|^2
+  typename S::V y2_floor, y2_break;  // the law's limits on y^2 (VecLaw::limits)
   unsigned dead;  // bit l: lane l's bond is broken already, or lane l is idle
 };
 using Bonds4 = Bonds<Simd4>;
@@ -199,10 +200,13 @@ struct VecLaw {
   using V = typename S::V;
   using M = typename S::M;
   static constexpr int W = S::W;
-  double c_row;
+  double c_row, tiny_s, crit0_s, crit_slope_s;
   V zero, one, half, c_energy, tiny, r_max, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon;
   explicit VecLaw(const BondLaw& L)
       : c_row(K == ModelKind::Membrane ? 2.0 * L.c : L.c),
+        tiny_s(1e-12),
+        crit0_s(L.critical0),
+        crit_slope_s(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0),
         zero(S::zero()),
         one(S::set1(1.0)),
         half(S::set1(0.5)),
@@ -212,8 +216,28 @@ struct VecLaw {
         crit0(S::set1(L.critical0)),
         crit0_sq(S::set1(L.critical0 * L.critical0)),
         inv_crit0_sq(S::set1(1.0 / (L.critical0 * L.critical0))),  // 0 if unbreakable
-        crit_slope(S::set1(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0)),
+        crit_slope(S::set1(crit_slope_s)),
         inv_horizon(S::set1(1.0 / L.horizon)) {}
+
+  // A slot's limits on y^2, which depend on the slot alone: y2_floor = 1e-12 xi^2 (PMB: coincident
+  // nodes), y2_break = (lambda_0(xi) xi)^2 (the failure test, eqs. 11 and 29). A run computes them
+  // once per slot (scalars: the same bits as lane by lane), not once per block.
+  void limits(const double* xi2, const double* inv_xi, std::int64_t n, double* y2_floor, double* y2_break) const {
+    for (std::int64_t k = 0; k < n; ++k) {
+      const double lc = Linear ? std::fma(crit_slope_s, xi2[k] * inv_xi[k], crit0_s) : crit0_s;
+      y2_floor[k] = tiny_s * xi2[k];
+      y2_break[k] = Linear ? lc * lc * xi2[k] : (crit0_s * crit0_s) * xi2[k];
+    }
+  }
+  void limits(Bonds<S>& b) const {
+    b.y2_floor = S::mul(tiny, b.xi2);
+    if constexpr (Linear) {
+      const V lc = S::fmadd(crit_slope, S::mul(b.xi2, b.inv_xi), crit0);
+      b.y2_break = S::mul(S::mul(lc, lc), b.xi2);
+    } else {
+      b.y2_break = S::mul(crit0_sq, b.xi2);
+    }
+  }
 
   // Adds the four bonds to the lane sums f (force / c_row) and w (energy density); returns the
   // lanes whose bond reaches the failure test now (eq. 11; eq. 29 if linear), which add nothing.
@@ -240,16 +264,10 @@ struct VecLaw {
     // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
     V ratio = one, y2g = y2;
     if constexpr (K == ModelKind::Membrane) ratio = S::min(S::div(s2, y2), r_max);
-    else y2g = S::max(y2, S::mul(tiny, s2));
+    else y2g = S::max(y2, b.y2_floor);
     M reached;
-    if constexpr (Linear) {
-      const V lc = S::fmadd(crit_slope, xi, crit0);
-      reached = S::ge(y2g, S::mul(S::mul(lc, lc), s2));
-    } else if constexpr (K == ModelKind::Membrane) {
-      reached = S::le(ratio, inv_crit0_sq);
-    } else {
-      reached = S::ge(y2g, S::mul(crit0_sq, s2));
-    }
+    if constexpr (K == ModelKind::Membrane && !Linear) reached = S::le(ratio, inv_crit0_sq);
+    else reached = S::ge(y2g, b.y2_break);
     fresh = static_cast<unsigned>(S::bits(reached)) & ~b.dead & ((1u << W) - 1u);
     const M dead = S::with_lanes(reached, b.dead);  // all ones where the bond adds nothing
     V coef;
@@ -325,12 +343,22 @@ inline void mark_fresh(unsigned fresh, std::uint8_t* const flag_row[4], std::int
     }
 }
 
-// What the blocks of one run (RowRun) share: the neighbour list of its first row (n bonds) and
-// its family pattern's slots.
+// What the blocks of one run (RowRun) share: the neighbour list of its first row (n bonds), its
+// family pattern's slots and the law's limits of each slot (run_slots).
 struct RunSlots {
   const std::int32_t* __restrict neighbor;
   std::int64_t n;
-  const double *xi2, *measure, *inv_xi, *measure_per_xi2;
+  const double *xi2, *measure, *inv_xi, *measure_per_xi2, *y2_floor, *y2_break;
+  // Slot k on every lane of b.
+  template <class S>
+  __attribute__((always_inline)) void broadcast(Bonds<S>& b, std::int64_t k) const {
+    b.xi2 = S::broadcast(xi2 + k);
+    b.measure = S::broadcast(measure + k);
+    b.inv_xi = S::broadcast(inv_xi + k);
+    b.measure_per_xi2 = S::broadcast(measure_per_xi2 + k);
+    b.y2_floor = S::broadcast(y2_floor + k);
+    b.y2_break = S::broadcast(y2_break + k);
+  }
 };
 
 // A block of a run: rows i + l s, the k-th neighbours of the four rows nodes j + shift + l s with
@@ -353,7 +381,6 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
     else return _mm256_setr_pd(p[at], p[at + s], p[at + 2 * s], p[at + 3 * s]);
   };
   const std::int64_t n = run.n;
-  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
   const std::int32_t* __restrict nbr = run.neighbor;
   std::uint8_t* const flag_row[4] = {v.broken + v.offsets[rows[0]], v.broken + v.offsets[rows[1]],
                                      v.broken + v.offsets[rows[2]], v.broken + v.offsets[rows[3]]};
@@ -367,10 +394,7 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
     b.d0 = _mm256_sub_pd(lanes(px, j), xi0);
     b.d1 = _mm256_sub_pd(lanes(py, j), xi1);
     b.d2 = _mm256_sub_pd(lanes(pz, j), xi2);
-    b.xi2 = _mm256_broadcast_sd(sx + k);
-    b.measure = _mm256_broadcast_sd(sm + k);
-    b.inv_xi = _mm256_broadcast_sd(sr + k);
-    b.measure_per_xi2 = _mm256_broadcast_sd(sa + k);
+    run.broadcast(b, k);
     if constexpr (Intact) b.dead = 0;
     else b.dead = (fl0[k] & kBroken) | (fl1[k] & kBroken) << 1 | (fl2[k] & kBroken) << 2 | (fl3[k] & kBroken) << 3;
     const unsigned fresh = law.add(b, f0, f1, f2, w);
@@ -398,7 +422,6 @@ bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
-  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
   const std::int32_t* __restrict nbr = run.neighbor;
   using S = typename Law::Simd;
   using V = typename S::V;
@@ -415,10 +438,7 @@ bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
     for (std::int64_t k = k0; k < k1; ++k) {
       const std::int64_t j = nbr[k];
       Bonds<S> b;
-      b.xi2 = S::broadcast(sx + k);
-      b.measure = S::broadcast(sm + k);
-      b.inv_xi = S::broadcast(sr + k);
-      b.measure_per_xi2 = S::broadcast(sa + k);
+      run.broadcast(b, k);
       b.dead = 0;
       unsigned fresh = 0;
       for (int g = 0; g < G; ++g) {
@@ -508,7 +528,6 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
-  const double *sx = run.xi2, *sm = run.measure, *sr = run.inv_xi, *sa = run.measure_per_xi2;
   const std::int32_t* __restrict nbr = run.neighbor;
   const V x0 = S::loadu(v.x + i), x1 = S::loadu(v.x + v.x_stride + i), x2 = S::loadu(v.x + 2 * v.x_stride + i);
   V f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
@@ -520,15 +539,12 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     b.d0 = S::sub(S::loadu(px + j), x0);
     b.d1 = S::sub(S::loadu(py + j), x1);
     b.d2 = S::sub(S::loadu(pz + j), x2);
-    b.xi2 = S::broadcast(sx + k);
-    b.measure = S::broadcast(sm + k);
-    b.inv_xi = S::broadcast(sr + k);
-    b.measure_per_xi2 = S::broadcast(sa + k);
+    run.broadcast(b, k);
     b.dead = dead[k];
     if (b.dead == (1u << W) - 1u) continue;
     const unsigned fresh = law.add(b, f0, f1, f2, w);
     if (fresh) [[unlikely]] {
-      const double w0 = breaking_energy(L, sx[k], sm[k]);  // the slot's, the same for every lane
+      const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
       for (int l = 0; l < W; ++l)
         if (fresh >> l & 1) {
           flags[l * n + k] |= kBroken;
@@ -607,6 +623,7 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
     bonds.measure = slots(P.measure);
     bonds.inv_xi = slots(P.inv_xi);
     bonds.measure_per_xi2 = slots(P.measure_per_xi2);
+    law.limits(bonds);
     bonds.dead = dead;
     const unsigned fresh = law.add(bonds, f0, f1, f2, w);
     if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
@@ -629,11 +646,17 @@ inline bool rows_intact(const BondView& v, std::int32_t first, std::int32_t s, s
   return true;
 }
 
-inline RunSlots run_slots(const BondView& v, const RowRun& run) {
+// The run's slots, and the law's limits of each (into the plan's scratch: RowBlocks::Scratch).
+template <class Law>
+RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBlocks::Scratch& scratch) {
   const FamilyPatterns& P = *v.patterns;
-  const std::int64_t b0 = v.offsets[run.first], slot0 = P.begin[P.of_row[run.first]];
-  return {v.neighbor + b0,           v.offsets[run.first + 1] - b0,  P.xi2.data() + slot0,
-          P.measure.data() + slot0, P.inv_xi.data() + slot0, P.measure_per_xi2.data() + slot0};
+  const std::int64_t b0 = v.offsets[run.first], n = v.offsets[run.first + 1] - b0;
+  const std::int64_t slot0 = P.begin[P.of_row[run.first]];
+  law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, n, scratch.y2_floor.data(), scratch.y2_break.data());
+  return {v.neighbor + b0,          n,
+          P.xi2.data() + slot0,     P.measure.data() + slot0,
+          P.inv_xi.data() + slot0,  P.measure_per_xi2.data() + slot0,
+          scratch.y2_floor.data(),  scratch.y2_break.data()};
 }
 
 // The laws of one loop: four lanes (every block) and the widest this CPU has (blocks of intact
@@ -666,12 +689,13 @@ void narrow_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
 }
 
 // One run, block by block. Blocks without a broken bond (most, in most runs) skip the flag bytes;
-// stride-1 blocks of eight rows take the widest lanes either way. `dead`: RowBlocks::Scratch.
+// stride-1 blocks of eight rows take the widest lanes either way.
 template <class Laws>
-void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run, std::uint8_t* dead,
-              double* force, BondTally& tally) {
+void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run,
+              RowBlocks::Scratch& scratch, double* force, BondTally& tally) {
   const auto& law = laws.narrow;
-  const RunSlots slots = run_slots(v, run);
+  const RunSlots slots = run_slots(law, v, run, scratch);
+  std::uint8_t* const dead = scratch.dead_lanes.data();
   if (run.stride == 1) {
     const bool whole_run = rows_intact(v, run.first, 1, run.count);
     const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
@@ -714,7 +738,7 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
     const std::int32_t line = static_cast<std::int32_t>(r - box.run_begin);
     scratch.produced[line] = 0;
     if (!rows_intact(v, run.first, 1, run.count)) {
-      run_avx2(laws, L, v, run, scratch.dead_lanes.data(), force, tally);
+      run_avx2(laws, L, v, run, scratch, force, tally);
       continue;
     }
     // The line's slot kinds as segments: for blocks whose Consume partners all lie in the line,
@@ -740,7 +764,7 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
       append(scratch.edge, kind == BoxSlot::Consume ? BoxSlot::Own : kind, static_cast<std::int32_t>(k));
       scratch.at[k] = scratch.ring.data() + ((ring_line % box.window) * box.columns + s.column) * ring_width + box.pad + lane;
     }
-    const RunSlots slots = run_slots(v, run);
+    const RunSlots slots = run_slots(laws.narrow, v, run, scratch);
     // Blocks at lanes q .. q + rows - 1 whose Consume partners all lie in the line: pad <= q and
     // q + rows - 1 + pad < width. Eight rows at once where they fit, else four.
     auto inner = [&](std::int32_t q, int rows) { return q >= box.pad && q + rows - 1 + box.pad < run.count; };
@@ -775,7 +799,7 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
       box_avx2(laws, L, v, rows, rows.boxes[box], force, tally);
       r = rows.boxes[box++].run_end;
     } else {
-      run_avx2(laws, L, v, rows.runs[r++], rows.scratch.dead_lanes.data(), force, tally);
+      run_avx2(laws, L, v, rows.runs[r++], rows.scratch, force, tally);
     }
   }
   const std::size_t nrest = rows.rest.size();
@@ -972,6 +996,8 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   std::int64_t slots_per_row = 0;
   for (const RowRun& run : plan.runs) slots_per_row = std::max(slots_per_row, v.offsets[run.first + 1] - v.offsets[run.first]);
   scratch.dead_lanes.assign(static_cast<std::size_t>(slots_per_row), 0);
+  scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
+  scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   if (!pair_bonds) return plan;
   // Boxes among the stride-1 runs (all of which come first, in list order), and their scratch.
   std::size_t ring = 0, lines = 0, slots = 0;

@@ -96,7 +96,8 @@ struct RowBlocks {
   /// step): for the boxes, the coefficient ring, which lines completed their Produce slots, and a
   /// line's slot kinds as segments of consecutive slots (for blocks away from the line's ends,
   /// and near them) and ring addresses; for blocks of runs with broken bonds, the broken flags
-  /// of the block's rows as one byte of lane bits per slot.
+  /// of the block's rows as one byte of lane bits per slot; for every run, the bond law's limits
+  /// on y^2 of each slot of its pattern.
   struct Scratch {
     struct Segment {
       BoxSlot::Kind kind;
@@ -107,6 +108,7 @@ struct RowBlocks {
     std::vector<Segment> inner, edge;
     std::vector<double*> at;
     std::vector<std::uint8_t> dead_lanes;
+    std::vector<double> y2_floor, y2_break;
   };
   mutable Scratch scratch;
   std::size_t run_rows() const {
