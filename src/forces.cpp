@@ -223,7 +223,9 @@ struct VecLaw {
 
   // A slot's limits on y^2, which depend on the slot alone: y2_floor = 1e-12 xi^2 (PMB: coincident
   // nodes), y2_break = (lambda_0(xi) xi)^2 (the failure test, eqs. 11 and 29). A run computes them
-  // once per slot (scalars: the same bits as lane by lane), not once per block.
+  // once per slot (scalars: the same bits as lane by lane), not once per block. The membrane law
+  // with a constant lambda_0 uses neither (its test is r <= lambda_0^-2).
+  static constexpr bool kLimits = K == ModelKind::PMB || Linear;
   void limits(const double* xi2, const double* inv_xi, std::int64_t n, double* y2_floor, double* y2_break) const {
     for (std::int64_t k = 0; k < n; ++k) {
       const double lc = Linear ? std::fma(crit_slope_s, xi2[k] * inv_xi[k], crit0_s) : crit0_s;
@@ -656,7 +658,8 @@ RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBloc
   const FamilyPatterns& P = *v.patterns;
   const std::int64_t b0 = v.offsets[run.first], n = v.offsets[run.first + 1] - b0;
   const std::int64_t slot0 = P.begin[P.of_row[run.first]];
-  law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, n, scratch.y2_floor.data(), scratch.y2_break.data());
+  if constexpr (Law::kLimits)
+    law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, n, scratch.y2_floor.data(), scratch.y2_break.data());
   return {v.neighbor + b0,          n,
           P.xi2.data() + slot0,     P.measure.data() + slot0,
           P.inv_xi.data() + slot0,  P.measure_per_xi2.data() + slot0,

@@ -68,7 +68,8 @@ struct BoxSlot {
 
 /// Stride-1 runs (`RowBlocks::runs[run_begin, run_end)`, its lines) of one family pattern and
 /// width whose first rows are a constant stride apart and whose neighbour lists are the first line's
-/// shifted by that stride: the interior of a grid body (2D), or of each of its planes (3D). Row
+/// shifted by that stride: the interior of a 2D grid body (plan_rows makes a box only where at
+/// least a quarter of the slots pair inside it: not in a 3D block, whose planes pair 9%). Row
 /// (line b, lane a) and its partner of slot k (line b + line, lane a + lane) see each other's bond
 /// as slots k and k' with the same |xi|^2 and w V, so the bond's scalar coefficient is the same
 /// bits from both ends (their y^2 agree, x_i - x_j being exactly -(x_j - x_i)). The loop
