@@ -79,8 +79,9 @@ int main(int argc, char** argv) {
     std::snprintf(text, sizeof text,
                   "name: ab\nmaterials:\n  m: {model: %s, density: 1200, bulk_modulus: 800.0e6, critical_stretch: %s}\n"
                   "bodies:\n  sheet: {material: m, origin: [0, 0, 0], size: [%.17g, %.17g], thickness: 0.0005, "
-                  "spacing: 0.001, quadrature: partial_area}\nstages:\n  - {name: run, steps: 1}\n",
-                  model.c_str(), model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3);
+                  "spacing: 0.001, quadrature: %s}\nstages:\n  - {name: run, steps: 1}\n",
+                  model.c_str(), model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3,
+                  std::getenv("AB_QUADRATURE") ? std::getenv("AB_QUADRATURE") : "partial_area");
   {
     const Scene scene = parse_scene(text, "ab_forces");
     const Nodes nodes = discretize(scene);

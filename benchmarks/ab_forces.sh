@@ -3,13 +3,14 @@
 # ab_kernels.py, which alternates whole processes, for changes confined to src/forces.cpp.
 #   benchmarks/ab_forces.sh REV_A REV_B [MODEL N PAIRS NOISE]
 # REV is a git revision, "work" for the working tree's src/forces.cpp, or a file holding a version. MODEL:
-# membrane, pmb (N x N sheets) or solid (an N^3 PMB block). Defaults: membrane 400
+# membrane, pmb (N x N sheets; AB_QUADRATURE=full for whole cells) or solid (an N^3 PMB block).
+# Defaults: membrane 400
 # 200 1e-5. Needs a configured build in build/ (libperi.a and the flags it was compiled with);
 # both versions must compile against the current headers. Prints figures; asserts nothing.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${PERI_BUILD_DIR:-$root/build}
-if [ $# -lt 2 ]; then sed -n '2,9p' "$0"; exit 2; fi
+if [ $# -lt 2 ]; then sed -n '2,10p' "$0"; exit 2; fi
 flags_file=$build/benchmarks/CMakeFiles/bench_kernels.dir/flags.make
 link_file=$build/benchmarks/CMakeFiles/bench_kernels.dir/link.txt
 if [ ! -f "$flags_file" ] || [ ! -f "$build/libperi.a" ]; then

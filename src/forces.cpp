@@ -773,12 +773,13 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
     }
     const RunSlots slots = run_slots(laws.narrow, v, run, scratch);
     // Blocks at lanes q .. q + rows - 1 whose Consume partners all lie in the line: pad <= q and
-    // q + rows - 1 + pad < width. Eight rows at once where they fit, else four.
+    // q + rows - 1 + pad < width. Eight rows at once where they fit and are inner, else four (a
+    // block of eight near an end evaluates its Consume slots for all eight rows: 0.97-0.99 as fast).
     auto inner = [&](std::int32_t q, int rows) { return q >= box.pad && q + rows - 1 + box.pad < run.count; };
     // Rows q .. of the line are next; a block of four at `at` <= q (the line's last) writes rows q ..
     std::int32_t q = 0;
     while (q < run.count) {
-      const bool wide = q + kWideRows <= run.count;
+      const bool wide = q + kWideRows <= run.count && inner(q, kWideRows);
       const std::int32_t at = wide ? q : std::min(q, run.count - 4);
       const std::vector<SlotSegment>& segments = inner(at, wide ? kWideRows : 4) ? scratch.inner : scratch.edge;
       const bool done =
