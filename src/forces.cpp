@@ -22,10 +22,7 @@ constexpr std::uint8_t kBroken = 1, kJustBroken = 2;
 // w_0 = w(lambda_0) w V_j, the energy a bond of reference length^2 s2 and measure w V_j holds
 // when it breaks (eqs. 26-27). A bond is detected at the first step past lambda_0; booking w at
 // that step's larger stretch would gain energy systematically (first order in dt), w_0 is unbiased.
-inline double breaking_energy(const BondLaw& L, double s2, double measure) {
-  const double lc = L.critical_stretch(std::sqrt(s2));
-  return L.energy(s2, lc * lc * s2) * measure;
-}
+inline double breaking_energy(const BondLaw& L, double s2, double measure) { return L.critical_energy(s2) * measure; }
 
 // Books `newly` bonds of row i broken during this call, holding `diss` (their breaking_energy
 // summed in CSR order), half per end.

@@ -295,6 +295,33 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   }
 }
 
+// The energy booked at breaking, w(lambda_0) in closed form, is the micropotential evaluated at
+// y = lambda_0 |xi| for every law shape (membrane with and without hardening, conical influence,
+// linear lambda_0; PMB).
+TEST(BondLaw, CriticalEnergyIsTheMicropotentialAtLambda0) {
+  for (int shape = 0; shape < 8; ++shape) {
+    BondLaw law;
+    law.kind = shape & 1 ? ModelKind::PMB : ModelKind::Membrane;
+    law.c = 3.7e9;
+    law.horizon = 3e-3;
+    law.conical = shape & 2;
+    law.linear_critical = shape & 4;
+    law.critical0 = law.kind == ModelKind::PMB ? 1.0005 : 1.8;
+    law.critical_delta = law.linear_critical ? (law.kind == ModelKind::PMB ? 1.0002 : 1.3) : law.critical0;
+    law.hardening = law.kind == ModelKind::Membrane && (shape & 2);
+    law.hard_c = 1.1e8;
+    law.hard_n = 3;
+    for (double xi : {1e-3, 2.2e-3, 2.9e-3}) {
+      const double xi2 = xi * xi, lc = law.critical_stretch(xi);
+      const double w = law.energy(xi2, lc * lc * xi2);
+      EXPECT_GT(w, 0) << "shape " << shape;
+      // energy() recovers the stretch as y/|xi| - 1, losing lc / (lc - 1) times the round-off
+      // (about 5000 for PMB's s_0 = 5e-4); the closed form uses lambda_0 - 1 itself.
+      EXPECT_NEAR(law.critical_energy(xi2), w, 1e-14 * lc / (lc - 1.0) * w) << "shape " << shape << " xi " << xi;
+    }
+  }
+}
+
 TEST(Forces, BreakingIsIrreversibleAndBooksEnergy) {
   std::vector<double> X{0, 0, 0, 1, 0, 0}, u{0, 0, 0, 0.5, 0, 0}, V{1, 1};
   std::vector<std::int64_t> offsets{0, 1};

@@ -85,6 +85,21 @@ struct BondLaw {
     const double s = std::sqrt(y2) / xi - 1.0;  // PMB: w = c s^2 |xi| g / 2
     return 0.5 * c * s * s * xi * g;
   }
+  /// The micropotential at the critical stretch, w(lambda_0(|xi|)): the energy a bond holds when
+  /// it breaks (eqs. 26-27), energy(xi2, (lambda_0 |xi|)^2) in closed form (one square root).
+  double critical_energy(double xi2) const noexcept {
+    const double xi = std::sqrt(xi2);
+    const double lc = critical_stretch(xi);
+    const double g = influence(xi);
+    if (kind == ModelKind::Membrane) {
+      const double l2 = lc * lc;  // eq. (13) at lambda = lambda_0
+      double w = c * (l2 + 1.0 / l2 - 2.0) * g;
+      if (hardening) w += hard_c * (std::pow(lc, hard_n) - hard_n * lc + hard_n - 1.0) * g;
+      return w;
+    }
+    const double s = lc - 1.0;  // PMB: stretch s_0
+    return 0.5 * c * s * s * xi * g;
+  }
   /// Bond stiffness d f_hat / dy at the reference state [N/m^7], for the stable time step
   /// (Silling & Askari 2005): membrane 8 c g / xi^2, PMB c g / xi.
   double reference_stiffness(double xi2) const noexcept {
