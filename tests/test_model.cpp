@@ -381,10 +381,10 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       "bodies:\n  s: {material: m, origin: [0, 0, 0], size: [0.02, 0.015], thickness: 0.0005, spacing: 0.001, quadrature: partial_area}\n"
       "stages:\n  - {name: r, steps: 1}\n",
       "name: k\nmaterials:\n  m: {model: pmb, density: 2200, bulk_modulus: 1.49e10, critical_stretch: 0.005}\n"
-      "bodies:\n  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.016, 0.007, 0.006], spacing: 0.001, horizon: 0.003015, quadrature: taper}\n"
+      "bodies:\n  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.016, 0.017, 0.006], spacing: 0.001, horizon: 0.003015, quadrature: taper}\n"
       "stages:\n  - {name: r, steps: 1}\n"};
-  // Both bodies have runs of eight and more rows (eight-lane blocks) whose length is not a
-  // multiple of four (a last block overlapping the one before).
+  // Both bodies have runs of eight and more rows (eight-lane blocks) and strided runs along the x
+  // faces, whose lengths are not multiples of four (a last block overlapping the one before).
   for (const char* text : scenes) {
     OneRankBody body(text);
     const Nodes& nodes = body.nodes;
