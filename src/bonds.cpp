@@ -149,10 +149,17 @@ void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
   const int body = nodes.body[i];
   const BodyGeometry& g = nodes.bodies[body];
   const double* xi = &nodes.X[3 * i];
+  // A candidate beyond reach() (the horizon; plus a cell's half-diagonal for partial areas) has
+  // no weight: rejected on its raw distance before the snapped offset and the weight (most of a
+  // cell-list search's candidates; the margin covers the snapping's round-off).
+  const double far = reach(g) + 1e-6 * g.spacing, far2 = far * far;
   thread_local std::vector<std::pair<std::int64_t, double>> found;
   found.clear();
   cells.for_each_candidate(xi, [&](std::int64_t j) {
     if (j == i || nodes.body[j] != body) return;
+    const double* xj = &nodes.X[3 * j];
+    const double e0 = xj[0] - xi[0], e1 = xj[1] - xi[1], e2 = xj[2] - xi[2];
+    if (e0 * e0 + e1 * e1 + e2 * e2 > far2) return;
     double d[3];
     reference_offset(g, xi, &nodes.X[3 * j], d);
     const double w = quadrature_weight(g, d);
