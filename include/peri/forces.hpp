@@ -45,8 +45,8 @@ void current_positions(const double* X, const double* u, std::int32_t begin, std
 
 /// Rows that the vector loop evaluates four or eight at a time (a block, one row per lane): rows
 /// first + l * stride (l = 0 .. count-1, count >= 4; the last block ends at the run's end,
-/// overlapping the one before, whose rows it evaluates again but does not write), one family pattern, and for every
-/// k the k-th neighbour of row l is node j + l * stride, j that of row `first`. So the loop reads
+/// overlapping the one before, whose rows it evaluates again but does not write), one family
+/// pattern, and for every k the k-th neighbour of row l is node j + l * stride, j that of row `first`. So the loop reads
 /// one neighbour list for the whole run. Stride 1: interior runs of a grid row (in the natural
 /// order a partition keeps), whose neighbours' positions the loop loads with one vector load per
 /// coordinate. Larger strides: rows a grid row apart, e.g. along a body's edge, whose neighbours
@@ -69,7 +69,8 @@ struct BoxSlot {
 /// Stride-1 runs (`RowBlocks::runs[run_begin, run_end)`, its lines) of one family pattern and
 /// width whose first rows are a constant stride apart and whose neighbour lists are the first line's
 /// shifted by that stride: the interior of a 2D grid body (plan_rows makes a box only where at
-/// least a quarter of the slots pair inside it: not in a 3D block, whose planes pair 9%). Row
+/// least a quarter of the slots are produced for a partner inside it: not in a 3D block, whose
+/// planes produce 9%). Row
 /// (line b, lane a) and its partner of slot k (line b + line, lane a + lane) see each other's bond
 /// as slots k and k' with the same |xi|^2 and w V, so the bond's scalar coefficient is the same
 /// bits from both ends (their y^2 agree, x_i - x_j being exactly -(x_j - x_i)). The loop
