@@ -369,34 +369,42 @@ struct RunSlots {
 // coordinate plane if s = 1, `Unit`; else four loads each), the pattern's slots broadcast, the
 // four flag bytes as lane bits unless the block has no broken bond (`Intact`). The first `skip`
 // rows were written by the block before (a run's last block ends at the run's end): evaluated
-// again, the same bits (their bonds broken there are flagged now), but not written.
+// again, the same bits (their bonds broken there are flagged now), but not written. A strided
+// run may shift its neighbours per slot (`slot_shift`, RowRun::slot_shifts; nullptr: by the
+// stride): the k-th neighbours of the block are then j + (at + l) t_k, `at` = shift / stride.
 template <bool Intact, bool Unit, class Law>
 void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
-                std::int32_t stride, std::int64_t shift, int skip, double* force, BondTally& tally) {
+                std::int32_t stride, std::int64_t shift, int skip, double* force, BondTally& tally,
+                const std::int32_t* slot_shift = nullptr) {
   const double* __restrict px = v.x + shift;
   const double* __restrict py = v.x + v.x_stride + shift;
   const double* __restrict pz = v.x + 2 * v.x_stride + shift;
   const std::int64_t s = Unit ? 1 : stride;
   const std::int32_t rows[4] = {i, static_cast<std::int32_t>(i + s), static_cast<std::int32_t>(i + 2 * s),
                                 static_cast<std::int32_t>(i + 3 * s)};
-  auto lanes = [s](const double* p, std::int64_t at) {
+  auto lanes = [](const double* p, std::int64_t at, std::int64_t t) {
     if constexpr (Unit) return _mm256_loadu_pd(p + at);
-    else return _mm256_setr_pd(p[at], p[at + s], p[at + 2 * s], p[at + 3 * s]);
+    else return _mm256_setr_pd(p[at], p[at + t], p[at + 2 * t], p[at + 3 * t]);
   };
+  const std::int64_t block_at = Unit || !slot_shift ? 0 : shift / stride;
   const std::int64_t n = run.n;
   const std::int32_t* __restrict nbr = run.neighbor;
   std::uint8_t* const flag_row[4] = {v.broken + v.offsets[rows[0]], v.broken + v.offsets[rows[1]],
                                      v.broken + v.offsets[rows[2]], v.broken + v.offsets[rows[3]]};
   const std::uint8_t *fl0 = flag_row[0], *fl1 = flag_row[1], *fl2 = flag_row[2], *fl3 = flag_row[3];
-  const __m256d xi0 = lanes(v.x, i), xi1 = lanes(v.x + v.x_stride, i), xi2 = lanes(v.x + 2 * v.x_stride, i);
+  const __m256d xi0 = lanes(v.x, i, s), xi1 = lanes(v.x + v.x_stride, i, s), xi2 = lanes(v.x + 2 * v.x_stride, i, s);
   __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < n; ++k) {
-    const std::int64_t j = nbr[k];
+    std::int64_t j = nbr[k], t = s;
+    if (!Unit && slot_shift) {  // positions relative to v.x itself: px - shift
+      t = slot_shift[k];
+      j += block_at * t - shift;
+    }
     Bonds4 b;
-    b.d0 = _mm256_sub_pd(lanes(px, j), xi0);
-    b.d1 = _mm256_sub_pd(lanes(py, j), xi1);
-    b.d2 = _mm256_sub_pd(lanes(pz, j), xi2);
+    b.d0 = _mm256_sub_pd(lanes(px, j, t), xi0);
+    b.d1 = _mm256_sub_pd(lanes(py, j, t), xi1);
+    b.d2 = _mm256_sub_pd(lanes(pz, j, t), xi2);
     run.broadcast(b, k);
     if constexpr (Intact) b.dead = 0;
     else b.dead = (fl0[k] & kBroken) | (fl1[k] & kBroken) << 1 | (fl2[k] & kBroken) << 2 | (fl3[k] & kBroken) << 3;
@@ -696,7 +704,8 @@ void narrow_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
 // stride-1 blocks of eight rows take the widest lanes either way.
 template <class Laws>
 void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run,
-              RowBlocks::Scratch& scratch, double* force, BondTally& tally) {
+              RowBlocks::Scratch& scratch, double* force, BondTally& tally,
+              const std::int32_t* slot_shift = nullptr) {
   const auto& law = laws.narrow;
   const RunSlots slots = run_slots(law, v, run, scratch);
   std::uint8_t* const dead = scratch.dead_lanes.data();
@@ -719,9 +728,9 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRu
       const std::int32_t at = std::min(q, run.count - 4), i = run.first + at * run.stride;
       const std::int64_t shift = static_cast<std::int64_t>(at) * run.stride;
       if (rows_intact(v, i, run.stride, 4))
-        block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, q - at, force, tally);
+        block_avx2<true, false>(law, L, v, slots, i, run.stride, shift, q - at, force, tally, slot_shift);
       else
-        block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, q - at, force, tally);
+        block_avx2<false, false>(law, L, v, slots, i, run.stride, shift, q - at, force, tally, slot_shift);
     }
   }
 }
@@ -804,7 +813,9 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
       box_avx2(laws, L, v, rows, rows.boxes[box], force, tally);
       r = rows.boxes[box++].run_end;
     } else {
-      run_avx2(laws, L, v, rows.runs[r++], rows.scratch, force, tally);
+      const RowRun& run = rows.runs[r++];
+      run_avx2(laws, L, v, run, rows.scratch, force, tally,
+               run.slot_shifts >= 0 ? rows.slot_shifts.data() + run.slot_shifts : nullptr);
     }
   }
   const std::size_t nrest = rows.rest.size();
@@ -952,9 +963,10 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   }
   const FamilyPatterns& P = *v.patterns;
   // Whether list entries a[0 .. m-1] continue a run from row `first` with stride s whose next row
-  // is its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by (q + l) s.
+  // is its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by
+  // (q + l) s, or with `t` by (q + l) t_k for slot k.
   auto continues = [&](std::int32_t first, std::int32_t s, std::int32_t q, const std::int32_t* a, std::size_t left,
-                       std::int32_t m) {
+                       std::int32_t m, const std::int32_t* t = nullptr) {
     if (left < static_cast<std::size_t>(m) || s <= 0) return false;
     const std::int64_t b0 = v.offsets[first], n = v.offsets[first + 1] - b0;
     for (std::int32_t l = 0; l < m; ++l) {
@@ -963,7 +975,7 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
       const std::int64_t bl = v.offsets[a[l]];
       if (v.offsets[a[l] + 1] - bl != n) return false;
       for (std::int64_t k = 0; k < n; ++k)
-        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + shift) return false;
+        if (v.neighbor[bl + k] != v.neighbor[b0 + k] + (t ? static_cast<std::int64_t>(q + l) * t[k] : shift)) return false;
     }
     return true;
   };
@@ -983,18 +995,52 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     if (const std::int32_t count = take_run(rows + r, nrows - r, 1)) r += static_cast<std::size_t>(count);
     else others.push_back(rows[r++]);
   }
-  // The others by family pattern within windows of 4096 rows of the list (stable: in list order
-  // within a pattern), so that rows a grid row apart along an edge meet (strided runs) and most
-  // remaining groups of four share a pattern (the loop broadcasts its slots), while a window's
-  // neighbours stay in cache. The order does not change any row's sum.
+  // The others by family pattern and then reference x within windows of 4096 rows of the list
+  // (stable: in list order among equals), so that rows a grid row apart along an edge meet
+  // (strided runs), also where a few consecutive rows of one pattern cross x (next to a
+  // partition boundary across the x lines), and most remaining groups of four share a pattern
+  // (the loop broadcasts its slots), while a window's neighbours stay in cache. The order does
+  // not change any row's sum.
   constexpr std::size_t kWindow = 4096;
   for (std::size_t w = 0; w < others.size(); w += kWindow)
     std::stable_sort(others.begin() + w, others.begin() + std::min(others.size(), w + kWindow),
-                     [&](std::int32_t a, std::int32_t b) { return P.of_row[a] < P.of_row[b]; });
+                     [&](std::int32_t a, std::int32_t b) {
+                       if (P.of_row[a] != P.of_row[b]) return P.of_row[a] < P.of_row[b];
+                       return v.X[3 * static_cast<std::size_t>(a)] < v.X[3 * static_cast<std::size_t>(b)];
+                     });
+  // Rows next to a partition boundary have ghost neighbours, numbered compactly beyond the owned
+  // ones: rows a stride apart may then shift their owned and their ghost neighbours differently,
+  // but each slot by the same amount from row to row (t_k, from the first two rows): such runs
+  // keep those shifts (RowRun::slot_shifts).
+  std::vector<std::int32_t> t;
+  auto take_shifted_run = [&](const std::int32_t* a, std::size_t left, std::int32_t s) {
+    if (left < 4 || P.of_row[a[1]] != P.of_row[a[0]]) return 0;
+    const std::int64_t b0 = v.offsets[a[0]], b1 = v.offsets[a[1]], n = v.offsets[a[0] + 1] - b0;
+    if (v.offsets[a[1] + 1] - b1 != n) return 0;
+    t.resize(static_cast<std::size_t>(n));
+    for (std::int64_t k = 0; k < n; ++k) {
+      const std::int64_t d = static_cast<std::int64_t>(v.neighbor[b1 + k]) - v.neighbor[b0 + k];
+      if (d <= 0 || d > std::numeric_limits<std::int32_t>::max() / 8) return 0;
+      t[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(d);
+    }
+    std::int32_t count = 0;
+    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 4, t.data())) count += 4;
+    if (count > 0)
+      while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 1, t.data())) ++count;
+    if (count > 0) {
+      RowRun run{a[0], s, count};
+      run.slot_shifts = static_cast<std::int32_t>(plan.slot_shifts.size());
+      plan.slot_shifts.insert(plan.slot_shifts.end(), t.begin(), t.end());
+      plan.runs.push_back(run);
+    }
+    return count;
+  };
   for (std::size_t r = 0; r < others.size();) {
     const std::size_t left = others.size() - r;
     const std::int32_t s = left >= 2 ? others[r + 1] - others[r] : 0;
-    if (const std::int32_t count = s > 0 ? take_run(others.data() + r, left, s) : 0) r += static_cast<std::size_t>(count);
+    std::int32_t count = s > 0 ? take_run(others.data() + r, left, s) : 0;
+    if (count == 0 && s > 0) count = take_shifted_run(others.data() + r, left, s);
+    if (count > 0) r += static_cast<std::size_t>(count);
     else plan.rest.push_back(others[r++]);
   }
   RowBlocks::Scratch& scratch = plan.scratch;

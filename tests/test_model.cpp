@@ -406,11 +406,15 @@ struct OneRankBody {
   Nodes nodes;
   Domain d;
   BondLaw law;
-  explicit OneRankBody(const char* text) {
+  // split_x > 0: the domain of part 0 of two, the nodes with x < split_x (its ghosts beyond).
+  explicit OneRankBody(const char* text, double split_x = 0) {
     const Scene scene = parse_scene(text, "kernel-test");
     nodes = discretize(scene);
     const CellList cells(nodes, reach(nodes.bodies[0]));
-    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+    std::vector<int> parts(nodes.size(), 0);
+    if (split_x > 0)
+      for (std::int64_t i = 0; i < nodes.size(); ++i) parts[i] = nodes.X[3 * i] < split_x ? 0 : 1;
+    const Partition part = partition_from_parts(parts, split_x > 0 ? 2 : 1);
     d = build_domain(scene, nodes, cells, part, 0);
     law = calibrate(scene.materials[0], nodes.bodies[0], "t");
   }
@@ -426,8 +430,12 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       "stages:\n  - {name: r, steps: 1}\n"};
   // Both bodies have runs of eight and more rows (eight-lane blocks) and strided runs along the x
   // faces, whose lengths are not multiples of four (a last block overlapping the one before).
-  for (const char* text : scenes) {
-    OneRankBody body(text);
+  // Each also as part 0 of two split across the x lines: the rows next to the cut have ghost
+  // neighbours and form strided runs whose neighbours shift per slot (RowRun::slot_shifts).
+  for (int variant = 0; variant < 4; ++variant) {
+    const char* text = scenes[variant / 2];
+    const bool split = variant % 2;
+    OneRankBody body(text, split ? 0.0081 : 0.0);
     const Nodes& nodes = body.nodes;
     Domain& d = body.d;
     const BondLaw& base = body.law;
@@ -444,6 +452,15 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
     current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
     std::vector<std::int32_t> rows(d.owned);
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
+    {
+      const BondView topology{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
+                              d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local()};
+      const RowBlocks plan = plan_rows(topology, rows.data(), rows.size());
+      std::int64_t shifted = 0;
+      for (const RowRun& run : plan.runs) shifted += run.slot_shifts >= 0 ? run.count : 0;
+      EXPECT_EQ(split, d.ghosts > 0);
+      EXPECT_EQ(split, shifted > 0) << "rows in runs with per-slot shifts: " << shifted;
+    }
     for (const BondLaw& law : laws) {
       std::vector<std::uint8_t> broken(d.bonds.broken.size(), 0);
       BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),

@@ -55,6 +55,10 @@ struct RowRun {
   std::int32_t first;
   std::int32_t stride;
   std::int32_t count;
+  /// -1, or (strided runs next to a partition boundary, whose ghost neighbours are numbered
+  /// compactly) where in RowBlocks::slot_shifts this run's per-slot neighbour shifts start: the
+  /// k-th neighbour of row l is then j + l t_k instead of j + l stride.
+  std::int32_t slot_shifts = -1;
 };
 
 /// A slot k of a box's family pattern: how its bonds are shared between the box's rows.
@@ -94,6 +98,7 @@ struct RowBlocks {
   std::vector<RowRun> runs;
   std::vector<std::int32_t> rest;
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
+  std::vector<std::int32_t> slot_shifts;  ///< per-slot neighbour shifts of some strided runs (RowRun)
   /// The loop's working memory, sized by plan_rows and reused by every call (no allocation per
   /// step): for the boxes, the coefficient ring, which lines completed their Produce slots, and a
   /// line's slot kinds as segments of consecutive slots (for blocks away from the line's ends,
