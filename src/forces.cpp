@@ -1014,7 +1014,8 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   // keep those shifts (RowRun::slot_shifts).
   std::vector<std::int32_t> t;
   auto take_shifted_run = [&](const std::int32_t* a, std::size_t left, std::int32_t s) {
-    if (left < 4 || P.of_row[a[1]] != P.of_row[a[0]]) return 0;
+    // Stride 1 stays uniform: its blocks load each slot's neighbours with one vector load.
+    if (s < 2 || left < 4 || P.of_row[a[1]] != P.of_row[a[0]]) return 0;
     const std::int64_t b0 = v.offsets[a[0]], b1 = v.offsets[a[1]], n = v.offsets[a[0] + 1] - b0;
     if (v.offsets[a[1] + 1] - b1 != n) return 0;
     t.resize(static_cast<std::size_t>(n));
