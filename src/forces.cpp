@@ -16,8 +16,8 @@
 namespace peri {
 namespace {
 
-// Flag values: bit 0 = broken; bit 1 = broken during the current call (energy still to book).
-constexpr std::uint8_t kBroken = 1, kJustBroken = 2;
+// Flag value: bit 0 = broken.
+constexpr std::uint8_t kBroken = 1;
 
 // w_0 = w(lambda_0) w V_j, the energy a bond of reference length^2 s2 and measure w V_j holds
 // when it breaks (eqs. 26-27). A bond is detected at the first step past lambda_0; booking w at
@@ -30,17 +30,6 @@ inline void book_row(const BondView& v, std::int32_t i, int newly, double diss, 
   tally.dissipated += 0.5 * v.volume[i] * diss;
   tally.newly_broken += newly;
   if (v.row_broken) v.row_broken[i] = 1;
-}
-
-// Books the bonds of row i flagged kJustBroken during this call (and clears that bit).
-void book_breaks(const BondLaw& L, const BondView& v, std::int32_t i, int newly, BondTally& tally) {
-  double diss = 0;
-  for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) {
-    if (!(v.broken[b] & kJustBroken)) continue;
-    v.broken[b] = kBroken;
-    diss += breaking_energy(L, v.xi2(i, b), v.measure(i, b));
-  }
-  book_row(v, i, newly, diss, tally);
 }
 
 // The portable loop, specialised at compile time on the law's shape so that no per-bond branch on
@@ -62,7 +51,7 @@ struct ScalarLoop {
     const std::int32_t* __restrict nbr = v.neighbor;
     std::uint8_t* __restrict flag = v.broken;
     const double xi0 = px[i], xi1 = py[i], xi2c = pz[i];
-    double f0 = 0, f1 = 0, f2 = 0, w = 0;
+    double f0 = 0, f1 = 0, f2 = 0, w = 0, diss = 0;
     int newly = 0;
     const std::int64_t b0 = v.offsets[i], b1 = v.offsets[i + 1];
     for (std::int64_t b = b0; b < b1; ++b) {
@@ -74,10 +63,11 @@ struct ScalarLoop {
       const std::uint8_t was = flag[b];
       const bool now_broken = L.broken_at(s2, y2);
       const std::uint8_t fresh = static_cast<std::uint8_t>(now_broken & !(was & kBroken));
-      flag[b] = static_cast<std::uint8_t>(was | (fresh * (kBroken | kJustBroken)));
+      flag[b] = static_cast<std::uint8_t>(was | (fresh * kBroken));
       newly += fresh;
       const bool intact = !((was & kBroken) | fresh);
       const double scale = v.measure(i, b);
+      if (fresh) diss += breaking_energy(L, s2, scale);
       const double k = intact ? L.coefficient(s2, y2) * scale : 0.0;
       f0 += k * d0;
       f1 += k * d1;
@@ -88,7 +78,7 @@ struct ScalarLoop {
     force[3 * i + 1] = f1;
     force[3 * i + 2] = f2;
     if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * w;
-    if (newly) book_breaks(L, v, i, newly, tally);
+    if (newly) book_row(v, i, newly, diss, tally);
   }
   void operator()(const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) const {
     for (const RowRun& run : rows.runs)
@@ -260,7 +250,7 @@ struct VecLaw {
     const V y2 = S::add(S::fmadd(b.d2, b.d2, S::mul(b.d0, b.d0)), S::mul(b.d1, b.d1));
     V xi = zero, g = one;
     // |xi| = |xi|^2 / |xi|: a multiplication by the pattern's 1/|xi|, not a square root.
-    if constexpr (Conical || Linear || (K == ModelKind::PMB && Energy)) xi = S::mul(s2, b.inv_xi);
+    if constexpr (Conical || (K == ModelKind::PMB && Energy)) xi = S::mul(s2, b.inv_xi);
     if constexpr (Conical) g = S::max(zero, S::fnmadd(xi, inv_horizon, one));
     // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
     V ratio = one, y2g = y2;
@@ -312,12 +302,10 @@ struct VecLaw {
   }
 
   // Writes the rows' force densities and energy (lanes first .. count-1: a run's last block
-  // overlaps the one before it by `first` rows) and books their newly broken bonds (`L`: the law
-  // this was built from; `newly`: nullptr if none; `diss`: their breaking energies if booked as
-  // they broke, else nullptr and flagged kJustBroken).
-  void finish(const BondLaw& L, const BondView& v, const std::int32_t* rows, int count, V f0, V f1, V f2, V w,
-              const int* newly, double* force, BondTally& tally, int first = 0,
-              const double* diss = nullptr) const {
+  // overlaps the one before it by `first` rows) and books their newly broken bonds (`newly`,
+  // holding breaking energies `diss`, mark_fresh; nullptr where none can break).
+  void finish(const BondView& v, const std::int32_t* rows, int count, V f0, V f1, V f2, V w, const int* newly,
+              const double* diss, double* force, BondTally& tally, int first = 0) const {
     double s0[W], s1[W], s2[W], se[W];
     S::storeu(s0, f0);
     S::storeu(s1, f1);
@@ -329,20 +317,22 @@ struct VecLaw {
       force[3 * i + 1] = c_row * s1[l];
       force[3 * i + 2] = c_row * s2[l];
       if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * se[l];
-      if (newly && newly[l]) {
-        if (diss) book_row(v, i, newly[l], diss[l], tally);
-        else book_breaks(L, v, i, newly[l], tally);
-      }
+      if (newly && newly[l]) book_row(v, i, newly[l], diss[l], tally);
     }
   }
 };
 
-// Marks the fresh lanes' bonds (bond k of rows[l], CSR positions flag_row[l] + k) as broken now.
-inline void mark_fresh(unsigned fresh, std::uint8_t* const flag_row[4], std::int64_t k, int newly[4]) {
-  for (int l = 0; l < 4; ++l)
+// Flags the fresh lanes' bonds (bond k of lane l's row, CSR position flag_row[l] + k) as broken
+// and adds their breaking energy w0(l) to the lane's sum: summed as the bonds break, a row's sum
+// is in CSR order.
+template <int W, class BreakingEnergy>
+inline void mark_fresh(unsigned fresh, std::uint8_t* const* flag_row, std::int64_t k, BreakingEnergy w0, int* newly,
+                       double* diss) {
+  for (int l = 0; l < W; ++l)
     if (fresh >> l & 1) {
-      flag_row[l][k] |= kBroken | kJustBroken;
+      flag_row[l][k] |= kBroken;
       ++newly[l];
+      diss[l] += w0(l);
     }
 }
 
@@ -395,6 +385,7 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
   const __m256d xi0 = lanes(v.x, i, s), xi1 = lanes(v.x + v.x_stride, i, s), xi2 = lanes(v.x + 2 * v.x_stride, i, s);
   __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[4] = {0, 0, 0, 0};
+  double diss[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < n; ++k) {
     std::int64_t j = nbr[k], t = s;
     if (!Unit && slot_shift) {  // positions relative to v.x itself: px - shift
@@ -409,9 +400,12 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
     if constexpr (Intact) b.dead = 0;
     else b.dead = (fl0[k] & kBroken) | (fl1[k] & kBroken) << 1 | (fl2[k] & kBroken) << 2 | (fl3[k] & kBroken) << 3;
     const unsigned fresh = law.add(b, f0, f1, f2, w);
-    if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
+    if (fresh) [[unlikely]] {
+      const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
+      mark_fresh<4>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
+    }
   }
-  law.finish(L, v, rows, 4, f0, f1, f2, w, newly, force, tally, skip);
+  law.finish(v, rows, 4, f0, f1, f2, w, newly, diss, force, tally, skip);
 }
 
 using SlotSegment = RowBlocks::Scratch::Segment;
@@ -427,7 +421,7 @@ using SlotSegment = RowBlocks::Scratch::Segment;
 // through block_avx2, which flags and books it (the same sums). The first `skip` rows were
 // written already (block_avx2).
 template <int G, class Law>
-bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run,
+bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
                    std::int64_t a, int skip, double* force, BondTally& tally) {
   const double* __restrict px = v.x + a;
@@ -489,7 +483,7 @@ bool intact_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
   for (int g = 0; g < G; ++g) {
     std::int32_t rows[W];
     for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
-    law.finish(L, v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, force, tally, g == 0 ? skip : 0);
+    law.finish(v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, nullptr, force, tally, g == 0 ? skip : 0);
   }
   return true;
 }
@@ -525,8 +519,8 @@ inline void dead_lanes(const std::uint8_t* flags, std::int64_t n, std::uint8_t* 
 // W = Law::W rows i .. i + W - 1 of a stride-1 run (at lanes a .. of the run) with broken bonds
 // among them: each lane's arithmetic that of block_avx2<false, true> (a broken bond adds
 // nothing; a fully broken slot is skipped), the flags read once per block as lane bits
-// (dead_lanes, into `dead`: run.n bytes); bonds reaching the failure test are flagged and their
-// breaking energy summed as they break (the bits of book_breaks).
+// (dead_lanes, into `dead`: run.n bytes); bonds reaching the failure test are flagged
+// (mark_fresh).
 template <class Law>
 void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
                    std::int64_t a, std::uint8_t* __restrict dead, double* force, BondTally& tally) {
@@ -535,6 +529,8 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
   constexpr int W = S::W;
   const std::int64_t n = run.n;
   std::uint8_t* const flags = v.broken + v.offsets[i];
+  std::uint8_t* flag_row[W];
+  for (int l = 0; l < W; ++l) flag_row[l] = flags + l * n;
   dead_lanes<W>(flags, n, dead);
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
@@ -556,17 +552,12 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     const unsigned fresh = law.add(b, f0, f1, f2, w);
     if (fresh) [[unlikely]] {
       const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
-      for (int l = 0; l < W; ++l)
-        if (fresh >> l & 1) {
-          flags[l * n + k] |= kBroken;
-          ++newly[l];
-          diss[l] += w0;
-        }
+      mark_fresh<W>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
     }
   }
   std::int32_t rows[W];
   for (int l = 0; l < W; ++l) rows[l] = i + l;
-  law.finish(L, v, rows, W, f0, f1, f2, w, newly, force, tally, 0, diss);
+  law.finish(v, rows, W, f0, f1, f2, w, newly, diss, force, tally);
 }
 
 // Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
@@ -608,6 +599,7 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
   const __m256d xi2 = _mm256_setr_pd(pz[rows[0]], pz[rows[1]], pz[rows[2]], pz[rows[3]]);
   __m256d f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[4] = {0, 0, 0, 0};
+  double diss[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < nmax; ++k) {
     std::int64_t b[4], s[4];
     std::int32_t j[4];
@@ -637,9 +629,11 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
     law.limits(bonds);
     bonds.dead = dead;
     const unsigned fresh = law.add(bonds, f0, f1, f2, w);
-    if (fresh) [[unlikely]] mark_fresh(fresh, flag_row, k, newly);
+    if (fresh) [[unlikely]]
+      mark_fresh<4>(fresh, flag_row, k, [&](int l) { return breaking_energy(L, P.xi2[s[l]], P.measure[s[l]]); },
+                    newly, diss);
   }
-  law.finish(L, v, rows, count, f0, f1, f2, w, newly, force, tally);
+  law.finish(v, rows, count, f0, f1, f2, w, newly, diss, force, tally);
 }
 
 // Whether rows first + l s (l < count) have no broken bond: from the rows' summary bytes
@@ -717,7 +711,7 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRu
       const std::int32_t i = run.first + q;
       // A bond reaching the failure test in an intact block: the block again, flagging it.
       if ((whole_run || rows_intact(v, i, 1, kWideRows)) &&
-          intact_blocks<kWideBlocks>(laws.wide, L, v, slots, &all, 1, nullptr, i, q, 0, force, tally))
+          intact_blocks<kWideBlocks>(laws.wide, v, slots, &all, 1, nullptr, i, q, 0, force, tally))
         continue;
       for (int g = 0; g < kWideBlocks; ++g)
         damaged_block(laws.wide, L, v, slots, i + g * SimdWide::W, q + g * SimdWide::W, dead, force, tally);
@@ -789,9 +783,9 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
       const std::int32_t at = wide ? q : std::min(q, run.count - 4);
       const std::vector<SlotSegment>& segments = inner(at, wide ? kWideRows : 4) ? scratch.inner : scratch.edge;
       const bool done =
-          wide ? intact_blocks<kWideBlocks>(laws.wide, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
+          wide ? intact_blocks<kWideBlocks>(laws.wide, v, slots, segments.data(), segments.size(), scratch.at.data(),
                                             run.first + q, q, 0, force, tally)
-               : intact_blocks<1>(laws.narrow, L, v, slots, segments.data(), segments.size(), scratch.at.data(),
+               : intact_blocks<1>(laws.narrow, v, slots, segments.data(), segments.size(), scratch.at.data(),
                                   run.first + at, at, q - at, force, tally);
       if (!done) break;
       q = wide ? q + kWideRows : at + 4;
@@ -981,12 +975,20 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   };
   // Takes the longest run (of at least four rows) starting at list entry a[0] with stride s (0 if
   // there is none).
-  auto take_run = [&](const std::int32_t* a, std::size_t left, std::int32_t s) {
+  // With `t`, neighbours shifted per slot: the run keeps t in plan.slot_shifts.
+  auto take_run = [&](const std::int32_t* a, std::size_t left, std::int32_t s,
+                      const std::vector<std::int32_t>* t = nullptr) {
+    const std::int32_t* shifts = t ? t->data() : nullptr;
     std::int32_t count = 0;
-    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 4)) count += 4;
-    if (count > 0)
-      while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 1)) ++count;
-    if (count > 0) plan.runs.push_back({a[0], s, count});
+    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 4, shifts)) count += 4;
+    if (count == 0) return count;
+    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 1, shifts)) ++count;
+    RowRun run{a[0], s, count};
+    if (t) {
+      run.slot_shifts = static_cast<std::int32_t>(plan.slot_shifts.size());
+      plan.slot_shifts.insert(plan.slot_shifts.end(), t->begin(), t->end());
+    }
+    plan.runs.push_back(run);
     return count;
   };
   // Runs of consecutive rows in list order first (stride 1).
@@ -1024,17 +1026,7 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
       if (d <= 0 || d > std::numeric_limits<std::int32_t>::max() / 8) return 0;
       t[static_cast<std::size_t>(k)] = static_cast<std::int32_t>(d);
     }
-    std::int32_t count = 0;
-    while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 4, t.data())) count += 4;
-    if (count > 0)
-      while (continues(a[0], s, count, a + count, left - static_cast<std::size_t>(count), 1, t.data())) ++count;
-    if (count > 0) {
-      RowRun run{a[0], s, count};
-      run.slot_shifts = static_cast<std::int32_t>(plan.slot_shifts.size());
-      plan.slot_shifts.insert(plan.slot_shifts.end(), t.begin(), t.end());
-      plan.runs.push_back(run);
-    }
-    return count;
+    return take_run(a, left, s, &t);
   };
   for (std::size_t r = 0; r < others.size();) {
     const std::size_t left = others.size() - r;

@@ -511,7 +511,8 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       EXPECT_EQ(t.newly_broken, broken_direct);
       EXPECT_NEAR(t.strain_energy, energy, 1e-9 * energy);
       EXPECT_NEAR(t.dissipated, dissipated, 1e-12 * dissipated);
-      // Every bond broken in the call is booked once: no flag left marked "broken in this call".
+      // A flag is broken or not, nothing else: breaking sets no other bit (each break is booked as
+      // it is flagged).
       std::int64_t unbooked = 0;
       for (std::uint8_t f : broken) unbooked += f > 1;
       EXPECT_EQ(unbooked, 0);
