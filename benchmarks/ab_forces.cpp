@@ -89,15 +89,16 @@ int main(int argc, char** argv) {
     const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
     Domain d = build_domain(scene, nodes, cells, part, 0);
     const BondLaw law = calibrate(scene.materials[0], nodes.bodies[0], "ab_forces");
-    std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(u.size());
+    const std::int64_t stride = position_plane_stride(d.local());
+    std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(3 * static_cast<std::size_t>(stride));
     std::mt19937 rng(1);
     std::uniform_real_distribution<double> U(-noise, noise);
     for (double& c : u) c = U(rng);
-    current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
+    current_positions(d.X.data(), u.data(), 0, d.local(), stride, x.data());
     std::vector<std::int32_t> rows(d.owned);
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
     const BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
-                     d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local(), d.bonds.row_broken.data()};
+                     d.bonds.broken.data(), &d.bonds.patterns, x.data(), stride, d.bonds.row_broken.data()};
     // Each version plans the rows its own way.
     const bool pairs_on = !std::getenv("AB_NO_PAIRS");
     const RowBlocks plan_a = periA::plan_rows(as<periA::BondView>(v), rows.data(), rows.size(), pairs_on);

@@ -52,10 +52,11 @@ void kernel(benchmark::State& st, const char* model, const char* quadrature, dou
   std::vector<std::int32_t> rows(d.owned);
   for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
   std::vector<double> F(3 * static_cast<std::size_t>(d.owned));
-  std::vector<double> x(3 * static_cast<std::size_t>(d.local()));
-  current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
+  const std::int64_t stride = position_plane_stride(d.local());
+  std::vector<double> x(3 * static_cast<std::size_t>(stride));
+  current_positions(d.X.data(), u.data(), 0, d.local(), stride, x.data());
   BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
-             d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local()};
+             d.bonds.broken.data(), &d.bonds.patterns, x.data(), stride};
   const RowBlocks plan = plan_rows(v, rows.data(), rows.size());
   BondTally t;
   for (auto _ : st) {

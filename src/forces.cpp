@@ -873,6 +873,11 @@ const char* bond_kernel_isa() {
 #endif
 }
 
+std::int64_t position_plane_stride(std::int64_t n) {
+  constexpr std::int64_t kPeriod = 512, kOffset = 168;  // 4 KiB, and about a third of it
+  return n + ((kOffset - n % kPeriod) + kPeriod) % kPeriod;
+}
+
 void current_positions(const double* X, const double* u, std::int32_t begin, std::int32_t end,
                        std::int64_t stride, double* x) {
   // One pass over X and u (a pass per plane re-read both from memory three times).

@@ -42,6 +42,11 @@ PartitionSettings partition_settings_from_options() {
   if (set && (per_part < 1 || per_part > 1000000))
     throw InputError("-partition_cells_per_part " + std::to_string(per_part) + ": expected an integer in [1, 1000000]");
   s.cells_per_part = static_cast<int>(per_part);
+  PetscInt line_weight = s.line_weight;
+  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-partition_line_weight", &line_weight, &set));
+  if (set && (line_weight < 1 || line_weight > 64))
+    throw InputError("-partition_line_weight " + std::to_string(line_weight) + ": expected an integer in [1, 64]");
+  s.line_weight = static_cast<int>(line_weight);
   return s;
 }
 
@@ -146,6 +151,8 @@ CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, int
     sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
     g.cells = static_cast<std::int64_t>(sorted.size());
     if (g.cells > std::numeric_limits<std::int32_t>::max()) throw Error("too many partition cells");
+    g.cell_line.resize(sorted.size());
+    for (std::size_t c = 0; c < sorted.size(); ++c) g.cell_line[c] = sorted[c] / dims[0];
     g.cell_of.resize(n);
     for (std::int64_t i = 0; i < n; ++i)
       g.cell_of[i] = static_cast<std::int32_t>(std::lower_bound(sorted.begin(), sorted.end(), lin[i]) - sorted.begin());
@@ -193,7 +200,16 @@ CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, int
   return g;
 }
 
-std::vector<int> metis_kway(const CellGraph& graph, int parts) {
+namespace {
+
+// The partitioner's weight of edge k of cell c (kLineWeight).
+std::int64_t partition_edge_weight(const CellGraph& g, std::int64_t c, std::int64_t k, int line_weight) {
+  return g.cell_line[c] == g.cell_line[g.adjacency[k]] ? g.edge_weight[k] * line_weight : g.edge_weight[k];
+}
+
+}  // namespace
+
+std::vector<int> metis_kway(const CellGraph& graph, int parts, int line_weight) {
   static_assert(sizeof(idx_t) == sizeof(std::int32_t), "METIS built with 32-bit idx_t expected");
   const std::int64_t n = graph.cells;
   if (graph.row_begin != 0 || static_cast<std::int64_t>(graph.vertex_weight.size()) != n)
@@ -201,14 +217,16 @@ std::vector<int> metis_kway(const CellGraph& graph, int parts) {
   if (graph.offsets[n] > std::numeric_limits<idx_t>::max()) throw Error("the cell graph is too large for 32-bit METIS");
   std::int64_t vsum = 0, esum = 0;
   for (std::int64_t v : graph.vertex_weight) vsum += v + 1;
-  for (std::int64_t e : graph.edge_weight) esum += e;
+  for (std::int64_t c = 0; c < n; ++c)
+    for (std::int64_t k = graph.offsets[c]; k < graph.offsets[c + 1]; ++k) esum += partition_edge_weight(graph, c, k, line_weight);
   const std::int64_t vdiv = weight_divisor(vsum), ediv = weight_divisor(esum);
   std::vector<idx_t> xadj(n + 1), adjncy(graph.adjacency.begin(), graph.adjacency.end()), vwgt(n),
       adjwgt(graph.edge_weight.size());
   for (std::int64_t i = 0; i <= n; ++i) xadj[i] = static_cast<idx_t>(graph.offsets[i]);
   for (std::int64_t i = 0; i < n; ++i) vwgt[i] = static_cast<idx_t>(std::max<std::int64_t>(1, (graph.vertex_weight[i] + 1) / vdiv));
-  for (std::size_t k = 0; k < adjwgt.size(); ++k)
-    adjwgt[k] = static_cast<idx_t>(std::max<std::int64_t>(1, graph.edge_weight[k] / ediv));
+  for (std::int64_t c = 0; c < n; ++c)
+    for (std::int64_t k = graph.offsets[c]; k < graph.offsets[c + 1]; ++k)
+      adjwgt[k] = static_cast<idx_t>(std::max<std::int64_t>(1, partition_edge_weight(graph, c, k, line_weight) / ediv));
   idx_t nv = static_cast<idx_t>(n), ncon = 1, np = parts, objval = 0;
   idx_t options[METIS_NOPTIONS];
   METIS_SetDefaultOptions(options);
@@ -354,8 +372,8 @@ CellGraph cell_graph_on_root(const Nodes& nodes, const CellList& cells, double s
 
 // MatPartitioning on the cell graph, rows spread evenly over the ranks of comm; every rank gets
 // the part of every cell.
-std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, double size, int parts, MPI_Comm comm,
-                                  CellGraph& local, std::string& type_used) {
+std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, double size, int parts, int line_weight,
+                                  MPI_Comm comm, CellGraph& local, std::string& type_used) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
@@ -363,7 +381,9 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
   const PetscInt m = static_cast<PetscInt>(local.vertex_weight.size());
   long long sums[2] = {0, 0}, global_sums[2];
   for (std::int64_t v : local.vertex_weight) sums[0] += v + 1;
-  for (std::int64_t e : local.edge_weight) sums[1] += e;
+  for (PetscInt r = 0; r < m; ++r)
+    for (std::int64_t k = local.offsets[r]; k < local.offsets[r + 1]; ++k)
+      sums[1] += partition_edge_weight(local, local.row_begin + r, k, line_weight);
   MPI_Allreduce(sums, global_sums, 2, MPI_LONG_LONG, MPI_SUM, comm);
   const std::int64_t vdiv = weight_divisor(global_sums[0]), ediv = weight_divisor(global_sums[1]);
   PetscInt *ia, *ja, *values, *vwgt;
@@ -372,10 +392,12 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
   PERI_PETSC(PetscMalloc1(local.adjacency.size(), &values));
   PERI_PETSC(PetscMalloc1(m, &vwgt));
   for (PetscInt r = 0; r <= m; ++r) ia[r] = static_cast<PetscInt>(local.offsets[r]);
-  for (std::size_t k = 0; k < local.adjacency.size(); ++k) {
-    ja[k] = local.adjacency[k];
-    values[k] = static_cast<PetscInt>(std::max<std::int64_t>(1, local.edge_weight[k] / ediv));
-  }
+  for (PetscInt r = 0; r < m; ++r)
+    for (std::int64_t k = local.offsets[r]; k < local.offsets[r + 1]; ++k) {
+      ja[k] = local.adjacency[k];
+      values[k] = static_cast<PetscInt>(
+          std::max<std::int64_t>(1, partition_edge_weight(local, local.row_begin + r, k, line_weight) / ediv));
+    }
   for (PetscInt r = 0; r < m; ++r)
     vwgt[r] = static_cast<PetscInt>(std::max<std::int64_t>(1, (local.vertex_weight[r] + 1) / vdiv));
   Mat adj;
@@ -432,7 +454,7 @@ Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, 
     const double size = cell_size_for(nodes, parts, settings.cells_per_part);
     CellGraph local;
     std::string type;
-    const std::vector<int> cell_part = petsc_cell_parts(nodes, cells, size, parts, comm, local, type);
+    const std::vector<int> cell_part = petsc_cell_parts(nodes, cells, size, parts, settings.line_weight, comm, local, type);
     for (std::int64_t i = 0; i < n; ++i) part[i] = cell_part[local.cell_of[i]];
     // Quality from the rows each rank built.
     std::vector<long long> load(parts + 1, 0), sum(parts + 1);
@@ -456,7 +478,7 @@ Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, 
       try {
         if (settings.method == PartitionMethod::Cells) {
           const CellGraph& g = graph;
-          const std::vector<int> cell_part = metis_kway(g, parts);
+          const std::vector<int> cell_part = metis_kway(g, parts, settings.line_weight);
           for (std::int64_t i = 0; i < n; ++i) part[i] = cell_part[g.cell_of[i]];
           const PartitionQuality q = quality(g, cell_part, parts);
           figures[0] = q.edge_cut;

@@ -245,7 +245,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     MPI_Allreduce(&local, &energy_floor_, 1, MPI_DOUBLE, MPI_SUM, comm_);
   }
   force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
-  positions_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);
+  position_stride_ = position_plane_stride(domain_.local());
+  positions_.assign(3 * static_cast<std::size_t>(position_stride_), 0.0);
   damage_.assign(domain_.owned, 0.0);
   // Boundary nodes' per-step figures (increment, old velocity, force at the start of the step)
   // are kept for those nodes only: slot s of bc_slot_ for node i, 3 components each.
@@ -445,7 +446,7 @@ Simulation::~Simulation() = default;
 BondView Simulation::bond_view() {
   return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
                   domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
-                  positions_.data(), domain_.local(), domain_.bonds.row_broken.data()};
+                  positions_.data(), position_stride_, domain_.bonds.row_broken.data()};
 }
 
 std::vector<std::string> Simulation::derived_lines() const {
@@ -508,7 +509,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     std::optional<LocalArray> vel;
     if (has_kelvin_) vel.emplace(state_->velocity());
     view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, domain_.local(), positions_.data());
+    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, position_stride_, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b]) bond_forces(laws[b], view, interior_plan_[b], force_.data(), with_energy, t);
     if (has_lattice_) lattice_forces(view, true, with_energy, t, vel ? vel->data() : nullptr);
@@ -521,7 +522,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     std::optional<LocalArray> vel;
     if (has_kelvin_) vel.emplace(state_->velocity());
     view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), domain_.local(), positions_.data());
+    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), position_stride_, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
       if (!marder_[b]) bond_forces(laws[b], view, boundary_plan_[b], force_.data(), with_energy, t);
     if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
@@ -653,7 +654,7 @@ void Simulation::add_tool_forces(double t, bool book) {
   for (std::size_t k = 0; k < tools_.size(); ++k) {
     const RigidCylinder& tool = tools_[k];
     ContactTally c;
-    cylinder_contact(tool, t, dt_, positions_.data(), domain_.local(), v, domain_.volume.data(), inv_density_.data(), domain_.owned,
+    cylinder_contact(tool, t, dt_, positions_.data(), position_stride_, v, domain_.volume.data(), inv_density_.data(), domain_.owned,
                      force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
     tally_.strain_energy += c.energy;
     // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.

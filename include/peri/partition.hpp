@@ -37,6 +37,12 @@ struct Partition {
 };
 
 enum class PartitionMethod { Cells, Bonds, Petsc };
+
+/// A cell-graph edge between two cells of one row along x (the natural order's fastest axis)
+/// weighs this many times its bonds: a cut across x splits grid lines, whose rows next to the cut
+/// leave the stride-1 runs of the bond loop for strided or gathered ones (about twice the cost per
+/// bond), while a cut across y or z keeps every line whole. 1 weighs every cut bond alike.
+constexpr int kLineWeight = 2;
 /// "cells", "bonds" or "petsc"; InputError naming the option otherwise.
 PartitionMethod partition_method(const std::string& name);
 const char* to_string(PartitionMethod m);
@@ -45,10 +51,11 @@ struct PartitionSettings {
   PartitionMethod method = PartitionMethod::Cells;
   int cells_per_part = 64;  ///< cells: shrink cells (not below half the horizon nor the spacing)
                             ///< until this many per part
+  int line_weight = kLineWeight;  ///< cells, petsc: weight of a cut bond between cells of one x row
 };
 
 /// Partition settings from the PETSc options database: -partition_method cells|bonds|petsc,
-/// -partition_cells_per_part N. InputError (identical on every rank) for bad values.
+/// -partition_cells_per_part N, -partition_line_weight W (1 ... 64). InputError (identical on every rank) for bad values.
 PartitionSettings partition_settings_from_options();
 
 /// Assign parts from a given natural-id -> part array (any partitioner), renumbering nodes.
@@ -75,6 +82,7 @@ struct CellGraph {
   std::vector<std::int32_t> adjacency;
   std::vector<std::int64_t> edge_weight;      ///< bonds between the two cells
   std::vector<std::int64_t> vertex_weight;    ///< ordered bonds of the cell's nodes (rows built)
+  std::vector<std::int64_t> cell_line;        ///< every occupied cell's row of cells along x
   std::int64_t cells = 0;                     ///< occupied cells in all
   std::int64_t row_begin = 0;                 ///< first row built (rows [row_begin, row_begin + rows))
 };
@@ -88,9 +96,10 @@ CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, int
 /// horizon nor the largest spacing) until at least cells_per_part * parts cells are occupied.
 double cell_size_for(const Nodes& nodes, int parts, int cells_per_part);
 
-/// METIS k-way on a cell graph (all rows); returns a part per cell. Weights are scaled down if
-/// their sums exceed 32-bit METIS. Throws Error if METIS fails.
-std::vector<int> metis_kway(const CellGraph& graph, int parts);
+/// METIS k-way on a cell graph (all rows); returns a part per cell. An edge weighs its bonds,
+/// times line_weight between cells of one x row (kLineWeight). Weights are scaled down if their
+/// sums exceed 32-bit METIS. Throws Error if METIS fails.
+std::vector<int> metis_kway(const CellGraph& graph, int parts, int line_weight = kLineWeight);
 
 /// Exact edge cut and balance (largest part's ordered bonds / mean) of a node partition.
 struct PartitionQuality {

@@ -202,6 +202,7 @@ class Simulation : public EquilibriumModel {
   std::vector<double> force_;               // force densities, 3 * owned
   double energy_floor_ = 0;                 // smallest energy scale of the balance (sum m c_l^2 1e-20)
   std::vector<double> positions_;           // current positions X + u, planes x, y, z of local() each (bond kernel input)
+  std::int64_t position_stride_ = 0;        // doubles from one plane of positions_ to the next (position_plane_stride)
   std::vector<RigidCylinder> tools_;        // scene tools, stiffness per unit mass
   std::vector<ContactTally> tool_contact_;  // per tool: this rank's contact at time_ (forces, friction)
   std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
