@@ -6,6 +6,9 @@
 //   ab_forces MODEL N PAIRS NOISE   (MODEL membrane | pmb: N x N nodes of a sheet; solid: N x N x N
 //                                    of a PMB block, horizon 3.015 dx, as compare_lammps.py;
 //                                    dx = 1 mm; displacements uniform in +-NOISE m)
+//   AB_CRITICAL=S0 (critical stretch; default 0.5 PMB and solid, 5 membrane), AB_STRAIN=EPS (a
+//   uniform strain along x on top: AB_CRITICAL=0.0005 AB_STRAIN=0.002 breaks half the solid's
+//   bonds, as late in compare_lammps.py's run), AB_QUADRATURE=full, AB_NO_PAIRS.
 #include <petscsys.h>
 
 #include <algorithm>
@@ -69,18 +72,19 @@ int main(int argc, char** argv) {
   if (PetscInitialize(&pargc, &argv, nullptr, nullptr)) return 1;
   using namespace peri;
   char text[1024];
+  const char* critical = std::getenv("AB_CRITICAL");
   if (model == "solid")
     std::snprintf(text, sizeof text,
-                  "name: ab\nmaterials:\n  m: {model: pmb, density: 2200, bulk_modulus: 14.9e9, critical_stretch: 0.5}\n"
+                  "name: ab\nmaterials:\n  m: {model: pmb, density: 2200, bulk_modulus: 14.9e9, critical_stretch: %s}\n"
                   "bodies:\n  block: {kind: solid, material: m, origin: [0, 0, 0], size: [%.17g, %.17g, %.17g], "
                   "spacing: 0.001, horizon: 0.003015, quadrature: taper}\nstages:\n  - {name: run, steps: 1}\n",
-                  n * 1e-3, n * 1e-3, n * 1e-3);
+                  critical ? critical : "0.5", n * 1e-3, n * 1e-3, n * 1e-3);
   else
     std::snprintf(text, sizeof text,
                   "name: ab\nmaterials:\n  m: {model: %s, density: 1200, bulk_modulus: 800.0e6, critical_stretch: %s}\n"
                   "bodies:\n  sheet: {material: m, origin: [0, 0, 0], size: [%.17g, %.17g], thickness: 0.0005, "
                   "spacing: 0.001, quadrature: %s}\nstages:\n  - {name: run, steps: 1}\n",
-                  model.c_str(), model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3,
+                  model.c_str(), critical ? critical : model == "pmb" ? "0.5" : "5.0", n * 1e-3, n * 1e-3,
                   std::getenv("AB_QUADRATURE") ? std::getenv("AB_QUADRATURE") : "partial_area");
   {
     const Scene scene = parse_scene(text, "ab_forces");
@@ -94,6 +98,10 @@ int main(int argc, char** argv) {
     std::mt19937 rng(1);
     std::uniform_real_distribution<double> U(-noise, noise);
     for (double& c : u) c = U(rng);
+    // AB_STRAIN: a uniform strain along x on top (with AB_CRITICAL, bonds break in the warm-up
+    // calls, and the timed ones run blocks holding broken bonds).
+    const double strain = std::getenv("AB_STRAIN") ? std::atof(std::getenv("AB_STRAIN")) : 0.0;
+    for (std::int32_t i = 0; i < d.local(); ++i) u[3 * static_cast<std::size_t>(i)] += strain * d.X[3 * static_cast<std::size_t>(i)];
     current_positions(d.X.data(), u.data(), 0, d.local(), stride, x.data());
     std::vector<std::int32_t> rows(d.owned);
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;

@@ -10,6 +10,7 @@
 #endif
 #include <cmath>
 #include <limits>
+#include <map>
 #include <utility>
 #include <vector>
 
@@ -336,6 +337,18 @@ inline void mark_fresh(unsigned fresh, std::uint8_t* const* flag_row, std::int64
     }
 }
 
+// Rows first + l stride of a block.
+struct RowStep {
+  std::int32_t first, stride;
+};
+
+// A block of a mirrored run (RowRun::mirror): its rows, and the place of its first row's own
+// position in the mirror (-1: not mirrored).
+struct MirrorLanes {
+  RowStep rows{0, 1};
+  std::int64_t own = -1;
+};
+
 // What the blocks of one run (RowRun) share: the neighbour list of its first row (n bonds), its
 // family pattern's slots and the law's limits of each slot (run_slots).
 struct RunSlots {
@@ -423,7 +436,11 @@ using SlotSegment = RowBlocks::Scratch::Segment;
 template <int G, class Law>
 bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
-                   std::int64_t a, int skip, double* force, BondTally& tally) {
+                   std::int64_t a, int skip, double* force, BondTally& tally, MirrorLanes mirror = {}) {
+  // Rows i + l (or, mirrored, rows mirror.rows.first + l mirror.rows.stride, their positions at
+  // mirror.own + l of v.x).
+  const std::int64_t own = mirror.own >= 0 ? mirror.own : i;
+  const RowStep rows_at = mirror.own >= 0 ? mirror.rows : RowStep{i, 1};
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
@@ -433,9 +450,9 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
   constexpr int W = S::W;
   V x0[G], x1[G], x2[G], f0[G], f1[G], f2[G], w[G];
   for (int g = 0; g < G; ++g) {
-    x0[g] = S::loadu(v.x + i + W * g);
-    x1[g] = S::loadu(v.x + v.x_stride + i + W * g);
-    x2[g] = S::loadu(v.x + 2 * v.x_stride + i + W * g);
+    x0[g] = S::loadu(v.x + own + W * g);
+    x1[g] = S::loadu(v.x + v.x_stride + own + W * g);
+    x2[g] = S::loadu(v.x + 2 * v.x_stride + own + W * g);
     f0[g] = f1[g] = f2[g] = w[g] = law.zero;
   }
   // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
@@ -482,23 +499,23 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
   }
   for (int g = 0; g < G; ++g) {
     std::int32_t rows[W];
-    for (int l = 0; l < W; ++l) rows[l] = i + W * g + l;
-    law.finish(v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, nullptr, force, tally, g == 0 ? skip : 0);
+    for (int l = 0; l < W; ++l) rows[l] = rows_at.first + (W * g + l) * rows_at.stride;
+    law.finish(v, rows, W, f0[g], f1[g], f2[g], w[g], nullptr, nullptr, force, tally, std::clamp(skip - W * g, 0, W));
   }
   return true;
 }
 
-// The broken flags of W consecutive rows of a run (n bonds each, row l's at flags + l n) as one
-// byte per slot k, bit l set if lane l's bond is broken: 32 slots at a time (a flag byte masked
-// to its broken bit, shifted by l within its 16-bit word, stays in its byte), the last 32 ending
-// at n (overlapping the ones before: the same bytes again); fewer than 32 slots one by one.
+// The broken flags of W rows of a run (n bonds each, row l's at flag_row[l]) as one byte per
+// slot k, bit l set if lane l's bond is broken: 32 slots at a time (a flag byte masked to its
+// broken bit, shifted by l within its 16-bit word, stays in its byte), the last 32 ending at n
+// (overlapping the ones before: the same bytes again); fewer than 32 slots one by one.
 template <int W>
-inline void dead_lanes(const std::uint8_t* flags, std::int64_t n, std::uint8_t* dead) {
+inline void dead_lanes(std::uint8_t* const* flag_row, std::int64_t n, std::uint8_t* dead) {
   const __m256i broken = _mm256_set1_epi8(static_cast<char>(kBroken));
   auto chunk = [&](std::int64_t k) {
     __m256i acc = _mm256_setzero_si256();
     for (int l = 0; l < W; ++l) {
-      const __m256i f = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(flags + l * n + k));
+      const __m256i f = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(flag_row[l] + k));
       acc = _mm256_or_si256(acc, _mm256_slli_epi16(_mm256_and_si256(f, broken), l));
     }
     _mm256_storeu_si256(reinterpret_cast<__m256i*>(dead + k), acc);
@@ -511,36 +528,69 @@ inline void dead_lanes(const std::uint8_t* flags, std::int64_t n, std::uint8_t* 
   }
   for (; k < n; ++k) {
     unsigned d = 0;
-    for (int l = 0; l < W; ++l) d |= static_cast<unsigned>(flags[l * n + k] & kBroken) << l;
+    for (int l = 0; l < W; ++l) d |= static_cast<unsigned>(flag_row[l][k] & kBroken) << l;
     dead[k] = static_cast<std::uint8_t>(d);
   }
 }
 
-// W = Law::W rows i .. i + W - 1 of a stride-1 run (at lanes a .. of the run) with broken bonds
-// among them: each lane's arithmetic that of block_avx2<false, true> (a broken bond adds
-// nothing; a fully broken slot is skipped), the flags read once per block as lane bits
-// (dead_lanes, into `dead`: run.n bytes); bonds reaching the failure test are flagged
-// (mark_fresh).
+// The slots k < n not broken on every lane (dead[k] != all W bits), in order, into `live`;
+// returns how many. 32 slots per compare and bit mask, so the loop over them has no branch per
+// slot (a block of a fragmenting 64^3 block skips about half its slots, in no pattern a branch
+// predictor follows: the branch per slot cost more than the skipped slots saved).
+template <int W>
+inline int live_slots(const std::uint8_t* dead, std::int64_t n, std::int32_t* live) {
+  const __m256i all = _mm256_set1_epi8(static_cast<char>((1u << W) - 1u));
+  int count = 0;
+  std::int64_t k = 0;
+  auto take = [&](std::int64_t at, std::uint32_t bits) {
+    while (bits) {
+      live[count++] = static_cast<std::int32_t>(at + __builtin_ctz(bits));
+      bits &= bits - 1;
+    }
+  };
+  for (; k + 32 <= n; k += 32) {
+    const __m256i d = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(dead + k));
+    take(k, ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(d, all))));
+  }
+  for (; k < n; ++k)
+    if (dead[k] != (1u << W) - 1u) live[count++] = static_cast<std::int32_t>(k);
+  return count;
+}
+
+// W = Law::W rows of a run with broken bonds among them, rows.first + l rows.stride, at lanes
+// a .. of the run, their own positions at `own` .. of v.x (the rows themselves in a stride-1 run;
+// a mirrored run's places, RowBlocks::mirror_slots): each lane's arithmetic that of block_avx2
+// (a broken bond adds nothing; a fully broken slot is skipped), the flags read once per block as
+// lane bits (dead_lanes; the slots left, live_slots); bonds reaching the failure test are flagged
+// (mark_fresh). The first `skip` rows were written by the block before (a run's last block).
 template <class Law>
-void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, std::int32_t i,
-                   std::int64_t a, std::uint8_t* __restrict dead, double* force, BondTally& tally) {
+void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, RowStep rows_at,
+                   std::int64_t own, std::int64_t a, int skip, RowBlocks::Scratch& scratch, double* force,
+                   BondTally& tally) {
   using S = typename Law::Simd;
   using V = typename S::V;
   constexpr int W = S::W;
   const std::int64_t n = run.n;
-  std::uint8_t* const flags = v.broken + v.offsets[i];
+  std::int32_t rows[W];
   std::uint8_t* flag_row[W];
-  for (int l = 0; l < W; ++l) flag_row[l] = flags + l * n;
-  dead_lanes<W>(flags, n, dead);
+  for (int l = 0; l < W; ++l) {
+    rows[l] = rows_at.first + l * rows_at.stride;
+    flag_row[l] = v.broken + v.offsets[rows[l]];
+  }
+  std::uint8_t* __restrict dead = scratch.dead_lanes.data();
+  std::int32_t* __restrict live = scratch.live.data();
+  dead_lanes<W>(flag_row, n, dead);
+  const int nlive = live_slots<W>(dead, n, live);
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
   const std::int32_t* __restrict nbr = run.neighbor;
-  const V x0 = S::loadu(v.x + i), x1 = S::loadu(v.x + v.x_stride + i), x2 = S::loadu(v.x + 2 * v.x_stride + i);
+  const V x0 = S::loadu(v.x + own), x1 = S::loadu(v.x + v.x_stride + own), x2 = S::loadu(v.x + 2 * v.x_stride + own);
   V f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[W] = {};
   double diss[W] = {};
-  for (std::int64_t k = 0; k < n; ++k) {
+  for (int m = 0; m < nlive; ++m) {
+    const std::int64_t k = live[m];
     const std::int64_t j = nbr[k];
     Bonds<S> b;
     b.d0 = S::sub(S::loadu(px + j), x0);
@@ -548,16 +598,13 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     b.d2 = S::sub(S::loadu(pz + j), x2);
     run.broadcast(b, k);
     b.dead = dead[k];
-    if (b.dead == (1u << W) - 1u) continue;
     const unsigned fresh = law.add(b, f0, f1, f2, w);
     if (fresh) [[unlikely]] {
       const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
       mark_fresh<W>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
     }
   }
-  std::int32_t rows[W];
-  for (int l = 0; l < W; ++l) rows[l] = i + l;
-  law.finish(v, rows, W, f0, f1, f2, w, newly, diss, force, tally);
+  law.finish(v, rows, W, f0, f1, f2, w, newly, diss, force, tally, skip);
 }
 
 // Whether any of the flag bytes [begin, end) is non-zero: 32 at a time, then the tail.
@@ -665,6 +712,17 @@ RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBloc
           scratch.y2_floor.data(),  scratch.y2_break.data()};
 }
 
+// The current positions of the plan's mirror columns (RowBlocks::mirror_columns), copied.
+inline void refresh_mirror(const BondView& v, const RowBlocks& plan) {
+  double* const mirror = plan.scratch.mirror.data();
+  for (const MirrorColumn& c : plan.mirror_columns)
+    for (int d = 0; d < 3; ++d) {
+      const double* __restrict from = v.x + d * v.x_stride + c.node;
+      double* __restrict to = mirror + d * plan.mirror_stride + c.at;
+      for (std::int64_t m = 0; m < c.length; ++m) to[m] = from[m * c.step];
+    }
+}
+
 // The laws of one loop: four lanes (every block) and the widest this CPU has (blocks of intact
 // stride-1 runs).
 template <ModelKind K, bool Conical, bool Linear, bool Energy>
@@ -696,13 +754,42 @@ void narrow_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
 
 // One run, block by block. Blocks without a broken bond (most, in most runs) skip the flag bytes;
 // stride-1 blocks of eight rows take the widest lanes either way.
+// A strided run of eight rows or more from the plan's mirror (RowBlocks::mirror_columns), as a
+// stride-1 run: eight rows at a time (the last block ending at the run's end), the neighbours'
+// positions one vector load per coordinate, fully broken slots skipped.
 template <class Laws>
-void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRun& run,
-              RowBlocks::Scratch& scratch, double* force, BondTally& tally,
-              const std::int32_t* slot_shift = nullptr) {
+void mirrored_run(const Laws& laws, const BondLaw& L, const BondView& v, const RowBlocks& plan, const RowRun& run,
+                  const RunSlots& slots, double* force, BondTally& tally) {
+  BondView mv = v;
+  mv.x = plan.scratch.mirror.data();
+  mv.x_stride = plan.mirror_stride;
+  RunSlots ms = slots;
+  const std::int32_t* places = plan.mirror_slots.data() + run.mirror;
+  ms.neighbor = places + 1;
+  const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
+  for (std::int32_t q = 0; q < run.count; q += kWideRows) {
+    const std::int32_t at = std::min(q, run.count - kWideRows);
+    const int skip = q - at;
+    const RowStep rows{run.first + at * run.stride, run.stride};
+    if (rows_intact(v, rows.first, rows.stride, kWideRows) &&
+        intact_blocks<kWideBlocks>(laws.wide, mv, ms, &all, 1, nullptr, 0, at, skip, force, tally,
+                                   MirrorLanes{rows, places[0] + at}))
+      continue;
+    for (int g = 0; g < kWideBlocks; ++g) {
+      const std::int32_t lane = at + g * SimdWide::W;
+      damaged_block(laws.wide, L, mv, ms, RowStep{run.first + lane * run.stride, run.stride}, places[0] + lane, lane,
+                    std::clamp(skip - g * SimdWide::W, 0, SimdWide::W), plan.scratch, force, tally);
+    }
+  }
+}
+
+template <class Laws>
+void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBlocks& plan, const RowRun& run,
+              double* force, BondTally& tally) {
+  RowBlocks::Scratch& scratch = plan.scratch;
+  const std::int32_t* slot_shift = run.slot_shifts >= 0 ? plan.slot_shifts.data() + run.slot_shifts : nullptr;
   const auto& law = laws.narrow;
   const RunSlots slots = run_slots(law, v, run, scratch);
-  std::uint8_t* const dead = scratch.dead_lanes.data();
   if (run.stride == 1) {
     const bool whole_run = rows_intact(v, run.first, 1, run.count);
     const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
@@ -713,10 +800,14 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowRu
       if ((whole_run || rows_intact(v, i, 1, kWideRows)) &&
           intact_blocks<kWideBlocks>(laws.wide, v, slots, &all, 1, nullptr, i, q, 0, force, tally))
         continue;
-      for (int g = 0; g < kWideBlocks; ++g)
-        damaged_block(laws.wide, L, v, slots, i + g * SimdWide::W, q + g * SimdWide::W, dead, force, tally);
+      for (int g = 0; g < kWideBlocks; ++g) {
+        const std::int32_t ig = i + g * SimdWide::W;
+        damaged_block(laws.wide, L, v, slots, RowStep{ig, 1}, ig, q + g * SimdWide::W, 0, scratch, force, tally);
+      }
     }
     narrow_blocks(law, L, v, slots, run, q, whole_run, force, tally);
+  } else if (run.mirror >= 0) {
+    mirrored_run(laws, L, v, plan, run, slots, force, tally);
   } else {
     for (std::int32_t q = 0; q < run.count; q += 4) {
       const std::int32_t at = std::min(q, run.count - 4), i = run.first + at * run.stride;
@@ -745,7 +836,7 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
     const std::int32_t line = static_cast<std::int32_t>(r - box.run_begin);
     scratch.produced[line] = 0;
     if (!rows_intact(v, run.first, 1, run.count)) {
-      run_avx2(laws, L, v, run, scratch, force, tally);
+      run_avx2(laws, L, v, rows, run, force, tally);
       continue;
     }
     // The line's slot kinds as segments: for blocks whose Consume partners all lie in the line,
@@ -800,6 +891,7 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
   const Laws<K, Conical, Linear, Energy> laws(L);
   const auto& law = laws.narrow;
   const FamilyPatterns& P = *v.patterns;
+  refresh_mirror(v, rows);
   // Boxes pair their bonds only in calls without energy (the energy would need a second ring).
   std::size_t box = Energy ? rows.boxes.size() : 0;
   for (std::size_t r = 0; r < rows.runs.size();) {
@@ -807,9 +899,7 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
       box_avx2(laws, L, v, rows, rows.boxes[box], force, tally);
       r = rows.boxes[box++].run_end;
     } else {
-      const RowRun& run = rows.runs[r++];
-      run_avx2(laws, L, v, run, rows.scratch, force, tally,
-               run.slot_shifts >= 0 ? rows.slot_shifts.data() + run.slot_shifts : nullptr);
+      run_avx2(laws, L, v, rows, rows.runs[r++], force, tally);
     }
   }
   const std::size_t nrest = rows.rest.size();
@@ -952,6 +1042,61 @@ RowBox find_box(const BondView& v, const std::vector<RowRun>& runs, std::size_t 
   return box;
 }
 
+// Mirror columns for the strided runs of kMirrorRows rows or more (RowBlocks::mirror_columns):
+// slot k of such a run (and its rows' own positions) reads nodes j + l t on lane l, j its first
+// row's k-th neighbour and t the run's stride or the slot's shift: the column of nodes
+// (j mod t) + m t, places m = j / t .. j / t + count - 1 of it. Columns of one step and residue
+// are one column, spanning what its runs read. None where the copy would outgrow four positions
+// per mirrored row (irregular node sets), and none without the vector loop.
+void plan_mirror(const BondView& v, RowBlocks& plan) {
+#if defined(PERI_AVX2)
+  constexpr std::int32_t kMirrorRows = 8;
+  using Key = std::pair<std::int32_t, std::int64_t>;  // step, residue
+  std::map<Key, std::pair<std::int64_t, std::int64_t>> span;  // places [lo, hi)
+  auto each_column = [&](const RowRun& run, auto&& f) {
+    const std::int64_t b0 = v.offsets[run.first], n = v.offsets[run.first + 1] - b0;
+    f(static_cast<std::int64_t>(run.first), run.stride);
+    for (std::int64_t k = 0; k < n; ++k)
+      f(static_cast<std::int64_t>(v.neighbor[b0 + k]),
+        run.slot_shifts >= 0 ? plan.slot_shifts[static_cast<std::size_t>(run.slot_shifts + k)] : run.stride);
+  };
+  auto mirrored = [&](const RowRun& run) { return run.stride >= 2 && run.count >= kMirrorRows; };
+  std::int64_t rows = 0;
+  for (const RowRun& run : plan.runs) {
+    if (!mirrored(run)) continue;
+    rows += run.count;
+    each_column(run, [&](std::int64_t node, std::int32_t step) {
+      const std::int64_t lo = node / step, hi = lo + run.count;
+      const auto [it, fresh] = span.try_emplace(Key{step, node % step}, lo, hi);
+      if (!fresh) it->second = {std::min(it->second.first, lo), std::max(it->second.second, hi)};
+    });
+  }
+  std::int64_t places = 0;
+  for (const auto& [key, range] : span) places += range.second - range.first;
+  if (rows == 0 || places > 4 * rows + 4096 || places > std::numeric_limits<std::int32_t>::max() / 4) return;
+  std::map<Key, std::int64_t> start;  // the mirror place of place lo of each column
+  places = 0;
+  for (const auto& [key, range] : span) {
+    plan.mirror_columns.push_back({key.second + range.first * key.first, key.first,
+                                   static_cast<std::int32_t>(range.second - range.first), places});
+    start[key] = places - range.first;
+    places += range.second - range.first;
+  }
+  plan.mirror_stride = position_plane_stride(places);
+  for (RowRun& run : plan.runs) {
+    if (!mirrored(run)) continue;
+    run.mirror = static_cast<std::int32_t>(plan.mirror_slots.size());
+    each_column(run, [&](std::int64_t node, std::int32_t step) {
+      plan.mirror_slots.push_back(static_cast<std::int32_t>(start[Key{step, node % step}] + node / step));
+    });
+  }
+  plan.scratch.mirror.assign(3 * static_cast<std::size_t>(plan.mirror_stride), 0.0);
+#else
+  (void)v;
+  (void)plan;
+#endif
+}
+
 }  // namespace
 
 RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nrows, bool pair_bonds) {
@@ -1041,10 +1186,12 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     if (count > 0) r += static_cast<std::size_t>(count);
     else plan.rest.push_back(others[r++]);
   }
+  plan_mirror(v, plan);
   RowBlocks::Scratch& scratch = plan.scratch;
   std::int64_t slots_per_row = 0;
   for (const RowRun& run : plan.runs) slots_per_row = std::max(slots_per_row, v.offsets[run.first + 1] - v.offsets[run.first]);
   scratch.dead_lanes.assign(static_cast<std::size_t>(slots_per_row), 0);
+  scratch.live.assign(static_cast<std::size_t>(slots_per_row), 0);
   scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   if (!pair_bonds) return plan;

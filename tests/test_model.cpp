@@ -456,10 +456,20 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       const BondView topology{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
                               d.bonds.broken.data(), &d.bonds.patterns, x.data(), d.local()};
       const RowBlocks plan = plan_rows(topology, rows.data(), rows.size());
-      std::int64_t shifted = 0;
-      for (const RowRun& run : plan.runs) shifted += run.slot_shifts >= 0 ? run.count : 0;
+      std::int64_t shifted = 0, mirrored = 0, mirrored_shifted = 0;
+      for (const RowRun& run : plan.runs) {
+        shifted += run.slot_shifts >= 0 ? run.count : 0;
+        mirrored += run.mirror >= 0 ? run.count : 0;
+        mirrored_shifted += run.mirror >= 0 && run.slot_shifts >= 0 ? run.count : 0;
+      }
       EXPECT_EQ(split, d.ghosts > 0);
       EXPECT_EQ(split, shifted > 0) << "rows in runs with per-slot shifts: " << shifted;
+      // The strided runs of eight rows or more (x faces; with ghosts, per-slot shifts) read the
+      // plan's mirror, where the vector loop is compiled in.
+      if (std::string(bond_kernel_isa()) != "portable") {
+        EXPECT_GT(mirrored, 0);
+        EXPECT_EQ(split, mirrored_shifted > 0) << "mirrored rows with per-slot shifts: " << mirrored_shifted;
+      }
     }
     for (const BondLaw& law : laws) {
       std::vector<std::uint8_t> broken(d.bonds.broken.size(), 0);
@@ -548,6 +558,33 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
       EXPECT_GT(marked, 0);
       bond_forces(law, vs, rows.data(), rows.size(), Fs.data(), true, ts);
       EXPECT_EQ(Fs, F);
+      // Strided runs read from the mirror (eight lanes) or gathered element by element (four):
+      // the same bits, the same bonds broken and booked, on the breaking call and on the next,
+      // whose blocks hold broken bonds.
+      const RowBlocks mirrored = plan_rows(vs, rows.data(), rows.size());
+      RowBlocks gathered = mirrored;
+      for (RowRun& run : gathered.runs) run.mirror = -1;
+      std::vector<std::uint8_t> broken_m(broken.size(), 0), broken_g(broken.size(), 0), summary_m(d.owned, 0),
+          summary_g(d.owned, 0);
+      BondView vm = vs, vg = vs;
+      vm.broken = broken_m.data();
+      vm.row_broken = summary_m.data();
+      vg.broken = broken_g.data();
+      vg.row_broken = summary_g.data();
+      for (int call = 0; call < 2; ++call) {
+        std::vector<double> Fm(F.size()), Fg(F.size());
+        BondTally tm, tg;
+        bond_forces(law, vm, mirrored, Fm.data(), true, tm);
+        bond_forces(law, vg, gathered, Fg.data(), true, tg);
+        EXPECT_EQ(Fm, Fg);
+        EXPECT_EQ(Fm, F);
+        EXPECT_EQ(broken_m, broken_g);
+        EXPECT_EQ(summary_m, summary_g);
+        EXPECT_EQ(tm.newly_broken, tg.newly_broken);
+        EXPECT_EQ(tm.strain_energy, tg.strain_energy);
+        EXPECT_EQ(tm.dissipated, tg.dissipated);
+      }
+      EXPECT_EQ(broken_m, broken);
     }
   }
 }

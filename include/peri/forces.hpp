@@ -57,7 +57,7 @@ void current_positions(const double* X, const double* u, std::int32_t begin, std
 /// one neighbour list for the whole run. Stride 1: interior runs of a grid row (in the natural
 /// order a partition keeps), whose neighbours' positions the loop loads with one vector load per
 /// coordinate. Larger strides: rows a grid row apart, e.g. along a body's edge, whose neighbours
-/// it gathers.
+/// it reads from the plan's mirror (RowBlocks::mirror_columns) or gathers.
 struct RowRun {
   std::int32_t first;
   std::int32_t stride;
@@ -66,6 +66,18 @@ struct RowRun {
   /// compactly) where in RowBlocks::slot_shifts this run's per-slot neighbour shifts start: the
   /// k-th neighbour of row l is then j + l t_k instead of j + l stride.
   std::int32_t slot_shifts = -1;
+  /// -1, or (strided runs of eight rows or more) where in RowBlocks::mirror_slots this run's
+  /// mirror places start: its rows' own positions, then those of each slot's neighbours.
+  std::int32_t mirror = -1;
+};
+
+/// Nodes node + m step (m < length) of the local positions, copied to places at + m of a plan's
+/// mirror (RowBlocks::mirror_columns).
+struct MirrorColumn {
+  std::int64_t node = 0;
+  std::int32_t step = 0;
+  std::int32_t length = 0;
+  std::int64_t at = 0;
 };
 
 /// A slot k of a box's family pattern: how its bonds are shared between the box's rows.
@@ -106,12 +118,22 @@ struct RowBlocks {
   std::vector<std::int32_t> rest;
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
   std::vector<std::int32_t> slot_shifts;  ///< per-slot neighbour shifts of some strided runs (RowRun)
+  /// Strided runs read their neighbours' positions with one vector load per coordinate, as
+  /// stride-1 runs do, from a mirror: each call of bond_forces first copies the positions of
+  /// `mirror_columns` (nodes a stride apart, e.g. a body's x face along y) into consecutive places.
+  /// A mirrored run's lane l then finds its own position at mirror_slots[run.mirror] + l and
+  /// its k-th neighbour's at mirror_slots[run.mirror + 1 + k] + l. The runs of one stride share
+  /// columns (the 64^3 block: 12 columns of 4096 nodes for 24 576 face rows).
+  std::vector<MirrorColumn> mirror_columns;
+  std::vector<std::int32_t> mirror_slots;
+  std::int64_t mirror_stride = 0;  ///< doubles from one plane of the mirror to the next
   /// The loop's working memory, sized by plan_rows and reused by every call (no allocation per
   /// step): for the boxes, the coefficient ring, which lines completed their Produce slots, and a
   /// line's slot kinds as segments of consecutive slots (for blocks away from the line's ends,
   /// and near them) and ring addresses; for blocks of runs with broken bonds, the broken flags
-  /// of the block's rows as one byte of lane bits per slot; for every run, the bond law's limits
-  /// on y^2 of each slot of its pattern.
+  /// of the block's rows as one byte of lane bits per slot, and the slots not broken on every
+  /// lane; for every run, the bond law's limits
+  /// on y^2 of each slot of its pattern; the mirror (three planes, mirror_stride apart).
   struct Scratch {
     struct Segment {
       BoxSlot::Kind kind;
@@ -122,7 +144,9 @@ struct RowBlocks {
     std::vector<Segment> inner, edge;
     std::vector<double*> at;
     std::vector<std::uint8_t> dead_lanes;
+    std::vector<std::int32_t> live;
     std::vector<double> y2_floor, y2_break;
+    std::vector<double> mirror;
   };
   mutable Scratch scratch;
   std::size_t run_rows() const {
