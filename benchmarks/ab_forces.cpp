@@ -8,7 +8,8 @@
 //                                    dx = 1 mm; displacements uniform in +-NOISE m)
 //   AB_CRITICAL=S0 (critical stretch; default 0.5 PMB and solid, 5 membrane), AB_STRAIN=EPS (a
 //   uniform strain along x on top: AB_CRITICAL=0.0005 AB_STRAIN=0.002 breaks half the solid's
-//   bonds, as late in compare_lammps.py's run), AB_QUADRATURE=full, AB_NO_PAIRS.
+//   bonds, as late in compare_lammps.py's run), AB_STATE=PREFIX (displacements and broken flags
+//   of a one-rank run: PREFIX_u.bin, PREFIX_broken.bin), AB_QUADRATURE=full, AB_NO_PAIRS.
 #include <petscsys.h>
 
 #include <algorithm>
@@ -102,6 +103,22 @@ int main(int argc, char** argv) {
     // calls, and the timed ones run blocks holding broken bonds).
     const double strain = std::getenv("AB_STRAIN") ? std::atof(std::getenv("AB_STRAIN")) : 0.0;
     for (std::int32_t i = 0; i < d.local(); ++i) u[3 * static_cast<std::size_t>(i)] += strain * d.X[3 * static_cast<std::size_t>(i)];
+    // AB_STATE=PREFIX: displacements and broken flags of a one-rank run of the same body instead
+    // (PREFIX_u.bin: 3 N doubles; PREFIX_broken.bin: a byte per ordered bond).
+    if (const char* state = std::getenv("AB_STATE")) {
+      auto load = [](const std::string& path, void* to, std::size_t bytes) {
+        FILE* f = std::fopen(path.c_str(), "rb");
+        const bool ok = f && std::fread(to, 1, bytes, f) == bytes && std::fgetc(f) == EOF;
+        if (f) std::fclose(f);
+        if (!ok) {
+          std::fprintf(stderr, "ab_forces: %s is not %zu bytes of this body's state\n", path.c_str(), bytes);
+          std::exit(2);
+        }
+      };
+      load(std::string(state) + "_u.bin", u.data(), u.size() * sizeof(double));
+      load(std::string(state) + "_broken.bin", d.bonds.broken.data(), d.bonds.broken.size());
+      d.bonds.summarize_rows();
+    }
     current_positions(d.X.data(), u.data(), 0, d.local(), stride, x.data());
     std::vector<std::int32_t> rows(d.owned);
     for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;

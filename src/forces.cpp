@@ -349,6 +349,19 @@ struct MirrorLanes {
   std::int64_t own = -1;
 };
 
+// Where an intact block stopped (the slot whose bond reached the failure test) and its lanes'
+// sums of the slots before (force components, energy), per block of W lanes.
+template <class S>
+struct LaneSums {
+  typename S::V f0, f1, f2, w;
+};
+template <class S, int G>
+struct Resume {
+  std::int64_t k = 0;   // the slot that broke; the sums hold it (its broken lanes add nothing)
+  unsigned fresh[G];    // its broken lanes
+  LaneSums<S> sums[G];
+};
+
 // What the blocks of one run (RowRun) share: the neighbour list of its first row (n bonds), its
 // family pattern's slots and the law's limits of each slot (run_slots).
 struct RunSlots {
@@ -429,14 +442,16 @@ using SlotSegment = RowBlocks::Scratch::Segment;
 // `segments` of one kind, in CSR order (a run outside boxes: one Own segment of all its slots; a
 // line of a box, RowBox: in the natural order a few long ones). Own and Produce slots are
 // evaluated (Produce also stores the coefficients at at[k] + a, the partners' places in the box's
-// ring); Consume slots load the coefficients their partners stored. Returns false, having written
-// nothing but ring entries, if a bond reaches the failure test: the caller then takes these rows
-// through block_avx2, which flags and books it (the same sums). The first `skip` rows were
-// written already (block_avx2).
+// ring); Consume slots load the coefficients their partners stored. Returns false, having
+// written nothing but ring entries, if a bond reaches the failure test: the caller takes these
+// rows through the flagging loop, from the start (boxes) or, with `resume` (runs outside boxes:
+// one Own segment), from that slot k on with the lane sums of the slots before it (damaged_block:
+// the same sums, no slot evaluated twice). The first `skip` rows were written already.
 template <int G, class Law>
 bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
-                   std::int64_t a, int skip, double* force, BondTally& tally, MirrorLanes mirror = {}) {
+                   std::int64_t a, int skip, double* force, BondTally& tally, MirrorLanes mirror = {},
+                   Resume<typename Law::Simd, G>* resume = nullptr) {
   // Rows i + l (or, mirrored, rows mirror.rows.first + l mirror.rows.stride, their positions at
   // mirror.own + l of v.x).
   const std::int64_t own = mirror.own >= 0 ? mirror.own : i;
@@ -455,7 +470,8 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
     x2[g] = S::loadu(v.x + 2 * v.x_stride + own + W * g);
     f0[g] = f1[g] = f2[g] = w[g] = law.zero;
   }
-  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
+  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks and
+  // the block cannot flag it.
   auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
     for (std::int64_t k = k0; k < k1; ++k) {
       const std::int64_t j = nbr[k];
@@ -475,7 +491,23 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
         f1[g] = S::fmadd(coef, b.d1, f1[g]);
         f2[g] = S::fmadd(coef, b.d2, f2[g]);
       }
-      if (fresh) [[unlikely]] return false;
+      if (fresh) [[unlikely]] {
+        if (resume) {
+          resume->k = k;
+          if constexpr (G == 1) {
+            resume->fresh[0] = fresh;
+          } else {  // the lanes that broke, group by group (the same bits again)
+            for (int g = 0; g < G; ++g) {
+              b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
+              b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
+              b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
+              V scratch = law.zero;
+              law.coefficient(b, scratch, resume->fresh[g]);
+            }
+          }
+        }
+        return false;
+      }
     }
     return true;
   };
@@ -493,8 +525,10 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
       }
     } else if (seg.kind == BoxSlot::Produce) {
       if (!evaluate(seg.begin, seg.end, std::true_type{})) return false;
-    } else {
-      if (!evaluate(seg.begin, seg.end, std::false_type{})) return false;
+    } else if (!evaluate(seg.begin, seg.end, std::false_type{})) {
+      if (resume)
+        for (int g = 0; g < G; ++g) resume->sums[g] = {f0[g], f1[g], f2[g], w[g]};
+      return false;
     }
   }
   for (int g = 0; g < G; ++g) {
@@ -533,27 +567,24 @@ inline void dead_lanes(std::uint8_t* const* flag_row, std::int64_t n, std::uint8
   }
 }
 
-// The slots k < n not broken on every lane (dead[k] != all W bits), in order, into `live`;
-// returns how many. 32 slots per compare and bit mask, so the loop over them has no branch per
-// slot (a block of a fragmenting 64^3 block skips about half its slots, in no pattern a branch
-// predictor follows: the branch per slot cost more than the skipped slots saved).
+// The slots k < n not broken on every lane (dead[k] != all W bits) as bit masks, 32 slots per
+// mask (live[k / 32] bit k % 32); returns how many.
 template <int W>
-inline int live_slots(const std::uint8_t* dead, std::int64_t n, std::int32_t* live) {
+inline int live_slots(const std::uint8_t* dead, std::int64_t n, std::uint32_t* live) {
   const __m256i all = _mm256_set1_epi8(static_cast<char>((1u << W) - 1u));
   int count = 0;
   std::int64_t k = 0;
-  auto take = [&](std::int64_t at, std::uint32_t bits) {
-    while (bits) {
-      live[count++] = static_cast<std::int32_t>(at + __builtin_ctz(bits));
-      bits &= bits - 1;
-    }
-  };
   for (; k + 32 <= n; k += 32) {
     const __m256i d = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(dead + k));
-    take(k, ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(d, all))));
+    live[k / 32] = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(d, all)));
+    count += __builtin_popcount(live[k / 32]);
   }
-  for (; k < n; ++k)
-    if (dead[k] != (1u << W) - 1u) live[count++] = static_cast<std::int32_t>(k);
+  if (k < n) {
+    std::uint32_t bits = 0;
+    for (std::int64_t q = k; q < n; ++q) bits |= static_cast<std::uint32_t>(dead[q] != (1u << W) - 1u) << (q - k);
+    live[k / 32] = bits;
+    count += __builtin_popcount(bits);
+  }
   return count;
 }
 
@@ -563,10 +594,16 @@ inline int live_slots(const std::uint8_t* dead, std::int64_t n, std::int32_t* li
 // (a broken bond adds nothing; a fully broken slot is skipped), the flags read once per block as
 // lane bits (dead_lanes; the slots left, live_slots); bonds reaching the failure test are flagged
 // (mark_fresh). The first `skip` rows were written by the block before (a run's last block).
+// `entry`: the block's place in the plan's cache of dead lanes (RowBlocks::Scratch::dead_cache),
+// or -1: the lane bits come from there once known, else from the flags (and are kept there).
+// `from` (an intact block that stopped at a breaking slot, intact_blocks): the rows had no broken
+// bond before this call; the loop books that slot's broken lanes and goes on after it with the
+// sums so far.
 template <class Law>
 void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const RunSlots& run, RowStep rows_at,
-                   std::int64_t own, std::int64_t a, int skip, RowBlocks::Scratch& scratch, double* force,
-                   BondTally& tally) {
+                   std::int64_t own, std::int64_t a, int skip, RowBlocks::Scratch& scratch, std::int64_t entry,
+                   double* force, BondTally& tally, const LaneSums<typename Law::Simd>* from = nullptr,
+                   std::int64_t from_k = 0, unsigned from_fresh = 0) {
   using S = typename Law::Simd;
   using V = typename S::V;
   constexpr int W = S::W;
@@ -577,9 +614,14 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     rows[l] = rows_at.first + l * rows_at.stride;
     flag_row[l] = v.broken + v.offsets[rows[l]];
   }
-  std::uint8_t* __restrict dead = scratch.dead_lanes.data();
-  std::int32_t* __restrict live = scratch.live.data();
-  dead_lanes<W>(flag_row, n, dead);
+  std::uint8_t* __restrict dead =
+      entry >= 0 ? scratch.dead_cache.data() + entry * scratch.dead_stride : scratch.dead_lanes.data();
+  std::uint32_t* __restrict live = scratch.live.data();
+  if (entry < 0 || !scratch.dead_known[static_cast<std::size_t>(entry)]) {
+    if (from) std::fill(dead, dead + n, std::uint8_t{0});  // intact rows
+    else dead_lanes<W>(flag_row, n, dead);
+    if (entry >= 0) scratch.dead_known[static_cast<std::size_t>(entry)] = 1;
+  }
   const int nlive = live_slots<W>(dead, n, live);
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
@@ -589,8 +631,7 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
   V f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[W] = {};
   double diss[W] = {};
-  for (int m = 0; m < nlive; ++m) {
-    const std::int64_t k = live[m];
+  auto slot = [&](std::int64_t k) __attribute__((always_inline)) {
     const std::int64_t j = nbr[k];
     Bonds<S> b;
     b.d0 = S::sub(S::loadu(px + j), x0);
@@ -602,7 +643,31 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     if (fresh) [[unlikely]] {
       const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
       mark_fresh<W>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
+      dead[k] = static_cast<std::uint8_t>(dead[k] | fresh);
     }
+  };
+  // Few fully broken slots (as in most blocks of a fragmenting body: 10-15% of their slots): a
+  // branch per slot, rarely taken. Many (half, in no pattern a branch predictor follows, in a
+  // body strained beyond the failure stretch along one axis): the live slots' bits, one by one,
+  // no branch per slot. (AB_STATE on a 64^3 block's step 30: the bits alone 0.973 times as fast
+  // as the branch; a uniform strain breaking half the bonds: 1.099 times.)
+  if (from) {
+    f0 = from->f0;
+    f1 = from->f1;
+    f2 = from->f2;
+    w = from->w;
+    if (from_fresh) {
+      const double w0 = breaking_energy(L, run.xi2[from_k], run.measure[from_k]);
+      mark_fresh<W>(from_fresh, flag_row, from_k, [w0](int) { return w0; }, newly, diss);
+      dead[from_k] = static_cast<std::uint8_t>(dead[from_k] | from_fresh);
+    }
+    for (std::int64_t k = from_k + 1; k < n; ++k) slot(k);  // no slot broken before this call
+  } else if (4 * nlive >= 3 * n) {
+    for (std::int64_t k = 0; k < n; ++k)
+      if (dead[k] != (1u << W) - 1u) slot(k);
+  } else {
+    for (std::int64_t c = 0; c < n; c += 32)
+      for (std::uint32_t bits = live[c / 32]; bits; bits &= bits - 1) slot(c + __builtin_ctz(bits));
   }
   law.finish(v, rows, W, f0, f1, f2, w, newly, diss, force, tally, skip);
 }
@@ -754,6 +819,18 @@ void narrow_blocks(const Law& law, const BondLaw& L, const BondView& v, const Ru
 
 // One run, block by block. Blocks without a broken bond (most, in most runs) skip the flag bytes;
 // stride-1 blocks of eight rows take the widest lanes either way.
+// Entry e of the run's blocks in the plan's cache of dead lanes (-1 where it has none), allocated
+// at the first damaged block (a body that never breaks holds none).
+inline std::int64_t cache_entry(const RowBlocks& plan, const RowRun& run, std::int32_t e) {
+  if (run.dead_cache < 0) return -1;
+  RowBlocks::Scratch& scratch = plan.scratch;
+  if (scratch.dead_known.empty()) {
+    scratch.dead_known.assign(static_cast<std::size_t>(plan.dead_cache_entries), 0);
+    scratch.dead_cache.assign(static_cast<std::size_t>(plan.dead_cache_entries * scratch.dead_stride), 0);
+  }
+  return run.dead_cache + e;
+}
+
 // A strided run of eight rows or more from the plan's mirror (RowBlocks::mirror_columns), as a
 // stride-1 run: eight rows at a time (the last block ending at the run's end), the neighbours'
 // positions one vector load per coordinate, fully broken slots skipped.
@@ -771,14 +848,17 @@ void mirrored_run(const Laws& laws, const BondLaw& L, const BondView& v, const R
     const std::int32_t at = std::min(q, run.count - kWideRows);
     const int skip = q - at;
     const RowStep rows{run.first + at * run.stride, run.stride};
-    if (rows_intact(v, rows.first, rows.stride, kWideRows) &&
-        intact_blocks<kWideBlocks>(laws.wide, mv, ms, &all, 1, nullptr, 0, at, skip, force, tally,
-                                   MirrorLanes{rows, places[0] + at}))
+    Resume<SimdWide, kWideBlocks> resume;
+    const bool intact = rows_intact(v, rows.first, rows.stride, kWideRows);
+    if (intact && intact_blocks<kWideBlocks>(laws.wide, mv, ms, &all, 1, nullptr, 0, at, skip, force, tally,
+                                             MirrorLanes{rows, places[0] + at}, &resume))
       continue;
     for (int g = 0; g < kWideBlocks; ++g) {
       const std::int32_t lane = at + g * SimdWide::W;
       damaged_block(laws.wide, L, mv, ms, RowStep{run.first + lane * run.stride, run.stride}, places[0] + lane, lane,
-                    std::clamp(skip - g * SimdWide::W, 0, SimdWide::W), plan.scratch, force, tally);
+                    std::clamp(skip - g * SimdWide::W, 0, SimdWide::W), plan.scratch,
+                    cache_entry(plan, run, q / kWideRows * kWideBlocks + g), force, tally,
+                    intact ? &resume.sums[g] : nullptr, resume.k, intact ? resume.fresh[g] : 0u);
     }
   }
 }
@@ -796,13 +876,16 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
     std::int32_t q = 0;
     for (; q + kWideRows <= run.count; q += kWideRows) {
       const std::int32_t i = run.first + q;
-      // A bond reaching the failure test in an intact block: the block again, flagging it.
-      if ((whole_run || rows_intact(v, i, 1, kWideRows)) &&
-          intact_blocks<kWideBlocks>(laws.wide, v, slots, &all, 1, nullptr, i, q, 0, force, tally))
+      // A bond reaching the failure test in an intact block: the rest of the block flagging.
+      Resume<SimdWide, kWideBlocks> resume;
+      const bool intact = whole_run || rows_intact(v, i, 1, kWideRows);
+      if (intact && intact_blocks<kWideBlocks>(laws.wide, v, slots, &all, 1, nullptr, i, q, 0, force, tally, {}, &resume))
         continue;
       for (int g = 0; g < kWideBlocks; ++g) {
         const std::int32_t ig = i + g * SimdWide::W;
-        damaged_block(laws.wide, L, v, slots, RowStep{ig, 1}, ig, q + g * SimdWide::W, 0, scratch, force, tally);
+        damaged_block(laws.wide, L, v, slots, RowStep{ig, 1}, ig, q + g * SimdWide::W, 0, scratch,
+                      cache_entry(plan, run, q / kWideRows * kWideBlocks + g), force, tally,
+                      intact ? &resume.sums[g] : nullptr, resume.k, intact ? resume.fresh[g] : 0u);
       }
     }
     narrow_blocks(law, L, v, slots, run, q, whole_run, force, tally);
@@ -892,6 +975,10 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
   const auto& law = laws.narrow;
   const FamilyPatterns& P = *v.patterns;
   refresh_mirror(v, rows);
+  if (v.broken != rows.scratch.dead_flags) {  // another set of flags than the cache describes
+    rows.forget_broken();
+    rows.scratch.dead_flags = v.broken;
+  }
   // Boxes pair their bonds only in calls without energy (the energy would need a second ring).
   std::size_t box = Energy ? rows.boxes.size() : 0;
   for (std::size_t r = 0; r < rows.runs.size();) {
@@ -1191,7 +1278,20 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   std::int64_t slots_per_row = 0;
   for (const RowRun& run : plan.runs) slots_per_row = std::max(slots_per_row, v.offsets[run.first + 1] - v.offsets[run.first]);
   scratch.dead_lanes.assign(static_cast<std::size_t>(slots_per_row), 0);
-  scratch.live.assign(static_cast<std::size_t>(slots_per_row), 0);
+  scratch.live.assign(static_cast<std::size_t>(slots_per_row / 32 + 1), 0);
+#if defined(PERI_AVX2)
+  // The cache of dead lanes: an entry of slots_per_row bytes per wide damaged block (W rows) of
+  // the stride-1 runs of eight rows or more and of the mirrored runs (run_avx2, mirrored_run).
+  scratch.dead_stride = slots_per_row;
+  for (RowRun& run : plan.runs) {
+    const std::int64_t blocks = run.stride == 1 ? run.count / kWideRows
+                                : run.mirror >= 0 ? (run.count + kWideRows - 1) / kWideRows
+                                                  : 0;
+    if (blocks == 0 || plan.dead_cache_entries + blocks * kWideBlocks > std::numeric_limits<std::int32_t>::max()) continue;
+    run.dead_cache = static_cast<std::int32_t>(plan.dead_cache_entries);
+    plan.dead_cache_entries += blocks * kWideBlocks;
+  }
+#endif
   scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   if (!pair_bonds) return plan;
@@ -1217,6 +1317,8 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   scratch.at.assign(slots, nullptr);
   return plan;
 }
+
+void RowBlocks::forget_broken() const { std::fill(scratch.dead_known.begin(), scratch.dead_known.end(), 0); }
 
 void bond_forces(const BondLaw& law, const BondView& view, const RowBlocks& rows, double* force,
                  bool with_energy, BondTally& tally) {

@@ -534,6 +534,11 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
 }
 
+void Simulation::flags_changed() {
+  for (const RowBlocks& plan : interior_plan_) plan.forget_broken();
+  for (const RowBlocks& plan : boundary_plan_) plan.forget_broken();
+}
+
 bool Simulation::has_intact_bond(std::int32_t row) const {
   for (std::int64_t b = domain_.bonds.offsets[row]; b < domain_.bonds.offsets[row + 1]; ++b)
     if (!(domain_.bonds.broken[b] & 1)) return true;  // bit 0: broken (lattices keep other bits)
@@ -1115,6 +1120,7 @@ void Simulation::run_release(const Stage& stage) {
       ++released;
     }
   }
+  flags_changed();
   tally_.dissipated += energy;
   tally_.newly_broken += released;
   long long global = 0, local = released;
@@ -1519,6 +1525,7 @@ void Simulation::restore(const Checkpoint& c) {
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
 
   long long found = apply_broken_pairs(domain_, c.broken), found_all = 0;
+  flags_changed();
   MPI_Allreduce(&found, &found_all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
   if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
     throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +

@@ -137,6 +137,9 @@ class Simulation : public EquilibriumModel {
   void run_quasistatic(const Stage& stage);
   void run_release(const Stage& stage);
   void step(bool with_energy);
+  /// The bond loop's plans forget what they keep of the broken flags (RowBlocks::forget_broken):
+  /// after flags are written other than by the loop (release stage, restart).
+  void flags_changed();
   bool has_intact_bond(std::int32_t row) const;
   void check_health(std::int64_t step, double time);
   void write_frame();
