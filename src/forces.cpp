@@ -1228,25 +1228,6 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     plan.runs.push_back(run);
     return count;
   };
-  // Runs of consecutive rows in list order first (stride 1).
-  std::vector<std::int32_t> others;
-  for (std::size_t r = 0; r < nrows;) {
-    if (const std::int32_t count = take_run(rows + r, nrows - r, 1)) r += static_cast<std::size_t>(count);
-    else others.push_back(rows[r++]);
-  }
-  // The others by family pattern and then reference x within windows of 4096 rows of the list
-  // (stable: in list order among equals), so that rows a grid row apart along an edge meet
-  // (strided runs), also where a few consecutive rows of one pattern cross x (next to a
-  // partition boundary across the x lines), and most remaining groups of four share a pattern
-  // (the loop broadcasts its slots), while a window's neighbours stay in cache. The order does
-  // not change any row's sum.
-  constexpr std::size_t kWindow = 4096;
-  for (std::size_t w = 0; w < others.size(); w += kWindow)
-    std::stable_sort(others.begin() + w, others.begin() + std::min(others.size(), w + kWindow),
-                     [&](std::int32_t a, std::int32_t b) {
-                       if (P.of_row[a] != P.of_row[b]) return P.of_row[a] < P.of_row[b];
-                       return v.X[3 * static_cast<std::size_t>(a)] < v.X[3 * static_cast<std::size_t>(b)];
-                     });
   // Rows next to a partition boundary have ghost neighbours, numbered compactly beyond the owned
   // ones: rows a stride apart may then shift their owned and their ghost neighbours differently,
   // but each slot by the same amount from row to row (t_k, from the first two rows): such runs
@@ -1265,6 +1246,91 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     }
     return take_run(a, left, s, &t);
   };
+  // Runs of consecutive rows in list order first (stride 1).
+  std::vector<std::int32_t> others;
+  for (std::size_t r = 0; r < nrows;) {
+    if (const std::int32_t count = take_run(rows + r, nrows - r, 1)) r += static_cast<std::size_t>(count);
+    else others.push_back(rows[r++]);
+  }
+  RowBlocks::Scratch& scratch = plan.scratch;
+  std::vector<std::uint8_t> boxed(plan.runs.size(), 0);
+  if (pair_bonds) {
+    // Boxes among the stride-1 runs (all the runs so far, in list order), and their scratch.
+    std::size_t ring = 0, lines = 0, slots = 0;
+    for (std::size_t m = 0; m < plan.runs.size();) {
+      RowBox box = find_box(v, plan.runs, m);
+      if (box.run_end == box.run_begin) {
+        ++m;
+        continue;
+      }
+      m = box.run_end;
+      ring = std::max(ring, static_cast<std::size_t>(box.window) * static_cast<std::size_t>(box.columns) *
+                                static_cast<std::size_t>(box.width + 2 * box.pad));
+      lines = std::max(lines, box.run_end - box.run_begin);
+      slots = std::max(slots, box.slots.size());
+      std::fill(boxed.begin() + static_cast<std::ptrdiff_t>(box.run_begin), boxed.begin() + static_cast<std::ptrdiff_t>(box.run_end), 1);
+      plan.boxes.push_back(std::move(box));
+    }
+    scratch.ring.assign(ring, 0.0);
+    scratch.produced.assign(lines, 0);
+    scratch.inner.reserve(slots);
+    scratch.edge.reserve(slots);
+    scratch.at.assign(slots, nullptr);
+  }
+#if defined(PERI_AVX2)
+  // Tails. A stride-1 run of 8 m + r rows (0 < r < 8) ends in one or two blocks of four lanes
+  // (narrow_blocks), which cost about 0.65 of a block of eight each (the 64^3 block: 8% of its
+  // loop for two rows per line). Where eight or more runs outside boxes line up (one length and
+  // pattern, first rows a constant stride S apart: the x lines of a 3D block's interior), their
+  // last r rows leave them and form r strided runs of stride S instead, mirrored (plan_mirror)
+  // and taken eight rows at a time.
+  {
+    const std::size_t stride_one = plan.runs.size();
+    std::vector<std::int32_t> tail;
+    for (std::size_t m0 = 0; m0 < stride_one;) {
+      const RowRun first = plan.runs[m0];
+      std::size_t m1 = m0 + 1;
+      const std::int64_t S = m1 < stride_one ? static_cast<std::int64_t>(plan.runs[m1].first) - first.first : 0;
+      auto lined_up = [&](std::size_t m) {
+        const RowRun& r = plan.runs[m];
+        return !boxed[m] && r.count == first.count && P.of_row[r.first] == P.of_row[first.first] &&
+               static_cast<std::int64_t>(r.first) - first.first == static_cast<std::int64_t>(m - m0) * S;
+      };
+      if (!boxed[m0] && S > first.count && S <= std::numeric_limits<std::int32_t>::max())
+        while (m1 < stride_one && lined_up(m1)) ++m1;
+      const std::int32_t r = first.count % kWideRows, keep = first.count - r;
+      if (m1 - m0 < static_cast<std::size_t>(kWideRows) || r == 0 || keep < kWideRows) {
+        m0 = m1;
+        continue;
+      }
+      for (std::int32_t p = 0; p < r; ++p) {
+        tail.clear();
+        for (std::size_t m = m0; m < m1; ++m) tail.push_back(plan.runs[m].first + keep + p);
+        for (std::size_t q = 0; q < tail.size();) {
+          std::int32_t count = take_run(tail.data() + q, tail.size() - q, static_cast<std::int32_t>(S));
+          if (count == 0) count = take_shifted_run(tail.data() + q, tail.size() - q, static_cast<std::int32_t>(S));
+          if (count > 0) q += static_cast<std::size_t>(count);
+          else others.push_back(tail[q++]);
+        }
+      }
+      for (std::size_t m = m0; m < m1; ++m) plan.runs[m].count = keep;
+      m0 = m1;
+    }
+  }
+#endif
+  // The others by family pattern and then reference x within windows of 4096 rows of the list
+  // (stable: in list order among equals), so that rows a grid row apart along an edge meet
+  // (strided runs), also where a few consecutive rows of one pattern cross x (next to a
+  // partition boundary across the x lines), and most remaining groups of four share a pattern
+  // (the loop broadcasts its slots), while a window's neighbours stay in cache. The order does
+  // not change any row's sum.
+  constexpr std::size_t kWindow = 4096;
+  for (std::size_t w = 0; w < others.size(); w += kWindow)
+    std::stable_sort(others.begin() + w, others.begin() + std::min(others.size(), w + kWindow),
+                     [&](std::int32_t a, std::int32_t b) {
+                       if (P.of_row[a] != P.of_row[b]) return P.of_row[a] < P.of_row[b];
+                       return v.X[3 * static_cast<std::size_t>(a)] < v.X[3 * static_cast<std::size_t>(b)];
+                     });
   for (std::size_t r = 0; r < others.size();) {
     const std::size_t left = others.size() - r;
     const std::int32_t s = left >= 2 ? others[r + 1] - others[r] : 0;
@@ -1274,7 +1340,6 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     else plan.rest.push_back(others[r++]);
   }
   plan_mirror(v, plan);
-  RowBlocks::Scratch& scratch = plan.scratch;
   std::int64_t slots_per_row = 0;
   for (const RowRun& run : plan.runs) slots_per_row = std::max(slots_per_row, v.offsets[run.first + 1] - v.offsets[run.first]);
   scratch.dead_lanes.assign(static_cast<std::size_t>(slots_per_row), 0);
@@ -1294,27 +1359,6 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
 #endif
   scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
-  if (!pair_bonds) return plan;
-  // Boxes among the stride-1 runs (all of which come first, in list order), and their scratch.
-  std::size_t ring = 0, lines = 0, slots = 0;
-  for (std::size_t m = 0; m < plan.runs.size();) {
-    RowBox box = find_box(v, plan.runs, m);
-    if (box.run_end == box.run_begin) {
-      ++m;
-      continue;
-    }
-    m = box.run_end;
-    ring = std::max(ring, static_cast<std::size_t>(box.window) * static_cast<std::size_t>(box.columns) *
-                              static_cast<std::size_t>(box.width + 2 * box.pad));
-    lines = std::max(lines, box.run_end - box.run_begin);
-    slots = std::max(slots, box.slots.size());
-    plan.boxes.push_back(std::move(box));
-  }
-  scratch.ring.assign(ring, 0.0);
-  scratch.produced.assign(lines, 0);
-  scratch.inner.reserve(slots);
-  scratch.edge.reserve(slots);
-  scratch.at.assign(slots, nullptr);
   return plan;
 }
 

@@ -609,7 +609,7 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
 
 // Boxes (RowBox: a bond between two lines evaluated once, its coefficient handed to the other
 // end) give the same bits as every bond evaluated from both ends: forces, flags, rows' summary
-// bytes and tallies, on calls where bonds break during the call, where lines hold bonds broken
+// bytes and broken counts (the booked energy to its summation order), on calls where bonds break during the call, where lines hold bonds broken
 // before it, and with a horizon of four spacings (wider pad and window). A 3D block gets no boxes
 // (too few of its bonds pair across lines to pay, find_box) and the same bits either way.
 TEST(Forces, PairedBondsGiveTheSameBitsAsBothEnds) {
@@ -673,7 +673,9 @@ TEST(Forces, PairedBondsGiveTheSameBitsAsBothEnds) {
         EXPECT_EQ(flags_a, flags_b);
         EXPECT_EQ(sum_a, sum_b);
         EXPECT_EQ(ta.newly_broken, tb.newly_broken);
-        EXPECT_EQ(ta.dissipated, tb.dissipated);
+        // Each row books the same bits; the plans visit the rows in different orders (the plain
+        // plan's run tails form strided runs, plan_rows), so the rows' bookings add up in another order.
+        EXPECT_NEAR(ta.dissipated, tb.dissipated, 1e-13 * ta.dissipated);
         if (call == 0) EXPECT_GT(ta.newly_broken, 0) << "state " << state;
         // Next call: a little more strain, so more bonds break in lines that are intact so far.
         for (double& c : u) c *= 1.05;
