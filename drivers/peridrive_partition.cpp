@@ -4,7 +4,7 @@
 // memory above its input). Feeds cluster/scaling_model.py.
 //
 //   peridrive-partition scene.yaml [--set KEY=VALUE ...] --parts 2,4,8,...,4096
-//                       [--method cells,bonds] [--cells-per-part 64] [--csv FILE]
+//                       [--method cells,bonds] [--cells-per-part 64] [--line-weight 2] [--csv FILE]
 //
 // One process, no MPI ranks needed: each partitioner runs serially, exactly as on rank 0 of a run
 // (cells: METIS on the coarse cell graph; bonds: METIS on the full bond graph, built inside the
@@ -59,7 +59,7 @@ bool write_all(int fd, const void* data, std::size_t bytes) {
 // Run one partitioner in a forked child: its time, its peak resident memory above the memory at
 // the fork (the scene's nodes and cell list are its input, shared), and the parts.
 Measured measure(const peri::Nodes& nodes, const peri::CellList& cells, int parts, peri::PartitionMethod method,
-                 int cells_per_part) {
+                 int cells_per_part, int line_weight) {
   int fds[2];
   if (pipe(fds) != 0) throw peri::Error("pipe failed");
   const std::int64_t n = nodes.size();
@@ -75,7 +75,7 @@ Measured measure(const peri::Nodes& nodes, const peri::CellList& cells, int part
     try {
       if (method == peri::PartitionMethod::Cells) {
         const peri::CellGraph g = peri::cell_graph(nodes, cells, peri::cell_size_for(nodes, parts, cells_per_part));
-        const std::vector<int> cp = peri::metis_kway(g, parts);
+        const std::vector<int> cp = peri::metis_kway(g, parts, line_weight);
         for (std::int64_t i = 0; i < n; ++i) part[i] = cp[g.cell_of[i]];
         vertices = g.cells;
       } else {
@@ -130,7 +130,7 @@ std::vector<int> parse_parts(const std::string& text) {
 int run(int argc, char** argv) {
   std::string scene_path, csv_path;
   std::vector<peri::PartitionMethod> methods{peri::PartitionMethod::Cells, peri::PartitionMethod::Bonds};
-  int cells_per_part = 64;
+  int cells_per_part = 64, line_weight = peri::kLineWeight;
   std::vector<peri::Override> overrides;
   std::vector<int> parts{2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096};
   for (int k = 1; k < argc; ++k) {
@@ -149,6 +149,15 @@ int run(int argc, char** argv) {
         cells_per_part = 0;
       }
       if (cells_per_part < 1) throw peri::InputError("--cells-per-part " + v + ": expected an integer >= 1");
+    } else if (a == "--line-weight") {
+      const std::string v = value();
+      try {
+        line_weight = std::stoi(v);
+      } catch (const std::exception&) {
+        line_weight = 0;
+      }
+      if (line_weight < 1 || line_weight > 64)
+        throw peri::InputError("--line-weight " + v + ": expected an integer in [1, 64]");
     } else if (a == "--method") {
       methods.clear();
       std::stringstream list(value());
@@ -168,9 +177,10 @@ int run(int argc, char** argv) {
     } else if (a == "--help" || a == "-h") {
       std::puts(
           "usage: peridrive-partition scene.yaml [--set KEY=VALUE ...] [--parts 2,4,...] [--method cells,bonds]\n"
-          "                           [--cells-per-part 64] [--csv FILE]\n"
+          "                           [--cells-per-part 64] [--line-weight 2] [--csv FILE]\n"
           "Partitions the scene for each P with each method (cells: METIS on the coarse cell graph, the default\n"
-          "of peridrive; bonds: METIS on the full bond graph) and prints per P and method: largest part's nodes\n"
+          "of peridrive, its cut bonds within an x row of cells weighted --line-weight times, as -partition_line_weight;\n"
+          "bonds: METIS on the full bond graph) and prints per P and method: largest part's nodes\n"
           "and bonds, ghosts, neighbour parts, edge cut, balance, the partitioner's time and its peak memory.");
       return 0;
     } else if (scene_path.empty() && a[0] != '-') scene_path = a;
@@ -194,7 +204,7 @@ int run(int argc, char** argv) {
   for (int P : parts)
   for (peri::PartitionMethod method : methods) {
     if (P > n) continue;
-    const Measured measured = measure(nodes, cells, P, method, cells_per_part);
+    const Measured measured = measure(nodes, cells, P, method, cells_per_part, line_weight);
     const std::vector<int>& part = measured.part;
     const double metis_seconds = measured.seconds;
     const peri::PartitionQuality quality = peri::quality(graph, part, P);
