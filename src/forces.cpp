@@ -1144,14 +1144,16 @@ RowBox find_box(const BondView& v, const std::vector<RowRun>& runs, std::size_t 
 // Mirror columns for the strided runs of kMirrorRows rows or more (RowBlocks::mirror_columns):
 // slot k of such a run (and its rows' own positions) reads nodes j + l t on lane l, j its first
 // row's k-th neighbour and t the run's stride or the slot's shift: the column of nodes
-// (j mod t) + m t, places m = j / t .. j / t + count - 1 of it. Columns of one step and residue
-// are one column, spanning what its runs read. None where the copy would outgrow four positions
-// per mirrored row (irregular node sets), and none without the vector loop.
+// (j mod t) + m t, places m = j / t .. j / t + count - 1 of it. Runs reading overlapping places
+// of one column share them. None where the copy would outgrow four positions per mirrored row
+// (irregular node sets), and none without the vector loop.
 void plan_mirror(const BondView& v, RowBlocks& plan) {
 #if defined(PERI_AVX2)
   constexpr std::int32_t kMirrorRows = 8;
   using Key = std::pair<std::int32_t, std::int64_t>;  // step, residue
-  std::map<Key, std::pair<std::int64_t, std::int64_t>> span;  // places [lo, hi)
+  // Per column, the places its runs read, as intervals [lo, hi); overlapping ones merge (runs
+  // along one face share their columns; a partition's rows need not make one interval per column).
+  std::map<Key, std::vector<std::pair<std::int64_t, std::int64_t>>> span;
   auto each_column = [&](const RowRun& run, auto&& f) {
     const std::int64_t b0 = v.offsets[run.first], n = v.offsets[run.first + 1] - b0;
     f(static_cast<std::int64_t>(run.first), run.stride);
@@ -1165,28 +1167,45 @@ void plan_mirror(const BondView& v, RowBlocks& plan) {
     if (!mirrored(run)) continue;
     rows += run.count;
     each_column(run, [&](std::int64_t node, std::int32_t step) {
-      const std::int64_t lo = node / step, hi = lo + run.count;
-      const auto [it, fresh] = span.try_emplace(Key{step, node % step}, lo, hi);
-      if (!fresh) it->second = {std::min(it->second.first, lo), std::max(it->second.second, hi)};
+      span[Key{step, node % step}].emplace_back(node / step, node / step + run.count);
     });
   }
   std::int64_t places = 0;
-  for (const auto& [key, range] : span) places += range.second - range.first;
+  for (auto& [key, list] : span) {
+    std::sort(list.begin(), list.end());
+    std::size_t kept = 0;
+    for (const auto& interval : list) {
+      if (kept > 0 && interval.first <= list[kept - 1].second) list[kept - 1].second = std::max(list[kept - 1].second, interval.second);
+      else list[kept++] = interval;
+    }
+    list.resize(kept);
+    for (const auto& [lo, hi] : list) places += hi - lo;
+  }
   if (rows == 0 || places > 4 * rows + 4096 || places > std::numeric_limits<std::int32_t>::max() / 4) return;
-  std::map<Key, std::int64_t> start;  // the mirror place of place lo of each column
+  // The mirror place of place m of a column: start of its interval + m - lo.
+  std::map<Key, std::vector<std::int64_t>> start;
   places = 0;
-  for (const auto& [key, range] : span) {
-    plan.mirror_columns.push_back({key.second + range.first * key.first, key.first,
-                                   static_cast<std::int32_t>(range.second - range.first), places});
-    start[key] = places - range.first;
-    places += range.second - range.first;
+  for (const auto& [key, list] : span) {
+    std::vector<std::int64_t>& at = start[key];
+    for (const auto& [lo, hi] : list) {
+      plan.mirror_columns.push_back({key.second + lo * key.first, key.first, static_cast<std::int32_t>(hi - lo), places});
+      at.push_back(places - lo);
+      places += hi - lo;
+    }
   }
   plan.mirror_stride = position_plane_stride(places);
   for (RowRun& run : plan.runs) {
     if (!mirrored(run)) continue;
     run.mirror = static_cast<std::int32_t>(plan.mirror_slots.size());
     each_column(run, [&](std::int64_t node, std::int32_t step) {
-      plan.mirror_slots.push_back(static_cast<std::int32_t>(start[Key{step, node % step}] + node / step));
+      const Key key{step, node % step};
+      const auto& list = span[key];
+      const std::int64_t m = node / step;
+      // The merged interval holding [m, m + count): the last one starting at or before m.
+      const std::size_t which = static_cast<std::size_t>(
+          std::upper_bound(list.begin(), list.end(), std::make_pair(m, std::numeric_limits<std::int64_t>::max())) -
+          list.begin() - 1);
+      plan.mirror_slots.push_back(static_cast<std::int32_t>(start[key][which] + m));
     });
   }
   plan.scratch.mirror.assign(3 * static_cast<std::size_t>(plan.mirror_stride), 0.0);
