@@ -362,7 +362,8 @@ struct MirrorLanes {
 };
 
 // Where an intact block stopped (the slot whose bond reached the failure test) and its lanes'
-// sums of the slots before (force components, energy), per block of W lanes.
+// sums up to and with that slot (force components, energy; the broken lanes add nothing there),
+// per block of W lanes.
 template <class S>
 struct LaneSums {
   typename S::V f0, f1, f2, w;
@@ -457,8 +458,9 @@ using SlotSegment = RowBlocks::Scratch::Segment;
 // ring); Consume slots load the coefficients their partners stored. Returns false, having
 // written nothing but ring entries, if a bond reaches the failure test: the caller takes these
 // rows through the flagging loop, from the start (boxes) or, with `resume` (runs outside boxes:
-// one Own segment), from that slot k on with the lane sums of the slots before it (damaged_block:
-// the same sums, no slot evaluated twice). The first `skip` rows were written already.
+// one Own segment), after that slot k with the lane sums up to it, booking its broken lanes
+// (damaged_block: the same sums, no slot evaluated twice). The first `skip` rows were written
+// already.
 template <int G, class Law>
 bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
@@ -482,8 +484,7 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
     x2[g] = S::loadu(v.x + 2 * v.x_stride + own + W * g);
     f0[g] = f1[g] = f2[g] = w[g] = law.zero;
   }
-  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks and
-  // the block cannot flag it.
+  // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
   auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
     for (std::int64_t k = k0; k < k1; ++k) {
       const std::int64_t j = nbr[k];
