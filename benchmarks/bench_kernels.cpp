@@ -35,11 +35,28 @@ output: {frames: 1, series_every: 1000000}
   return text;
 }
 
+// The N^3 PMB block of benchmarks/compare_lammps.py (dx = 1 mm, horizon 3.015 dx, LAMMPS' taper).
+std::string solid_scene(int n, double critical_stretch) {
+  char text[1024];
+  std::snprintf(text, sizeof text, R"(
+name: bench
+materials:
+  glass: {model: pmb, density: 2200, bulk_modulus: 14.9e9, critical_stretch: %.17g}
+bodies:
+  block: {kind: solid, material: glass, origin: [0, 0, 0], size: [%.17g, %.17g, %.17g], spacing: 0.001, horizon: 0.003015, quadrature: taper}
+stages:
+  - {name: run, steps: 1000000}
+output: {frames: 1, series_every: 1000000}
+)", critical_stretch, n * 1e-3, n * 1e-3, n * 1e-3);
+  return text;
+}
+
 // Kernel alone: the bond loop over every row of a one-rank domain (spacing 1 mm), displacements
-// random, uniform in +-`noise` (m): a nearest-neighbour bond strains up to 2 noise / spacing.
-void kernel(benchmark::State& st, const char* model, const char* quadrature, double critical_stretch, double noise) {
-  const int n = static_cast<int>(st.range(0));
-  const Scene scene = parse_scene(membrane_scene(model, n, quadrature, critical_stretch), "bench");
+// random, uniform in +-`noise` (m), plus a uniform strain `strain` along x: a nearest-neighbour
+// bond strains up to 2 noise / spacing (+ strain). One call before the timed ones breaks what
+// breaks, so those run the damaged state.
+void kernel_of(benchmark::State& st, const std::string& text, double noise, double strain) {
+  const Scene scene = parse_scene(text, "bench");
   const Nodes nodes = discretize(scene);
   CellList cells(nodes, reach(nodes.bodies[0]));
   const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
@@ -49,6 +66,7 @@ void kernel(benchmark::State& st, const char* model, const char* quadrature, dou
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> U(-noise, noise);
   for (double& x : u) x = U(rng);
+  for (std::int32_t i = 0; i < d.local(); ++i) u[3 * static_cast<std::size_t>(i)] += strain * d.X[3 * static_cast<std::size_t>(i)];
   std::vector<std::int32_t> rows(d.owned);
   for (std::int32_t i = 0; i < d.owned; ++i) rows[i] = i;
   std::vector<double> F(3 * static_cast<std::size_t>(d.owned));
@@ -56,19 +74,33 @@ void kernel(benchmark::State& st, const char* model, const char* quadrature, dou
   std::vector<double> x(3 * static_cast<std::size_t>(stride));
   current_positions(d.X.data(), u.data(), 0, d.local(), stride, x.data());
   BondView v{d.X.data(), u.data(), d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
-             d.bonds.broken.data(), &d.bonds.patterns, x.data(), stride};
+             d.bonds.broken.data(), &d.bonds.patterns, x.data(), stride, d.bonds.row_broken.data()};
   const RowBlocks plan = plan_rows(v, rows.data(), rows.size());
   BondTally t;
+  bond_forces(law, v, plan, F.data(), false, t);
+  std::int64_t broken = 0;
+  for (std::uint8_t f : d.bonds.broken) broken += f != 0;
   for (auto _ : st) {
     bond_forces(law, v, plan, F.data(), false, t);
     benchmark::DoNotOptimize(F.data());
   }
   st.counters["nodes"] = d.owned;
+  st.counters["broken_share"] = static_cast<double>(broken) / static_cast<double>(d.bonds.size());
   st.counters["bonds"] = static_cast<double>(d.bonds.size());
   st.counters["bond_updates/s"] = benchmark::Counter(static_cast<double>(d.bonds.size()), benchmark::Counter::kIsIterationInvariantRate);
   st.counters["bytes_per_bond"] = d.bonds.bytes_per_bond();
   st.counters["block_rows"] = static_cast<double>(plan.run_rows()) / static_cast<double>(plan.rows());
   st.counters["rows_per_run"] = static_cast<double>(plan.run_rows()) / static_cast<double>(std::max<std::size_t>(1, plan.runs.size()));
+}
+
+void kernel(benchmark::State& st, const char* model, const char* quadrature, double critical_stretch, double noise) {
+  kernel_of(st, membrane_scene(model, static_cast<int>(st.range(0)), quadrature, critical_stretch), noise, 0.0);
+}
+
+// The 3D block: intact (s_0 = 0.5), or with s_0 = 0.0005 under a strain of 0.002 along x, which
+// breaks half its bonds (as late in compare_lammps.py's run, where a third break).
+void kernel_solid(benchmark::State& st, double critical_stretch, double strain) {
+  kernel_of(st, solid_scene(static_cast<int>(st.range(0)), critical_stretch), 1e-7, strain);
 }
 
 // The ceiling a PMB bond loop cannot pass on this core: 1/|y| for four lanes as a square root and
@@ -111,6 +143,8 @@ void full_step(benchmark::State& st, const char* model) {
 BENCHMARK_CAPTURE(kernel, membrane_partial_area, "membrane", "partial_area", 5.0, 1e-5)->Arg(100)->Arg(400)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(kernel, membrane_full, "membrane", "full", 5.0, 1e-5)->Arg(400)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(kernel, pmb_partial_area, "pmb", "partial_area", 0.5, 1e-5)->Arg(400)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(kernel_solid, pmb_block_intact, 0.5, 0.0)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(kernel_solid, pmb_block_half_broken, 0.0005, 0.002)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK(pmb_divider_ceiling);
 // A fixed iteration count: every rank must take the same number of (collective) steps.
 BENCHMARK_CAPTURE(full_step, membrane, "membrane")->Arg(400)->Arg(500)->Iterations(40)->Unit(benchmark::kMillisecond);
