@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 #include "peri/partition.hpp"
 #include "peri/simulation.hpp"
@@ -93,6 +94,50 @@ TEST(Partitioner, CellGraphCoversBalancesAndCutsNearTheFullGraph) {
       EXPECT_LE(petsc.balance, 1.10);
     }
   }
+}
+
+// Cut bonds between cells of one x row weigh twice (kLineWeight): on a block 1.25 times longer
+// in x than across, where a cut across x cuts the fewest bonds (and METIS takes it with every cut
+// bond alike), the weighted graph is cut along the x lines, which the bond loop's stride-1 runs
+// follow; -partition_line_weight sets the weight, within [1, 64].
+TEST(Partitioner, LineWeightKeepsGridLinesWhole) {
+  const Scene scene = parse_scene(
+      "name: block\nmaterials:\n  m: {model: pmb, density: 2200, bulk_modulus: 1.49e10, critical_stretch: 0.005}\n"
+      "bodies:\n  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.030, 0.024, 0.024], spacing: 0.001, "
+      "horizon: 0.003015, quadrature: taper}\nstages:\n  - {name: r, steps: 1}\n",
+      "block");
+  const Nodes nodes = discretize(scene);
+  const CellList cells(nodes, reach(nodes.bodies[0]));
+  const CellGraph graph = cell_graph(nodes, cells, cell_size_for(nodes, 2, 64));
+  // The x lines (nodes of one y and z) holding nodes of both parts.
+  auto split_lines = [&](int line_weight) {
+    const std::vector<int> cell_part = metis_kway(graph, 2, line_weight);
+    std::map<std::pair<long, long>, int> line_parts;
+    for (std::int64_t i = 0; i < nodes.size(); ++i) {
+      const std::pair<long, long> line{std::lround(nodes.X[3 * i + 1] / 1e-3), std::lround(nodes.X[3 * i + 2] / 1e-3)};
+      line_parts[line] |= 1 << cell_part[graph.cell_of[i]];
+    }
+    EXPECT_EQ(line_parts.size(), 24u * 24u);
+    long split = 0;
+    for (const auto& [line, parts] : line_parts) split += parts == 3;
+    return split;
+  };
+  const long plain = split_lines(1), weighted = split_lines(kLineWeight);
+  if (world_rank() == 0) std::printf("x lines split in two: %ld of 576 (every cut bond alike), %ld (line weight %d)\n", plain, weighted, kLineWeight);
+  EXPECT_GT(plain, 288);
+  EXPECT_LE(weighted, 72);  // at most an eighth: a staircase where the cut meets the cells
+  PetscOptionsSetValue(nullptr, "-partition_line_weight", "5");
+  EXPECT_EQ(partition_settings_from_options().line_weight, 5);
+  PetscOptionsSetValue(nullptr, "-partition_line_weight", "0");
+  std::string message;
+  try {
+    partition_settings_from_options();
+  } catch (const InputError& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("-partition_line_weight 0: expected an integer in [1, 64]"), std::string::npos) << message;
+  PetscOptionsClearValue(nullptr, "-partition_line_weight");
+  EXPECT_EQ(partition_settings_from_options().line_weight, kLineWeight);
 }
 
 TEST(Partitioner, MethodFromOptions) {
