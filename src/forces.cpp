@@ -354,13 +354,6 @@ struct RowStep {
   std::int32_t first, stride;
 };
 
-// A block of a mirrored run (RowRun::mirror): its rows, and the place of its first row's own
-// position in the mirror (-1: not mirrored).
-struct MirrorLanes {
-  RowStep rows{0, 1};
-  std::int64_t own = -1;
-};
-
 // Where an intact block stopped (the slot whose bond reached the failure test) and its lanes'
 // sums up to and with that slot (force components, energy; the broken lanes add nothing there),
 // per block of W lanes.
@@ -449,8 +442,9 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
 
 using SlotSegment = RowBlocks::Scratch::Segment;
 
-// G blocks of W = Law::W rows of an intact stride-1 run side by side, rows i .. i + G W - 1 at
-// lanes a .. a + G W - 1 of the run: per slot one neighbour index and one broadcast of each
+// G blocks of W = Law::W rows of an intact run side by side, rows rows_at.first + l rows_at.stride
+// (l < G W) at lanes a .. a + G W - 1 of the run, their own positions at `own` .. of v.x (the rows
+// themselves in a stride-1 run; a mirrored run's places, RowBlocks::mirror_slots): per slot one neighbour index and one broadcast of each
 // pattern slot serve G W bonds, each lane's arithmetic that of block_avx2. The slots come in
 // `segments` of one kind, in CSR order (a run outside boxes: one Own segment of all its slots; a
 // line of a box, RowBox: in the natural order a few long ones). Own and Produce slots are
@@ -463,13 +457,9 @@ using SlotSegment = RowBlocks::Scratch::Segment;
 // already.
 template <int G, class Law>
 bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
-                   const SlotSegment* segments, std::size_t nsegments, double* const* at, std::int32_t i,
-                   std::int64_t a, int skip, double* force, BondTally& tally, MirrorLanes mirror = {},
+                   const SlotSegment* segments, std::size_t nsegments, double* const* at, RowStep rows_at,
+                   std::int64_t own, std::int64_t a, int skip, double* force, BondTally& tally,
                    Resume<typename Law::Simd, G>* resume = nullptr) {
-  // Rows i + l (or, mirrored, rows mirror.rows.first + l mirror.rows.stride, their positions at
-  // mirror.own + l of v.x).
-  const std::int64_t own = mirror.own >= 0 ? mirror.own : i;
-  const RowStep rows_at = mirror.own >= 0 ? mirror.rows : RowStep{i, 1};
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
@@ -635,7 +625,6 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     else dead_lanes<W>(flag_row, n, dead);
     if (entry >= 0) scratch.dead_known[static_cast<std::size_t>(entry)] = 1;
   }
-  const int nlive = live_slots<W>(dead, n, live);
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
@@ -675,7 +664,7 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
       dead[from_k] = static_cast<std::uint8_t>(dead[from_k] | from_fresh);
     }
     for (std::int64_t k = from_k + 1; k < n; ++k) slot(k);  // no slot broken before this call
-  } else if (4 * nlive >= 3 * n) {
+  } else if (4 * live_slots<W>(dead, n, live) >= 3 * n) {
     for (std::int64_t k = 0; k < n; ++k)
       if (dead[k] != (1u << W) - 1u) slot(k);
   } else {
@@ -863,8 +852,8 @@ void mirrored_run(const Laws& laws, const BondLaw& L, const BondView& v, const R
     const RowStep rows{run.first + at * run.stride, run.stride};
     Resume<SimdWide, kWideBlocks> resume;
     const bool intact = rows_intact(v, rows.first, rows.stride, kWideRows);
-    if (intact && intact_blocks<kWideBlocks>(laws.wide, mv, ms, &all, 1, nullptr, 0, at, skip, force, tally,
-                                             MirrorLanes{rows, places[0] + at}, &resume))
+    if (intact && intact_blocks<kWideBlocks>(laws.wide, mv, ms, &all, 1, nullptr, rows, places[0] + at, at, skip,
+                                             force, tally, &resume))
       continue;
     for (int g = 0; g < kWideBlocks; ++g) {
       const std::int32_t lane = at + g * SimdWide::W;
@@ -892,7 +881,8 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
       // A bond reaching the failure test in an intact block: the rest of the block flagging.
       Resume<SimdWide, kWideBlocks> resume;
       const bool intact = whole_run || rows_intact(v, i, 1, kWideRows);
-      if (intact && intact_blocks<kWideBlocks>(laws.wide, v, slots, &all, 1, nullptr, i, q, 0, force, tally, {}, &resume))
+      if (intact && intact_blocks<kWideBlocks>(laws.wide, v, slots, &all, 1, nullptr, RowStep{i, 1}, i, q, 0, force,
+                                               tally, &resume))
         continue;
       for (int g = 0; g < kWideBlocks; ++g) {
         const std::int32_t ig = i + g * SimdWide::W;
@@ -971,9 +961,9 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
       const std::vector<SlotSegment>& segments = inner(at, wide ? kWideRows : 4) ? scratch.inner : scratch.edge;
       const bool done =
           wide ? intact_blocks<kWideBlocks>(laws.wide, v, slots, segments.data(), segments.size(), scratch.at.data(),
-                                            run.first + q, q, 0, force, tally)
+                                            RowStep{run.first + q, 1}, run.first + q, q, 0, force, tally)
                : intact_blocks<1>(laws.narrow, v, slots, segments.data(), segments.size(), scratch.at.data(),
-                                  run.first + at, at, q - at, force, tally);
+                                  RowStep{run.first + at, 1}, run.first + at, at, q - at, force, tally);
       if (!done) break;
       q = wide ? q + kWideRows : at + 4;
     }

@@ -96,6 +96,16 @@ TEST(Partitioner, CellGraphCoversBalancesAndCutsNearTheFullGraph) {
   }
 }
 
+// The message of the InputError that partition_settings_from_options throws ("" if none).
+std::string settings_error() {
+  try {
+    partition_settings_from_options();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 // Cut bonds between cells of one x row weigh twice (kLineWeight): on a block 1.25 times longer
 // in x than across, where a cut across x cuts the fewest bonds (and METIS takes it with every cut
 // bond alike), the weighted graph is cut along the x lines, which the bond loop's stride-1 runs
@@ -129,12 +139,7 @@ TEST(Partitioner, LineWeightKeepsGridLinesWhole) {
   PetscOptionsSetValue(nullptr, "-partition_line_weight", "5");
   EXPECT_EQ(partition_settings_from_options().line_weight, 5);
   PetscOptionsSetValue(nullptr, "-partition_line_weight", "0");
-  std::string message;
-  try {
-    partition_settings_from_options();
-  } catch (const InputError& e) {
-    message = e.what();
-  }
+  const std::string message = settings_error();
   EXPECT_NE(message.find("-partition_line_weight 0: expected an integer in [1, 64]"), std::string::npos) << message;
   PetscOptionsClearValue(nullptr, "-partition_line_weight");
   EXPECT_EQ(partition_settings_from_options().line_weight, kLineWeight);
@@ -153,12 +158,7 @@ TEST(Partitioner, MethodFromOptions) {
     EXPECT_FALSE(sim.summary().memory.empty());
   }
   PetscOptionsSetValue(nullptr, "-partition_method", "metis");
-  std::string message;
-  try {
-    partition_settings_from_options();
-  } catch (const InputError& e) {
-    message = e.what();
-  }
+  const std::string message = settings_error();
   EXPECT_NE(message.find("-partition_method metis: expected cells"), std::string::npos) << message;
   PetscOptionsClearValue(nullptr, "-partition_method");
 }
