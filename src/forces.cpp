@@ -571,24 +571,20 @@ inline void dead_lanes(std::uint8_t* const* flag_row, std::int64_t n, std::uint8
 }
 
 // The slots k < n not broken on every lane (dead[k] != all W bits) as bit masks, 32 slots per
-// mask (live[k / 32] bit k % 32); returns how many.
+// mask (live[k / 32] bit k % 32).
 template <int W>
-inline int live_slots(const std::uint8_t* dead, std::int64_t n, std::uint32_t* live) {
+inline void live_slots(const std::uint8_t* dead, std::int64_t n, std::uint32_t* live) {
   const __m256i all = _mm256_set1_epi8(static_cast<char>((1u << W) - 1u));
-  int count = 0;
   std::int64_t k = 0;
   for (; k + 32 <= n; k += 32) {
     const __m256i d = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(dead + k));
     live[k / 32] = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(d, all)));
-    count += __builtin_popcount(live[k / 32]);
   }
   if (k < n) {
     std::uint32_t bits = 0;
     for (std::int64_t q = k; q < n; ++q) bits |= static_cast<std::uint32_t>(dead[q] != (1u << W) - 1u) << (q - k);
     live[k / 32] = bits;
-    count += __builtin_popcount(bits);
   }
-  return count;
 }
 
 // W = Law::W rows of a run with broken bonds among them, rows.first + l rows.stride, at lanes
@@ -597,8 +593,9 @@ inline int live_slots(const std::uint8_t* dead, std::int64_t n, std::uint32_t* l
 // (a broken bond adds nothing; a fully broken slot is skipped), the flags read once per block as
 // lane bits (dead_lanes; the slots left, live_slots); bonds reaching the failure test are flagged
 // (mark_fresh). The first `skip` rows were written by the block before (a run's last block).
-// `entry`: the block's place in the plan's cache of dead lanes (RowBlocks::Scratch::dead_cache),
-// or -1: the lane bits come from there once known, else from the flags (and are kept there).
+// `entry`: the block's place in the plan's cache of dead lanes (RowBlocks::Scratch::dead_cache,
+// with the live slots' bits in live_cache), or -1: the lane bits and live slots come from there
+// once known, else from the flags (and are kept there).
 // `from` (an intact block that stopped at a breaking slot, intact_blocks): the rows had no broken
 // bond before this call; the loop books that slot's broken lanes and goes on after it with the
 // sums so far.
@@ -619,10 +616,11 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
   }
   std::uint8_t* __restrict dead =
       entry >= 0 ? scratch.dead_cache.data() + entry * scratch.dead_stride : scratch.dead_lanes.data();
-  std::uint32_t* __restrict live = scratch.live.data();
+  std::uint32_t* __restrict live = entry >= 0 ? scratch.live_cache.data() + entry * scratch.live_words : scratch.live.data();
   if (entry < 0 || !scratch.dead_known[static_cast<std::size_t>(entry)]) {
     if (from) std::fill(dead, dead + n, std::uint8_t{0});  // intact rows
     else dead_lanes<W>(flag_row, n, dead);
+    live_slots<W>(dead, n, live);
     if (entry >= 0) scratch.dead_known[static_cast<std::size_t>(entry)] = 1;
   }
   const double* __restrict px = v.x + a;
@@ -646,13 +644,13 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
       const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
       mark_fresh<W>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
       dead[k] = static_cast<std::uint8_t>(dead[k] | fresh);
+      if (dead[k] == (1u << W) - 1u) live[k / 32] &= ~(std::uint32_t{1} << (k % 32));  // broken on every lane now
     }
   };
-  // Few fully broken slots (as in most blocks of a fragmenting body: 10-15% of their slots): a
-  // branch per slot, rarely taken. Many (half, in no pattern a branch predictor follows, in a
-  // body strained beyond the failure stretch along one axis): the live slots' bits, one by one,
-  // no branch per slot. (AB_STATE on a 64^3 block's step 30: the bits alone 0.973 times as fast
-  // as the branch; a uniform strain breaking half the bonds: 1.099 times.)
+  // The live slots' bits one by one (no branch per slot, which a fully broken slot here and there
+  // mispredicts), kept with the cached lanes from call to call. (AB_STATE on the 64^3 block of
+  // compare_lammps.py, steps 15 and 50: 1.03 times as fast as a choice per block between these
+  // bits and a branch per slot, whose two loops made each other's code worse.)
   if (from) {
     f0 = from->f0;
     f1 = from->f1;
@@ -662,11 +660,9 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
       const double w0 = breaking_energy(L, run.xi2[from_k], run.measure[from_k]);
       mark_fresh<W>(from_fresh, flag_row, from_k, [w0](int) { return w0; }, newly, diss);
       dead[from_k] = static_cast<std::uint8_t>(dead[from_k] | from_fresh);
+      if (dead[from_k] == (1u << W) - 1u) live[from_k / 32] &= ~(std::uint32_t{1} << (from_k % 32));
     }
     for (std::int64_t k = from_k + 1; k < n; ++k) slot(k);  // no slot broken before this call
-  } else if (4 * live_slots<W>(dead, n, live) >= 3 * n) {
-    for (std::int64_t k = 0; k < n; ++k)
-      if (dead[k] != (1u << W) - 1u) slot(k);
   } else {
     for (std::int64_t c = 0; c < n; c += 32)
       for (std::uint32_t bits = live[c / 32]; bits; bits &= bits - 1) slot(c + __builtin_ctz(bits));
@@ -771,8 +767,15 @@ RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBloc
   const FamilyPatterns& P = *v.patterns;
   const std::int64_t b0 = v.offsets[run.first], n = v.offsets[run.first + 1] - b0;
   const std::int64_t slot0 = P.begin[P.of_row[run.first]];
-  if constexpr (Law::kLimits)
-    law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, n, scratch.y2_floor.data(), scratch.y2_break.data());
+  if constexpr (Law::kLimits) {
+    // Once per pattern and law while consecutive runs share them (most runs of a body: a call of
+    // the 64^3 block computed them for each of its 4096 runs, 2.5% of its step).
+    RowBlocks::Scratch::LimitsKey key{P.xi2.data() + slot0, n, law.crit0_s, law.crit_slope_s};
+    if (!(key == scratch.limits_of)) {
+      law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, n, scratch.y2_floor.data(), scratch.y2_break.data());
+      scratch.limits_of = key;
+    }
+  }
   return {v.neighbor + b0,          n,
           P.xi2.data() + slot0,     P.measure.data() + slot0,
           P.inv_xi.data() + slot0,  P.measure_per_xi2.data() + slot0,
@@ -829,6 +832,7 @@ inline std::int64_t cache_entry(const RowBlocks& plan, const RowRun& run, std::i
   if (scratch.dead_known.empty()) {
     scratch.dead_known.assign(static_cast<std::size_t>(plan.dead_cache_entries), 0);
     scratch.dead_cache.assign(static_cast<std::size_t>(plan.dead_cache_entries * scratch.dead_stride), 0);
+    scratch.live_cache.assign(static_cast<std::size_t>(plan.dead_cache_entries * scratch.live_words), 0);
   }
   return run.dead_cache + e;
 }
@@ -985,6 +989,12 @@ void loop_avx2(const BondLaw& L, const BondView& v, const RowBlocks& rows, doubl
   // Boxes pair their bonds only in calls without energy (the energy would need a second ring).
   std::size_t box = Energy ? rows.boxes.size() : 0;
   for (std::size_t r = 0; r < rows.runs.size();) {
+    // The next run's CSR offset and pattern (run_slots): rows far apart, each a cache miss that
+    // held up the loop between runs (1-2% of a 64^3 block's call).
+    if (r + 1 < rows.runs.size()) {
+      __builtin_prefetch(v.offsets + rows.runs[r + 1].first);
+      __builtin_prefetch(P.of_row.data() + rows.runs[r + 1].first);
+    }
     if (box < rows.boxes.size() && rows.boxes[box].run_begin == r) {
       box_avx2(laws, L, v, rows, rows.boxes[box], force, tally);
       r = rows.boxes[box++].run_end;
@@ -1365,7 +1375,8 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   std::int64_t slots_per_row = 0;
   for (const RowRun& run : plan.runs) slots_per_row = std::max(slots_per_row, v.offsets[run.first + 1] - v.offsets[run.first]);
   scratch.dead_lanes.assign(static_cast<std::size_t>(slots_per_row), 0);
-  scratch.live.assign(static_cast<std::size_t>(slots_per_row / 32 + 1), 0);
+  scratch.live_words = slots_per_row / 32 + 1;
+  scratch.live.assign(static_cast<std::size_t>(scratch.live_words), 0);
 #if defined(PERI_AVX2)
   // The cache of dead lanes: an entry of slots_per_row bytes per wide damaged block (W rows) of
   // the stride-1 runs of eight rows or more and of the mirrored runs (run_avx2, mirrored_run).

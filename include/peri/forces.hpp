@@ -159,9 +159,21 @@ struct RowBlocks {
     std::vector<std::uint8_t> dead_lanes;
     std::vector<std::uint32_t> live;
     std::vector<double> y2_floor, y2_break;
+    /// What y2_floor and y2_break were computed for: a pattern's slots and a law's failure stretch.
+    struct LimitsKey {
+      const double* xi2 = nullptr;
+      std::int64_t n = 0;
+      double critical0 = 0, critical_slope = 0;
+      bool operator==(const LimitsKey& o) const {
+        return xi2 == o.xi2 && n == o.n && critical0 == o.critical0 && critical_slope == o.critical_slope;
+      }
+    };
+    LimitsKey limits_of;
     std::vector<double> mirror;
     std::vector<std::uint8_t> dead_cache, dead_known;  ///< lane bytes, and whether each entry holds them
+    std::vector<std::uint32_t> live_cache;             ///< each entry's live slots (bits, live_words words)
     std::int64_t dead_stride = 0;                      ///< bytes per entry
+    std::int64_t live_words = 0;                       ///< words of live-slot bits per entry
     const std::uint8_t* dead_flags = nullptr;          ///< the flags the cache describes
   };
   mutable Scratch scratch;
