@@ -160,7 +160,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   mark_memory("start");
 
   // Nodes, and every check that needs them, before anything is allocated per rank.
-  const PartitionSettings partition_settings = partition_settings_from_options();
+  PartitionSettings partition_settings = partition_settings_from_options();
   check_fits(scene_, comm_, partition_settings.method == PartitionMethod::Bonds);
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
@@ -187,11 +187,20 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     for (const BodyGeometry& g : nodes_.bodies) max_reach = std::max(max_reach, reach(g));
     const CellList cells(nodes_, max_reach);
     mark_memory("nodes");
+    partition_settings.method = resolve_partition_method(partition_settings.method, nodes_);  // auto: rcb or cells
     partition_ = partition_nodes(nodes_, cells, ranks_, comm_, partition_settings);
     mark_memory("partition");
     Scene initial_cracks = scene_;  // cracks named by release stages break later
     std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
     domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_);
+    if (partition_.edge_cut < 0) {  // a partitioner without a graph (rcb): the bonds to ghost nodes
+      long long cut = 0, all = 0;
+      for (std::int32_t i : domain_.boundary_rows)
+        for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b)
+          cut += domain_.bonds.neighbor[b] >= domain_.owned;
+      MPI_Allreduce(&cut, &all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
+      partition_.edge_cut = all / 2;  // each cut bond from both ends
+    }
   }
   mark_memory("domain");
   bc_.assign(domain_.owned, -1);

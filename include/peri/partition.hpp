@@ -1,7 +1,13 @@
 // Partition: which rank owns which node; nodes are renumbered so each rank's owned nodes are
-// contiguous (natural order kept inside a part). Three partitioners fill the same `part` array
-// (option -partition_method):
-//   cells  (default) METIS k-way on a coarse graph: nodes binned into cubic cells of about the
+// contiguous (natural order kept inside a part). Four partitioners fill the same `part` array
+// (option -partition_method; the default, auto, takes rcb for a scene of one square-grid body that
+// fills its box, e.g. a block or a rectangular sheet, and cells for any other):
+//   rcb    recursive coordinate bisection of the nodes: each range of parts is halved by a plane
+//          across its longest extent (x's extent divided by the line weight, so that cuts keep x
+//          lines whole), at the node that splits the nodes in proportion to the parts, moved to
+//          the nearer end of the grid line it falls in. Flat cuts along grid planes, equal node
+//          counts to a line; every rank computes it (no communication), O(N log N log P).
+//   cells  METIS k-way on a coarse graph: nodes binned into cubic cells of about the
 //          horizon (down to half of it where needed for 64 cells per part), vertex weight = ordered
 //          bonds of the cell's nodes, edge weight = bonds between two cells; nodes inherit their
 //          cell's part. Serial on rank 0, memory O(cells) besides a 4-byte cell id per node.
@@ -36,25 +42,25 @@ struct Partition {
   void release_maps();
 };
 
-enum class PartitionMethod { Cells, Bonds, Petsc };
+enum class PartitionMethod { Auto, Rcb, Cells, Bonds, Petsc };
 
 /// A cell-graph edge between two cells of one row along x (the natural order's fastest axis)
 /// weighs this many times its bonds: a cut across x splits grid lines, whose rows next to the cut
 /// leave the stride-1 runs of the bond loop for strided or gathered ones (about twice the cost per
 /// bond), while a cut across y or z keeps every line whole. 1 weighs every cut bond alike.
 constexpr int kLineWeight = 2;
-/// "cells", "bonds" or "petsc"; InputError naming the option otherwise.
+/// "auto", "rcb", "cells", "bonds" or "petsc"; InputError naming the option otherwise.
 PartitionMethod partition_method(const std::string& name);
 const char* to_string(PartitionMethod m);
 
 struct PartitionSettings {
-  PartitionMethod method = PartitionMethod::Cells;
+  PartitionMethod method = PartitionMethod::Auto;
   int cells_per_part = 64;  ///< cells: shrink cells (not below half the horizon nor the spacing)
                             ///< until this many per part
   int line_weight = kLineWeight;  ///< cells, petsc: weight of a cut bond between cells of one x row
 };
 
-/// Partition settings from the PETSc options database: -partition_method cells|bonds|petsc,
+/// Partition settings from the PETSc options database: -partition_method auto|rcb|cells|bonds|petsc,
 /// -partition_cells_per_part N, -partition_line_weight W (1 ... 64). InputError (identical on every rank) for bad values.
 PartitionSettings partition_settings_from_options();
 
@@ -109,9 +115,24 @@ struct PartitionQuality {
 PartitionQuality quality(const CellGraph& graph, const std::vector<int>& cell_part, int parts);
 PartitionQuality quality(const BondGraph& graph, const std::vector<int>& part, int parts);
 
+/// Whether the nodes are one square-grid body with a node at every grid point of its box.
+bool fills_its_box(const Nodes& nodes);
+
+/// Ordered bonds of each node of such a body (fills_its_box) from its grid alone, before cracks:
+/// what neighbours_of finds, without a neighbour search (rcb's node weights).
+std::vector<std::int32_t> grid_bond_counts(const Nodes& nodes);
+
+/// The partitioner `auto` stands for with these nodes: rcb for one square-grid body that fills its
+/// box (every grid point a node), cells otherwise; any other method as given.
+PartitionMethod resolve_partition_method(PartitionMethod method, const Nodes& nodes);
+
+/// Recursive coordinate bisection (see the top of this file): a part per node, parts >= 1. An
+/// x extent counts 1/line_weight of its length when choosing the axis to cut.
+std::vector<int> rcb_parts(const Nodes& nodes, int parts, int line_weight = kLineWeight);
+
 /// Parts of every node, with the chosen partitioner (collective on comm: METIS methods run on
 /// rank 0 and broadcast; petsc runs on all ranks). parts <= 1: everything in part 0.
 Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm,
-                          const PartitionSettings& settings = {});
+                          PartitionSettings settings = {});
 
 }  // namespace peri
