@@ -33,10 +33,13 @@ def main():
     ap.add_argument("--latency", type=float, default=2e-6, help="message latency [s] (default 2e-6)")
     ap.add_argument("--bandwidth", type=float, default=5e9, help="bytes/s per rank (default 5e9)")
     ap.add_argument("--out", default=None, help="write OUT.csv and OUT.png")
-    ap.add_argument("--method", default="cells",
-                    help="partitioner rows to model when the report has several (cells or bonds; default cells)")
+    ap.add_argument("--method", default=None,
+                    help="partitioner rows to model when the report has several (rcb, cells or bonds; default: "
+                         "the first row's, which peridrive-partition lists first: the one peridrive takes)")
     a = ap.parse_args()
-    rows = [r for r in csv.DictReader(open(a.report)) if r.get("method", a.method) == a.method]
+    rows = list(csv.DictReader(open(a.report)))
+    method = a.method or (rows[0].get("method") if rows else None)
+    rows = [r for r in rows if r.get("method", method) == method]
     if not rows:
         sys.exit(f"{a.report}: no rows")
     bonds = float(rows[0]["ordered_bonds"])
@@ -54,7 +57,7 @@ def main():
                         halo_fraction=halo / t_no, metis_seconds=float(r["metis_seconds"])))
     print(f"# {int(bonds)} ordered bonds, t_bond = {a.bond_seconds:.3g} s, latency {a.latency:.3g} s, "
           f"bandwidth {a.bandwidth:.3g} B/s; single-core step {t1:.4g} s")
-    print("| P | nodes/rank | step [s] (no overlap) | efficiency (no overlap) | efficiency (overlap) | load balance | METIS [s] |")
+    print("| P | nodes/rank | step [s] (no overlap) | efficiency (no overlap) | efficiency (overlap) | load balance | partitioner [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for o in out:
         print(f"| {o['parts']} | {o['nodes_per_rank']:.0f} | {o['step_seconds_no_overlap']:.3g} | "
@@ -71,11 +74,11 @@ def main():
         P = [o["parts"] for o in out]
         ax.semilogx(P, [o["efficiency_no_overlap"] for o in out], "o-", base=2, label="no overlap")
         ax.semilogx(P, [o["efficiency_overlap"] for o in out], "s--", base=2, label="halo overlapped")
-        ax.semilogx(P, [o["load_balance"] for o in out], ":", base=2, color="gray", label="load balance (METIS)")
+        ax.semilogx(P, [o["load_balance"] for o in out], ":", base=2, color="gray", label=f"load balance ({method})")
         ax.set_xlabel("ranks P")
         ax.set_ylabel("predicted strong-scaling efficiency")
         ax.set_ylim(0, 1.05)
-        ax.set_title(f"{int(float(rows[0]['nodes']))} nodes, {bonds:.3g} ordered bonds")
+        ax.set_title(f"{int(float(rows[0]['nodes']))} nodes, {bonds:.3g} ordered bonds, {method} partitions")
         ax.grid(True, alpha=0.3)
         ax.legend()
         fig.tight_layout()

@@ -4,11 +4,11 @@
 // memory above its input). Feeds cluster/scaling_model.py.
 //
 //   peridrive-partition scene.yaml [--set KEY=VALUE ...] --parts 2,4,8,...,4096
-//                       [--method cells,bonds] [--cells-per-part 64] [--line-weight 2] [--csv FILE]
+//                       [--method rcb,cells,bonds] [--cells-per-part 64] [--line-weight 2] [--csv FILE]
 //
 // One process, no MPI ranks needed: each partitioner runs serially, exactly as on rank 0 of a run
-// (cells: METIS on the coarse cell graph; bonds: METIS on the full bond graph, built inside the
-// measurement), in a forked child so that its peak memory is its own.
+// (rcb: recursive coordinate bisection; cells: METIS on the coarse cell graph; bonds: METIS on the
+// full bond graph, built inside the measurement), in a forked child so that its peak memory is its own.
 #include <mpi.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -73,7 +73,9 @@ Measured measure(const peri::Nodes& nodes, const peri::CellList& cells, int part
     long long vertices = n;
     int status = 0;
     try {
-      if (method == peri::PartitionMethod::Cells) {
+      if (method == peri::PartitionMethod::Rcb) {
+        part = peri::rcb_parts(nodes, parts, line_weight);
+      } else if (method == peri::PartitionMethod::Cells) {
         const peri::CellGraph g = peri::cell_graph(nodes, cells, peri::cell_size_for(nodes, parts, cells_per_part));
         const std::vector<int> cp = peri::metis_kway(g, parts, line_weight);
         for (std::int64_t i = 0; i < n; ++i) part[i] = cp[g.cell_of[i]];
@@ -130,6 +132,7 @@ std::vector<int> parse_parts(const std::string& text) {
 int run(int argc, char** argv) {
   std::string scene_path, csv_path;
   std::vector<peri::PartitionMethod> methods{peri::PartitionMethod::Cells, peri::PartitionMethod::Bonds};
+  bool default_methods = true;
   int cells_per_part = 64, line_weight = peri::kLineWeight;
   std::vector<peri::Override> overrides;
   std::vector<int> parts{2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096};
@@ -163,11 +166,13 @@ int run(int argc, char** argv) {
       std::stringstream list(value());
       std::string item;
       while (std::getline(list, item, ',')) {
-        if (item == "petsc") throw peri::InputError("--method petsc: this serial tool measures cells and bonds; "
+        if (item == "petsc") throw peri::InputError("--method petsc: this serial tool measures rcb, cells and bonds; "
                                                     "PETSc MatPartitioning runs inside peridrive (-partition_method petsc)");
+        if (item == "auto") throw peri::InputError("--method auto: name the partitioners to measure (rcb, cells, bonds)");
         methods.push_back(peri::partition_method(item));
       }
-      if (methods.empty()) throw peri::InputError("--method: expected cells, bonds or cells,bonds");
+      if (methods.empty()) throw peri::InputError("--method: expected a comma list of rcb, cells, bonds");
+      default_methods = false;
     }
     else if (a == "--set") {
       const std::string kv = value();
@@ -176,11 +181,13 @@ int run(int argc, char** argv) {
       overrides.push_back({kv.substr(0, eq), kv.substr(eq + 1)});
     } else if (a == "--help" || a == "-h") {
       std::puts(
-          "usage: peridrive-partition scene.yaml [--set KEY=VALUE ...] [--parts 2,4,...] [--method cells,bonds]\n"
+          "usage: peridrive-partition scene.yaml [--set KEY=VALUE ...] [--parts 2,4,...] [--method rcb,cells,bonds]\n"
           "                           [--cells-per-part 64] [--line-weight 2] [--csv FILE]\n"
-          "Partitions the scene for each P with each method (cells: METIS on the coarse cell graph, the default\n"
-          "of peridrive, its cut bonds within an x row of cells weighted --line-weight times, as -partition_line_weight;\n"
-          "bonds: METIS on the full bond graph) and prints per P and method: largest part's nodes\n"
+          "Partitions the scene for each P with each method (rcb: recursive coordinate bisection, peridrive's\n"
+          "default for one body filling its box, x extents divided by --line-weight; cells: METIS on the coarse\n"
+          "cell graph, peridrive's default otherwise, its cut bonds within an x row of cells weighted --line-weight\n"
+          "times, as -partition_line_weight; bonds: METIS on the full bond graph; default: rcb where peridrive\n"
+          "would take it, then cells and bonds) and prints per P and method: largest part's nodes\n"
           "and bonds, ghosts, neighbour parts, edge cut, balance, the partitioner's time and its peak memory.");
       return 0;
     } else if (scene_path.empty() && a[0] != '-') scene_path = a;
@@ -190,6 +197,7 @@ int run(int argc, char** argv) {
   const peri::Scene scene = peri::load_scene(scene_path, overrides);
   const auto t0 = std::chrono::steady_clock::now();
   const peri::Nodes nodes = peri::discretize(scene);
+  if (default_methods && peri::fills_its_box(nodes)) methods.insert(methods.begin(), peri::PartitionMethod::Rcb);
   double max_reach = 0;
   for (const peri::BodyGeometry& g : nodes.bodies) max_reach = std::max(max_reach, peri::reach(g));
   const peri::CellList cells(nodes, max_reach);

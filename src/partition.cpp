@@ -537,7 +537,6 @@ std::vector<int> rcb_parts(const Nodes& nodes, int parts, int line_weight) {
     const double share = total * left_parts / r.parts;
     std::int64_t split = r.begin;
     for (double sum = 0; split < r.end - 1 && sum + 0.5 * weight(order[split]) < share; ++split) sum += weight(order[split]);
-    split = std::max(split, r.begin + 1);
     auto same_line = [&](std::int64_t a, std::int64_t b) {
       return X[3 * order[a] + axis] == X[3 * order[b] + axis] && X[3 * order[a] + other] == X[3 * order[b] + other];
     };
@@ -553,6 +552,8 @@ std::vector<int> rcb_parts(const Nodes& nodes, int parts, int line_weight) {
       if (to_a && back <= 0.005 * share) split = a;
       else if (to_b && ahead <= 0.005 * share) split = b;
     }
+    // At least a node per part on either side (a part without nodes would leave a rank idle).
+    split = std::clamp(split, r.begin + left_parts, r.end - (r.parts - left_parts));
     todo.push_back({r.begin, split, r.first_part, left_parts});
     todo.push_back({split, r.end, r.first_part + left_parts, r.parts - left_parts});
   }
