@@ -74,10 +74,10 @@ State::State(const Domain& d, MPI_Comm comm) : comm_(comm), owned_(d.owned) {
 }
 
 void State::setup_halo(const Domain& d) {
-  PetscInt chunk = 160;  // largest message in nodes (see below)
+  PetscInt chunk = 0;  // largest message in nodes (see below); 0: one message per neighbour
   PetscBool set = PETSC_FALSE;
   PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-halo_chunk_nodes", &chunk, &set));
-  if (chunk < 1) throw InputError("-halo_chunk_nodes: expected a positive number of nodes, got " + std::to_string(chunk));
+  if (set && chunk < 1) throw InputError("-halo_chunk_nodes: expected a positive number of nodes, got " + std::to_string(chunk));
   int ranks = 1;
   MPI_Comm_size(comm_, &ranks);
   if (ranks == 1) return;
@@ -109,12 +109,15 @@ void State::setup_halo(const Domain& d) {
     send_offset_.push_back(static_cast<std::int64_t>(send_nodes_.size()));
   }
   recv_buffer_.resize(3 * static_cast<std::size_t>(d.ghosts));
-  // To a rank on the same node, messages of at most `chunk` nodes (default 160: 3840 bytes,
-  // below the 4 KB eager limit of Open MPI's shared memory): an eager send is complete once
-  // posted, so the receiver needs nothing more of the sender (a rendezvous send through shared
-  // memory needs both inside MPI), and at most kMaxMessages per neighbour (a larger halo takes
-  // larger messages). To another node, one message: network rendezvous is driven by the NIC.
-  // Both ends of a pair compute the same split.
+  // By default one message per neighbour: through shared memory Open MPI's large messages are
+  // fetched by the receiver (single copy, CMA), which then needs nothing more of the sender, and
+  // a 3D halo as many eager messages of 4 KB waited on the sender's progress (the 64^3 block on
+  // 2 ranks: PeriHalo 0.10 s against 0.007 s per run, the step 1.045 times as fast; 2D halos
+  // alike). Where shared memory has no single copy, `-halo_chunk_nodes 160` (3840 bytes, below
+  // the 4 KB eager limit) splits messages to a rank on the same node, at most kMaxMessages per
+  // neighbour (a larger halo takes larger messages): an eager send is complete once posted. To
+  // another node, one message: network rendezvous is driven by the NIC. Both ends of a pair
+  // compute the same split.
   MPI_Comm node;
   MPI_Comm_split_type(comm_, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node);
   int me = 0, node_rank = 0;
@@ -127,7 +130,7 @@ void State::setup_halo(const Domain& d) {
   MPI_Allgather(&node_leader, 1, MPI_INT, node_of.data(), 1, MPI_INT, comm_);
   constexpr std::int64_t kMaxMessages = 64;
   auto chunk_for = [&](int p, std::int64_t count) {
-    if (node_of[p] != node_of[me]) return std::max<std::int64_t>(count, 1);
+    if (chunk == 0 || node_of[p] != node_of[me]) return std::max<std::int64_t>(count, 1);
     return std::max<std::int64_t>(chunk, (count + kMaxMessages - 1) / kMaxMessages);
   };
   constexpr int kTag = 7;
