@@ -9,7 +9,7 @@
 //   AB_CRITICAL=S0 (critical stretch; default 0.5 PMB and solid, 5 membrane), AB_STRAIN=EPS (a
 //   uniform strain along x on top: AB_CRITICAL=0.0005 AB_STRAIN=0.002 breaks half the solid's
 //   bonds, as late in compare_lammps.py's run), AB_STATE=PREFIX (displacements and broken flags
-//   of a one-rank run: PREFIX_u.bin, PREFIX_broken.bin), AB_QUADRATURE=full, AB_NO_PAIRS.
+//   of a one-rank run: PREFIX_u.bin, PREFIX_broken.bin), AB_QUADRATURE=full, AB_NO_PAIRS, AB_ENERGY (the calls sum the strain energy).
 #include <petscsys.h>
 
 #include <algorithm>
@@ -126,17 +126,18 @@ int main(int argc, char** argv) {
                      d.bonds.broken.data(), &d.bonds.patterns, x.data(), stride, d.bonds.row_broken.data()};
     // Each version plans the rows its own way.
     const bool pairs_on = !std::getenv("AB_NO_PAIRS");
+    const bool energy = std::getenv("AB_ENERGY") != nullptr;  // the strain-energy variant of the loop
     const RowBlocks plan_a = periA::plan_rows(as<periA::BondView>(v), rows.data(), rows.size(), pairs_on);
     const RowBlocks plan_b = periB::plan_rows(as<periB::BondView>(v), rows.data(), rows.size(), pairs_on);
     std::vector<double> fa(3 * static_cast<std::size_t>(d.owned)), fb(fa.size());
     BondTally ta, tb;
     auto run_a = [&] {
       periA::bond_forces(as<periA::BondLaw>(law), as<periA::BondView>(v), as<periA::RowBlocks>(plan_a), fa.data(),
-                         false, reinterpret_cast<periA::BondTally&>(ta));
+                         energy, reinterpret_cast<periA::BondTally&>(ta));
     };
     auto run_b = [&] {
       periB::bond_forces(as<periB::BondLaw>(law), as<periB::BondView>(v), as<periB::RowBlocks>(plan_b), fb.data(),
-                         false, reinterpret_cast<periB::BondTally&>(tb));
+                         energy, reinterpret_cast<periB::BondTally&>(tb));
     };
     auto seconds = [](auto&& f) {
       const auto t0 = std::chrono::steady_clock::now();
@@ -169,6 +170,9 @@ int main(int argc, char** argv) {
     std::printf("  speed-up B over A per pair: median %.3f, quartiles %.3f - %.3f\n", quantile(ratio, 0.5),
                 quantile(ratio, 0.25), quantile(ratio, 0.75));
     std::printf("  largest relative force difference %.2e\n", diff);
+    if (energy)
+      std::printf("  strain energy A %.17g, B %.17g (relative difference %.2e)\n", ta.strain_energy, tb.strain_energy,
+                  std::fabs(ta.strain_energy - tb.strain_energy) / std::max(std::fabs(ta.strain_energy), 1e-300));
   }
   PetscFinalize();
   return 0;

@@ -174,6 +174,7 @@ struct Bonds {
   typename S::V d0, d1, d2;
   typename S::V xi2, measure, inv_xi, measure_per_xi2;  // |xi|^2, w V_j, 1/|xi|, w V_j / |xi|^2
   typename S::V y2_floor, y2_break;  // the law's limits on y^2 (VecLaw::limits)
+  typename S::V xi_len, energy_weight;  // energy calls: |xi| and the slot's energy factor (VecLaw::limits)
   unsigned dead;  // bit l: lane l's bond is broken already, or lane l is idle
 };
 using Bonds4 = Bonds<Simd4>;
@@ -188,19 +189,21 @@ struct VecLaw {
   using V = typename S::V;
   using M = typename S::M;
   static constexpr int W = S::W;
-  double c_row, tiny_s, crit0_s, crit_slope_s;
-  V zero, one, half, rsqrt_c2, rsqrt_c3, c_energy, tiny, r_max, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon;
+  static constexpr bool kEnergy = Energy;
+  double c_row, tiny_s, crit0_s, crit_slope_s, c_energy_s, inv_horizon_s;
+  V zero, one, half, rsqrt_c2, rsqrt_c3, tiny, r_max, crit0, crit0_sq, inv_crit0_sq, crit_slope, inv_horizon;
   explicit VecLaw(const BondLaw& L)
       : c_row(K == ModelKind::Membrane ? 2.0 * L.c : L.c),
         tiny_s(1e-12),
         crit0_s(L.critical0),
         crit_slope_s(Linear ? (L.critical_delta - L.critical0) / L.horizon : 0.0),
+        c_energy_s(K == ModelKind::Membrane ? L.c : 0.5 * L.c),
+        inv_horizon_s(1.0 / L.horizon),
         zero(S::zero()),
         one(S::set1(1.0)),
         half(S::set1(0.5)),
         rsqrt_c2(S::set1(0.375)),
         rsqrt_c3(S::set1(0.3125)),
-        c_energy(S::set1(K == ModelKind::Membrane ? L.c : 0.5 * L.c)),
         tiny(S::set1(1e-12)),
         r_max(S::set1(1e12)),
         crit0(S::set1(L.critical0)),
@@ -210,15 +213,42 @@ struct VecLaw {
         inv_horizon(S::set1(1.0 / L.horizon)) {}
 
   // A slot's limits on y^2, which depend on the slot alone: y2_floor = 1e-12 xi^2 (PMB: coincident
-  // nodes), y2_break = (lambda_0(xi) xi)^2 (the failure test, eqs. 11 and 29). A run computes them
-  // once per slot (scalars: the same bits as lane by lane), not once per block. The membrane law
-  // with a constant lambda_0 uses neither (its test is r <= lambda_0^-2).
-  static constexpr bool kLimits = K == ModelKind::PMB || Linear;
-  void limits(const double* xi2, const double* inv_xi, std::int64_t n, double* y2_floor, double* y2_break) const {
+  // nodes), y2_break = (lambda_0(xi) xi)^2 (the failure test, eqs. 11 and 29); in energy calls
+  // also |xi| and the factor of the slot's energy (energy_factor). A run computes them once per
+  // slot (scalars: the same bits as lane by lane), not once per block. The membrane law with a
+  // constant lambda_0 needs no limits outside energy calls (its test is r <= lambda_0^-2).
+  static constexpr bool kLimits = K == ModelKind::PMB || Linear || Energy;
+  // c_energy_s g w V / |xi| (PMB) or / |xi|^4 (membrane): what a bond's energy density multiplies
+  // (coefficient), per slot.
+  double energy_factor(double xi_len, double inv_xi, double measure) const {
+    const double g = Conical ? std::max(0.0, std::fma(-xi_len, inv_horizon_s, 1.0)) : 1.0;
+    const double gm = Conical ? g * measure : measure;
+    return K == ModelKind::Membrane ? c_energy_s * gm * ((inv_xi * inv_xi) * (inv_xi * inv_xi))
+                                    : c_energy_s * gm * inv_xi;
+  }
+  void limits(const double* xi2, const double* inv_xi, const double* measure, std::int64_t n, double* y2_floor,
+              double* y2_break, double* xi_len, double* energy_weight) const {
     for (std::int64_t k = 0; k < n; ++k) {
       const double lc = Linear ? std::fma(crit_slope_s, xi2[k] * inv_xi[k], crit0_s) : crit0_s;
       y2_floor[k] = tiny_s * xi2[k];
       y2_break[k] = Linear ? lc * lc * xi2[k] : (crit0_s * crit0_s) * xi2[k];
+      if constexpr (Energy) {
+        xi_len[k] = xi2[k] * inv_xi[k];
+        energy_weight[k] = energy_factor(xi_len[k], inv_xi[k], measure[k]);
+      }
+    }
+  }
+  // The energy slots of gathered lanes (group_avx2), lane by lane as limits() computes them.
+  void energy_slots(Bonds<S>& b, const double* xi2, const double* inv_xi, const double* measure,
+                    const std::int64_t* slot) const {
+    if constexpr (Energy) {
+      alignas(64) double xl[W], ew[W];
+      for (int l = 0; l < W; ++l) {
+        xl[l] = xi2[slot[l]] * inv_xi[slot[l]];
+        ew[l] = energy_factor(xl[l], inv_xi[slot[l]], measure[slot[l]]);
+      }
+      b.xi_len = S::loadu(xl);
+      b.energy_weight = S::loadu(ew);
     }
   }
   void limits(Bonds<S>& b) const {
@@ -251,7 +281,7 @@ struct VecLaw {
     const V y2 = S::add(S::fmadd(b.d2, b.d2, S::mul(b.d0, b.d0)), S::mul(b.d1, b.d1));
     V xi = zero, g = one;
     // |xi| = |xi|^2 / |xi|: a multiplication by the pattern's 1/|xi|, not a square root.
-    if constexpr (Conical || (K == ModelKind::PMB && Energy)) xi = S::mul(s2, b.inv_xi);
+    if constexpr (Conical) xi = S::mul(s2, b.inv_xi);
     if constexpr (Conical) g = S::max(zero, S::fnmadd(xi, inv_horizon, one));
     // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
     V ratio = one, y2g = y2;
@@ -268,10 +298,9 @@ struct VecLaw {
       if constexpr (Conical) a = S::mul(g, a);
       coef = S::zero_where(dead, S::fnmadd(a, S::mul(ratio, ratio), a));  // g wV/xi^2 (1 - r^2)
       if constexpr (Energy) {  // eq. (13): c (lambda^2 + lambda^-2 - 2) g = c g ((y^2 - xi^2) / xi^2)^2 r
-        // (no division beyond r's: the energy steps cost little more than the others)
-        const V e = S::mul(S::sub(y2, s2), S::mul(b.inv_xi, b.inv_xi));
-        const V ge = S::mul(c_energy, Conical ? S::mul(g, b.measure) : b.measure);
-        w = S::add(w, S::zero_where(dead, S::mul(S::mul(ge, S::mul(e, e)), ratio)));
+        // (no division beyond r's; c g w V / xi^4 is the slot's energy_weight)
+        const V e = S::sub(y2, s2);
+        w = S::add(w, S::zero_where(dead, S::mul(b.energy_weight, S::mul(S::mul(e, e), ratio))));
       }
     } else {
       const V gm = Conical ? S::mul(g, b.measure) : b.measure;
@@ -293,10 +322,9 @@ struct VecLaw {
       const V inv_y = S::div(one, y);
 #endif
       coef = S::zero_where(dead, S::mul(gm, S::sub(b.inv_xi, inv_y)));  // c g (1/xi - 1/y)
-      if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
-        const V stretch = S::sub(y, xi);
-        const V ge = S::mul(c_energy, gm);
-        w = S::add(w, S::zero_where(dead, S::mul(S::mul(ge, S::mul(stretch, stretch)), b.inv_xi)));
+      if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi, (c/2) g w V / xi the slot's energy_weight
+        const V stretch = S::sub(y, b.xi_len);
+        w = S::add(w, S::zero_where(dead, S::mul(b.energy_weight, S::mul(stretch, stretch))));
       }
     }
     return coef;
@@ -373,9 +401,9 @@ struct Resume {
 struct RunSlots {
   const std::int32_t* __restrict neighbor;
   std::int64_t n;
-  const double *xi2, *measure, *inv_xi, *measure_per_xi2, *y2_floor, *y2_break;
-  // Slot k on every lane of b.
-  template <class S>
+  const double *xi2, *measure, *inv_xi, *measure_per_xi2, *y2_floor, *y2_break, *xi_len, *energy_weight;
+  // Slot k on every lane of b (`Energy`: the energy slots too).
+  template <bool Energy, class S>
   __attribute__((always_inline)) void broadcast(Bonds<S>& b, std::int64_t k) const {
     b.xi2 = S::broadcast(xi2 + k);
     b.measure = S::broadcast(measure + k);
@@ -383,6 +411,10 @@ struct RunSlots {
     b.measure_per_xi2 = S::broadcast(measure_per_xi2 + k);
     b.y2_floor = S::broadcast(y2_floor + k);
     b.y2_break = S::broadcast(y2_break + k);
+    if constexpr (Energy) {
+      b.xi_len = S::broadcast(xi_len + k);
+      b.energy_weight = S::broadcast(energy_weight + k);
+    }
   }
 };
 
@@ -428,7 +460,7 @@ void block_avx2(const Law& law, const BondLaw& L, const BondView& v, const RunSl
     b.d0 = _mm256_sub_pd(lanes(px, j, t), xi0);
     b.d1 = _mm256_sub_pd(lanes(py, j, t), xi1);
     b.d2 = _mm256_sub_pd(lanes(pz, j, t), xi2);
-    run.broadcast(b, k);
+    run.template broadcast<Law::kEnergy>(b, k);
     if constexpr (Intact) b.dead = 0;
     else b.dead = (fl0[k] & kBroken) | (fl1[k] & kBroken) << 1 | (fl2[k] & kBroken) << 2 | (fl3[k] & kBroken) << 3;
     const unsigned fresh = law.add(b, f0, f1, f2, w);
@@ -479,7 +511,7 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
     for (std::int64_t k = k0; k < k1; ++k) {
       const std::int64_t j = nbr[k];
       Bonds<S> b;
-      run.broadcast(b, k);
+      run.template broadcast<Law::kEnergy>(b, k);
       b.dead = 0;
       unsigned fresh = 0;
       for (int g = 0; g < G; ++g) {
@@ -637,7 +669,7 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     b.d0 = S::sub(S::loadu(px + j), x0);
     b.d1 = S::sub(S::loadu(py + j), x1);
     b.d2 = S::sub(S::loadu(pz + j), x2);
-    run.broadcast(b, k);
+    run.template broadcast<Law::kEnergy>(b, k);
     b.dead = dead[k];
     const unsigned fresh = law.add(b, f0, f1, f2, w);
     if (fresh) [[unlikely]] {
@@ -737,6 +769,7 @@ void group_avx2(const Law& law, const BondLaw& L, const BondView& v, const std::
     bonds.inv_xi = slots(P.inv_xi);
     bonds.measure_per_xi2 = slots(P.measure_per_xi2);
     law.limits(bonds);
+    law.energy_slots(bonds, P.xi2.data(), P.inv_xi.data(), P.measure.data(), s);
     bonds.dead = dead;
     const unsigned fresh = law.add(bonds, f0, f1, f2, w);
     if (fresh) [[unlikely]]
@@ -770,16 +803,19 @@ RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBloc
   if constexpr (Law::kLimits) {
     // Once per pattern and law while consecutive runs share them (most runs of a body: a call of
     // the 64^3 block computed them for each of its 4096 runs, 2.5% of its step).
-    RowBlocks::Scratch::LimitsKey key{P.xi2.data() + slot0, n, law.crit0_s, law.crit_slope_s};
+    const RowBlocks::Scratch::LimitsKey key{P.xi2.data() + slot0, n,         law.crit0_s, law.crit_slope_s,
+                                            law.c_energy_s,           Law::kEnergy};
     if (!(key == scratch.limits_of)) {
-      law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, n, scratch.y2_floor.data(), scratch.y2_break.data());
+      law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, P.measure.data() + slot0, n, scratch.y2_floor.data(),
+                 scratch.y2_break.data(), scratch.xi_len.data(), scratch.energy_weight.data());
       scratch.limits_of = key;
     }
   }
   return {v.neighbor + b0,          n,
           P.xi2.data() + slot0,     P.measure.data() + slot0,
           P.inv_xi.data() + slot0,  P.measure_per_xi2.data() + slot0,
-          scratch.y2_floor.data(),  scratch.y2_break.data()};
+          scratch.y2_floor.data(),  scratch.y2_break.data(),
+          scratch.xi_len.data(),    scratch.energy_weight.data()};
 }
 
 // The current positions of the plan's mirror columns (RowBlocks::mirror_columns), copied.
@@ -1392,6 +1428,8 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
 #endif
   scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
+  scratch.xi_len.assign(static_cast<std::size_t>(slots_per_row), 0.0);
+  scratch.energy_weight.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   return plan;
 }
 
