@@ -44,13 +44,19 @@ options:
   --help             this text
 PETSc options (single dash, e.g. -log_view) pass through to PETSc. Partitioner (which rank owns
 which node; results do not depend on it):
-  -partition_method cells   METIS k-way on a coarse graph of cells of about the horizon (the
-                            default; serial on rank 0, memory O(cells), >= 64 cells per rank)
+  -partition_method auto    the default: rcb for one square-grid body that fills its box, else cells
+  -partition_method rcb     recursive coordinate bisection: flat cuts along grid planes, parts
+                            weighted by their bonds, on every rank in O(N log N log P)
+  -partition_method cells   METIS k-way on a coarse graph of cells of about the horizon (serial
+                            on rank 0, memory O(cells), >= 64 cells per rank)
   -partition_method bonds   METIS k-way on the full bond graph (serial on rank 0, about 20 bytes
                             per ordered bond on rank 0 during setup)
   -partition_method petsc   PETSc MatPartitioning on the cell graph, in parallel; type by
                             -partition_mat_partitioning_type (default ptscotch)
   -partition_cells_per_part N   cells per rank at least (default 64; cells shrink to the spacing)
+  -partition_line_weight W  weight of a cut across x lines (default 2; rcb, cells, petsc)
+  -halo_chunk_nodes N       split a halo message to a rank on the same node into N-node messages
+                            (default: one message; 160 keeps them below the 4 KB eager limit)
 summary.json reports the method, edge cut, balance (largest rank's bonds / mean), partitioner
 time, and the peak memory summed over ranks after each setup phase ("memory").
 
