@@ -1,6 +1,5 @@
 #include "peri/partition.hpp"
 
-#include <tuple>
 #include <metis.h>
 #include <petscmat.h>
 

@@ -112,8 +112,8 @@ void State::setup_halo(const Domain& d) {
   // By default one message per neighbour: through shared memory Open MPI's large messages are
   // fetched by the receiver (single copy, CMA), which then needs nothing more of the sender, and
   // a 3D halo as many eager messages of 4 KB waited on the sender's progress (the 64^3 block on
-  // 2 ranks: PeriHalo 0.10 s against 0.007 s per run, the step 1.045 times as fast; 2D halos
-  // alike). Where shared memory has no single copy, `-halo_chunk_nodes 160` (3840 bytes, below
+  // 2 ranks: PeriHalo 0.10 s against 0.007 s per run, the step 1.045 times as fast; the 500^2
+  // membrane's step unchanged). Where shared memory has no single copy, `-halo_chunk_nodes 160` (3840 bytes, below
   // the 4 KB eager limit) splits messages to a rank on the same node, at most kMaxMessages per
   // neighbour (a larger halo takes larger messages): an eager send is complete once posted. To
   // another node, one message: network rendezvous is driven by the NIC. Both ends of a pair

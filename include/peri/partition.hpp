@@ -4,9 +4,10 @@
 // fills its box, e.g. a block or a rectangular sheet, and cells for any other):
 //   rcb    recursive coordinate bisection of the nodes: each range of parts is halved by a plane
 //          across its longest extent (x's extent divided by the line weight, so that cuts keep x
-//          lines whole), at the node that splits the nodes in proportion to the parts, moved to
-//          the nearer end of the grid line it falls in. Flat cuts along grid planes, equal node
-//          counts to a line; every rank computes it (no communication), O(N log N log P).
+//          lines whole), at the node where the nodes' weight (their bond counts on a grid that
+//          fills its box, else 1) reaches the left parts' share, moved to the nearer end of the
+//          grid line it falls in where that costs at most 0.5% of the share. Flat cuts along grid
+//          planes; every rank computes it (no communication), O(N log N log P).
 //   cells  METIS k-way on a coarse graph: nodes binned into cubic cells of about the
 //          horizon (down to half of it where needed for 64 cells per part), vertex weight = ordered
 //          bonds of the cell's nodes, edge weight = bonds between two cells; nodes inherit their
@@ -57,7 +58,8 @@ struct PartitionSettings {
   PartitionMethod method = PartitionMethod::Auto;
   int cells_per_part = 64;  ///< cells: shrink cells (not below half the horizon nor the spacing)
                             ///< until this many per part
-  int line_weight = kLineWeight;  ///< cells, petsc: weight of a cut bond between cells of one x row
+  int line_weight = kLineWeight;  ///< cells, petsc: weight of a cut bond between cells of one x row;
+                                  ///< rcb: an x extent counts 1/line_weight
 };
 
 /// Partition settings from the PETSc options database: -partition_method auto|rcb|cells|bonds|petsc,
