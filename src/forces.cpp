@@ -663,6 +663,13 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
   V f0 = law.zero, f1 = law.zero, f2 = law.zero, w = law.zero;
   int newly[W] = {};
   double diss[W] = {};
+  // Flags and books slot k's bonds breaking now on lanes `fresh`, and keeps the lane bits.
+  auto book_fresh = [&](std::int64_t k, unsigned fresh) {
+    const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
+    mark_fresh<W>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
+    dead[k] = static_cast<std::uint8_t>(dead[k] | fresh);
+    if (dead[k] == (1u << W) - 1u) live[k / 32] &= ~(std::uint32_t{1} << (k % 32));  // broken on every lane now
+  };
   auto slot = [&](std::int64_t k) __attribute__((always_inline)) {
     const std::int64_t j = nbr[k];
     Bonds<S> b;
@@ -672,12 +679,7 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     run.template broadcast<Law::kEnergy>(b, k);
     b.dead = dead[k];
     const unsigned fresh = law.add(b, f0, f1, f2, w);
-    if (fresh) [[unlikely]] {
-      const double w0 = breaking_energy(L, run.xi2[k], run.measure[k]);  // the slot's, for every lane
-      mark_fresh<W>(fresh, flag_row, k, [w0](int) { return w0; }, newly, diss);
-      dead[k] = static_cast<std::uint8_t>(dead[k] | fresh);
-      if (dead[k] == (1u << W) - 1u) live[k / 32] &= ~(std::uint32_t{1} << (k % 32));  // broken on every lane now
-    }
+    if (fresh) [[unlikely]] book_fresh(k, fresh);
   };
   // The live slots' bits one by one (no branch per slot, which a fully broken slot here and there
   // mispredicts), kept with the cached lanes from call to call. (AB_STATE on the 64^3 block of
@@ -688,12 +690,7 @@ void damaged_block(const Law& law, const BondLaw& L, const BondView& v, const Ru
     f1 = from->f1;
     f2 = from->f2;
     w = from->w;
-    if (from_fresh) {
-      const double w0 = breaking_energy(L, run.xi2[from_k], run.measure[from_k]);
-      mark_fresh<W>(from_fresh, flag_row, from_k, [w0](int) { return w0; }, newly, diss);
-      dead[from_k] = static_cast<std::uint8_t>(dead[from_k] | from_fresh);
-      if (dead[from_k] == (1u << W) - 1u) live[from_k / 32] &= ~(std::uint32_t{1} << (from_k % 32));
-    }
+    if (from_fresh) book_fresh(from_k, from_fresh);
     for (std::int64_t k = from_k + 1; k < n; ++k) slot(k);  // no slot broken before this call
   } else {
     for (std::int64_t c = 0; c < n; c += 32)
