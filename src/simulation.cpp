@@ -242,6 +242,19 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     inv_density_[i] = 1.0 / density_[domain_.body[i]];
     mass_[i] = density_[domain_.body[i]] * domain_.volume[i];
   }
+  // The Verlet update's streams: runs of owned nodes of one body without a boundary (at most 64
+  // nodes, so that a run failing the quick motion check is rechecked cheaply), and the others.
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    if (bc_[i] >= 0) {
+      bc_rows_.push_back(i);
+      continue;
+    }
+    FreeRun* last = free_runs_.empty() ? nullptr : &free_runs_.back();
+    if (last && last->end == i && last->body == domain_.body[i] && i - last->begin < 64)
+      last->end = i + 1;
+    else
+      free_runs_.push_back({i, i + 1, domain_.body[i]});
+  }
   {
     // Energy of a uniform strain of 1e-10 in every body, sum m c_l^2 x 1e-20: the smallest energy
     // the balance is judged against (a body at rest holds only round-off, ~1e-21 J).
@@ -583,7 +596,19 @@ void Simulation::step(bool with_energy) {
     u[k] += dt * v[k];
     return dt * dt * v[k] * v[k];
   };
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+  // Instability detector: no stable explicit step moves a node by a sizeable part of the spacing.
+  // (A node without intact bonds flies ballistically: exact at any speed, never unstable.)
+  // The first such node in local order is reported (the streams below visit the nodes in another).
+  std::int32_t unstable_row = -1;
+  double unstable_moved2 = 0;
+  auto check_motion = [&](std::int32_t i, double moved2) {
+    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0 && (unstable_row < 0 || i < unstable_row) &&
+        has_intact_bond(i)) {
+      unstable_row = i;
+      unstable_moved2 = moved2;
+    }
+  };
+  auto kick_drift_node = [&](std::int32_t i) {
     const int bi = bc_[i];
     const std::size_t k0 = 3 * static_cast<std::size_t>(i);
     double moved2 = 0;
@@ -605,12 +630,41 @@ void Simulation::step(bool with_energy) {
         moved2 += kick_drift(i, k);
       }
     }
-    // Instability detector: no stable explicit step moves a node by a sizeable part of the spacing.
-    // (A node without intact bonds flies ballistically: exact at any speed, never unstable.)
-    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0 && has_intact_bond(i)) {
-      unstable_node_ = domain_.natural[i];
-      unstable_motion_ = std::sqrt(moved2);
+    check_motion(i, moved2);
+  };
+  const bool streaming = !damped_run && !kelvin;
+  if (streaming) {
+    // Free runs: the same half kick and drift as kick_drift (damp_old = 1), one contiguous
+    // stream of 3 (end - begin) components. Each component within (motion limit)^2 / 3 bounds
+    // the node's squared motion by the limit; a run with any component beyond it (or a NaN) is
+    // checked node by node.
+    for (const FreeRun& r : free_runs_) {
+      const double ir = inv_density_[r.begin];
+      const double v2_third = motion_limit2_[r.body] / (3 * dt * dt) * (1 - 1e-12);
+      const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
+      double* vr = v + k0;
+      double* ur = u + k0;
+      const double* fr = force_.data() + k0;
+      int fast = 1;
+      for (std::size_t k = 0; k < n; ++k) {
+        const double vk = vr[k] + 0.5 * dt * fr[k] * ir;
+        vr[k] = vk;
+        ur[k] += dt * vk;
+        fast &= vk * vk <= v2_third;
+      }
+      if (!fast)
+        for (std::int32_t i = r.begin; i < r.end; ++i) {
+          const std::size_t k = 3 * static_cast<std::size_t>(i);
+          check_motion(i, dt * dt * v[k] * v[k] + dt * dt * v[k + 1] * v[k + 1] + dt * dt * v[k + 2] * v[k + 2]);
+        }
     }
+    for (std::int32_t i : bc_rows_) kick_drift_node(i);
+  } else {
+    for (std::int32_t i = 0; i < domain_.owned; ++i) kick_drift_node(i);
+  }
+  if (unstable_row >= 0) {
+    unstable_node_ = domain_.natural[unstable_row];
+    unstable_motion_ = std::sqrt(unstable_moved2);
   }
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
@@ -628,16 +682,12 @@ void Simulation::step(bool with_energy) {
     if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
     if (damped_run) damped += mass_[i] * v[k] * v[k];
   };
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+  auto kick_node = [&](std::int32_t i) {
     const int bi = bc_[i];
     const std::size_t k0 = 3 * static_cast<std::size_t>(i);
-    if (bi < 0) {  // most nodes: no per-component boundary test
-      for (int c = 0; c < 3; ++c) kick(i, k0 + c);
-      continue;
-    }
     for (int c = 0; c < 3; ++c) {
       const std::size_t k = k0 + c;
-      if (scene_.boundaries[bi].components[c]) {
+      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
         // Work of the reaction that enforces the motion: change of the node's kinetic energy
         // minus the work of the internal force along the prescribed path (trapezoidal).
         const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
@@ -647,6 +697,18 @@ void Simulation::step(bool with_energy) {
         kick(i, k);
       }
     }
+  };
+  if (streaming) {
+    for (const FreeRun& r : free_runs_) {  // kick with damp_new = 1, one stream per run
+      const double ir = inv_density_[r.begin];
+      const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
+      double* vr = v + k0;
+      const double* fr = force_.data() + k0;
+      for (std::size_t k = 0; k < n; ++k) vr[k] = vr[k] + 0.5 * dt * fr[k] * ir;
+    }
+    for (std::int32_t i : bc_rows_) kick_node(i);
+  } else {
+    for (std::int32_t i = 0; i < domain_.owned; ++i) kick_node(i);
   }
   // Friction: the force found at t + dt acts between v(t + dt/2) and v(t + 3dt/2), whose mean is
   // the velocity just computed.

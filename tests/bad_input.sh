@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Hostile input at the driver level, on 2 ranks: each case must exit with status 2, print one
-# message naming file:line, key and what was expected, and leave no output directory behind.
+# message naming file:line, key and what was expected, and leave no output directory behind; a run
+# that fails on the way (the last case) exits with status 3 and leaves a FAILED marker.
 # usage: bad_input.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -u
 peridrive=$1 src=$2 mpiexec=$3
@@ -80,5 +81,19 @@ expect tool_kind "tools.0.kind: expected one of" -- "$tool" --set tools.rod.kind
 expect tool_center "tools.0.center: expected a list of 2 numbers [x, y] [m]" -- "$tool" --set tools.rod.center=[0,0,0]
 sed 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$tool" > "$work/tool_qs.yaml"
 expect tool_quasistatic "a quasistatic stage in a scene with tools" -- "$work/tool_qs.yaml"
+
+# A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,
+# which the grips' nodes exceed at once): status 3, one message, and the same message in a FAILED
+# marker beside the partial output.
+out="$work/out-unstable"
+"${mpi[@]}" "$peridrive" "$scene" --set stability.motion_per_step=1e-4 --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="unstable explicit integration detected by step 10 (t = 5.80098e-07 s): node"
+if [ "$rc" -eq 3 ] && [ "$(grep -c "peridrive: error:" "$work/stderr")" -eq 1 ] && grep -qF -- "$want" "$work/stderr" &&
+   grep -qF -- "more than stability.motion_per_step = 0.0001 of the grid spacing" "$out/FAILED"; then
+  echo "ok   unstable_motion: $(grep "peridrive: error:" "$work/stderr" | cut -c1-160)"; pass=$((pass + 1))
+else
+  echo "FAIL unstable_motion: exit status $rc"; cat "$work/stderr"; ls "$out"; fail=$((fail + 1))
+fi
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -210,6 +210,12 @@ class Simulation : public EquilibriumModel {
   std::vector<ContactTally> tool_contact_;  // per tool: this rank's contact at time_ (forces, friction)
   std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
   std::vector<int> bc_;                     // per owned node: boundary index or -1
+  struct FreeRun {                          // owned nodes [begin, end) of one body, no boundary
+    std::int32_t begin, end;
+    int body;
+  };
+  std::vector<FreeRun> free_runs_;          // Verlet update streams (step(), without damping or dashpots)
+  std::vector<std::int32_t> bc_rows_;       // owned nodes with a boundary
   std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
   std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step
                                                           // increment, old velocity, old force
