@@ -136,6 +136,7 @@ struct Simd4 {
   static unsigned bits(M m) { return static_cast<unsigned>(_mm256_movemask_pd(m)); }
   static M with_lanes(M m, unsigned lanes) { return _mm256_or_pd(m, lane_mask(lanes)); }
   static V zero_where(M m, V a) { return _mm256_andnot_pd(m, a); }
+  static V fnmadd_or_zero(M m, V a, V b, V c) { return zero_where(m, fnmadd(a, b, c)); }
 };
 #if defined(PERI_AVX512VL)
 struct Simd8 {
@@ -162,6 +163,7 @@ struct Simd8 {
   static unsigned bits(M m) { return m; }
   static M with_lanes(M m, unsigned lanes) { return static_cast<M>(m | lanes); }
   static V zero_where(M m, V a) { return _mm512_maskz_mov_pd(static_cast<M>(~m), a); }
+  static V fnmadd_or_zero(M m, V a, V b, V c) { return _mm512_maskz_fnmadd_pd(static_cast<M>(~m), a, b, c); }
 };
 using SimdWide = Simd8;
 #else
@@ -174,6 +176,7 @@ struct Bonds {
   typename S::V d0, d1, d2;
   typename S::V xi2, measure, inv_xi, measure_per_xi2;  // |xi|^2, w V_j, 1/|xi|, w V_j / |xi|^2
   typename S::V y2_floor, y2_break;  // the law's limits on y^2 (VecLaw::limits)
+  typename S::V weight, weight_per_xi;  // PMB: g w V_j and g w V_j / |xi| (VecLaw::limits)
   typename S::V xi_len, energy_weight;  // energy calls: |xi| and the slot's energy factor (VecLaw::limits)
   unsigned dead;  // bit l: lane l's bond is broken already, or lane l is idle
 };
@@ -226,12 +229,21 @@ struct VecLaw {
     return K == ModelKind::Membrane ? c_energy_s * gm * ((inv_xi * inv_xi) * (inv_xi * inv_xi))
                                     : c_energy_s * gm * inv_xi;
   }
+  // PMB: g w V_j, the slot's weight (g = 1 - |xi|/delta if conical, else 1), and weight / |xi|.
+  double weight(double xi2, double inv_xi, double measure) const {
+    return Conical ? std::max(0.0, std::fma(-(xi2 * inv_xi), inv_horizon_s, 1.0)) * measure : measure;
+  }
   void limits(const double* xi2, const double* inv_xi, const double* measure, std::int64_t n, double* y2_floor,
-              double* y2_break, double* xi_len, double* energy_weight) const {
+              double* y2_break, double* weight_of, double* weight_per_xi, double* xi_len,
+              double* energy_weight) const {
     for (std::int64_t k = 0; k < n; ++k) {
       const double lc = Linear ? std::fma(crit_slope_s, xi2[k] * inv_xi[k], crit0_s) : crit0_s;
       y2_floor[k] = tiny_s * xi2[k];
       y2_break[k] = Linear ? lc * lc * xi2[k] : (crit0_s * crit0_s) * xi2[k];
+      if constexpr (K == ModelKind::PMB) {
+        weight_of[k] = weight(xi2[k], inv_xi[k], measure[k]);
+        weight_per_xi[k] = weight_of[k] * inv_xi[k];
+      }
       if constexpr (Energy) {
         xi_len[k] = xi2[k] * inv_xi[k];
         energy_weight[k] = energy_factor(xi_len[k], inv_xi[k], measure[k]);
@@ -253,6 +265,11 @@ struct VecLaw {
   }
   void limits(Bonds<S>& b) const {
     b.y2_floor = S::mul(tiny, b.xi2);
+    if constexpr (K == ModelKind::PMB) {  // as weight(), lane by lane
+      b.weight = b.measure;
+      if constexpr (Conical) b.weight = S::mul(S::max(zero, S::fnmadd(S::mul(b.xi2, b.inv_xi), inv_horizon, one)), b.measure);
+      b.weight_per_xi = S::mul(b.weight, b.inv_xi);
+    }
     if constexpr (Linear) {
       const V lc = S::fmadd(crit_slope, S::mul(b.xi2, b.inv_xi), crit0);
       b.y2_break = S::mul(S::mul(lc, lc), b.xi2);
@@ -281,8 +298,10 @@ struct VecLaw {
     const V y2 = S::add(S::fmadd(b.d2, b.d2, S::mul(b.d0, b.d0)), S::mul(b.d1, b.d1));
     V xi = zero, g = one;
     // |xi| = |xi|^2 / |xi|: a multiplication by the pattern's 1/|xi|, not a square root.
-    if constexpr (Conical) xi = S::mul(s2, b.inv_xi);
-    if constexpr (Conical) g = S::max(zero, S::fnmadd(xi, inv_horizon, one));
+    if constexpr (Conical && K == ModelKind::Membrane) {  // (PMB: in the slot's weight)
+      xi = S::mul(s2, b.inv_xi);
+      g = S::max(zero, S::fnmadd(xi, inv_horizon, one));
+    }
     // Membrane: r = xi^2 / y^2, capped for coincident nodes (as y^2 >= 1e-12 xi^2 in ScalarLoop).
     V ratio = one, y2g = y2;
     if constexpr (K == ModelKind::Membrane) ratio = S::min(S::div(s2, y2), r_max);
@@ -303,7 +322,6 @@ struct VecLaw {
         w = S::add(w, S::zero_where(dead, S::mul(b.energy_weight, S::mul(S::mul(e, e), ratio))));
       }
     } else {
-      const V gm = Conical ? S::mul(g, b.measure) : b.measure;
 #if defined(PERI_AVX512VL)
       // 1/y from AVX-512VL's 14-bit reciprocal square root estimate r and one correction of
       // third order: with e = 1 - y^2 r^2 (|e| < 2^-13), 1/y = r (1 - e)^-1/2
@@ -321,7 +339,7 @@ struct VecLaw {
       const V y = S::sqrt(y2g);
       const V inv_y = S::div(one, y);
 #endif
-      coef = S::zero_where(dead, S::mul(gm, S::sub(b.inv_xi, inv_y)));  // c g (1/xi - 1/y)
+      coef = S::fnmadd_or_zero(dead, b.weight, inv_y, b.weight_per_xi);  // c g wV (1/xi - 1/y)
       if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi, (c/2) g w V / xi the slot's energy_weight
         const V stretch = S::sub(y, b.xi_len);
         w = S::add(w, S::zero_where(dead, S::mul(b.energy_weight, S::mul(stretch, stretch))));
@@ -401,7 +419,8 @@ struct Resume {
 struct RunSlots {
   const std::int32_t* __restrict neighbor;
   std::int64_t n;
-  const double *xi2, *measure, *inv_xi, *measure_per_xi2, *y2_floor, *y2_break, *xi_len, *energy_weight;
+  const double *xi2, *measure, *inv_xi, *measure_per_xi2, *y2_floor, *y2_break, *weight, *weight_per_xi, *xi_len,
+      *energy_weight;
   // Slot k on every lane of b (`Energy`: the energy slots too).
   template <bool Energy, class S>
   __attribute__((always_inline)) void broadcast(Bonds<S>& b, std::int64_t k) const {
@@ -411,6 +430,8 @@ struct RunSlots {
     b.measure_per_xi2 = S::broadcast(measure_per_xi2 + k);
     b.y2_floor = S::broadcast(y2_floor + k);
     b.y2_break = S::broadcast(y2_break + k);
+    b.weight = S::broadcast(weight + k);
+    b.weight_per_xi = S::broadcast(weight_per_xi + k);
     if constexpr (Energy) {
       b.xi_len = S::broadcast(xi_len + k);
       b.energy_weight = S::broadcast(energy_weight + k);
@@ -800,11 +821,12 @@ RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBloc
   if constexpr (Law::kLimits) {
     // Once per pattern and law while consecutive runs share them (most runs of a body: a call of
     // the 64^3 block computed them for each of its 4096 runs, 2.5% of its step).
-    const RowBlocks::Scratch::LimitsKey key{P.xi2.data() + slot0, n,         law.crit0_s, law.crit_slope_s,
-                                            law.c_energy_s,           Law::kEnergy};
+    const RowBlocks::Scratch::LimitsKey key{P.xi2.data() + slot0, n,           law.crit0_s,    law.crit_slope_s,
+                                            law.c_energy_s,           law.inv_horizon_s, Law::kEnergy};
     if (!(key == scratch.limits_of)) {
       law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, P.measure.data() + slot0, n, scratch.y2_floor.data(),
-                 scratch.y2_break.data(), scratch.xi_len.data(), scratch.energy_weight.data());
+                 scratch.y2_break.data(), scratch.weight.data(), scratch.weight_per_xi.data(), scratch.xi_len.data(),
+                 scratch.energy_weight.data());
       scratch.limits_of = key;
     }
   }
@@ -812,6 +834,7 @@ RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBloc
           P.xi2.data() + slot0,     P.measure.data() + slot0,
           P.inv_xi.data() + slot0,  P.measure_per_xi2.data() + slot0,
           scratch.y2_floor.data(),  scratch.y2_break.data(),
+          scratch.weight.data(),    scratch.weight_per_xi.data(),
           scratch.xi_len.data(),    scratch.energy_weight.data()};
 }
 
@@ -1425,6 +1448,8 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
 #endif
   scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
+  scratch.weight.assign(static_cast<std::size_t>(slots_per_row), 0.0);
+  scratch.weight_per_xi.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.xi_len.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   scratch.energy_weight.assign(static_cast<std::size_t>(slots_per_row), 0.0);
   return plan;

@@ -158,17 +158,17 @@ struct RowBlocks {
     std::vector<double*> at;
     std::vector<std::uint8_t> dead_lanes;
     std::vector<std::uint32_t> live;
-    std::vector<double> y2_floor, y2_break, xi_len, energy_weight;
-    /// What y2_floor, y2_break (and, `energy`, xi_len and energy_weight) were computed for: a
-    /// pattern's slots, a law's failure stretch and energy constant.
+    std::vector<double> y2_floor, y2_break, weight, weight_per_xi, xi_len, energy_weight;
+    /// What y2_floor, y2_break, weight, weight_per_xi (and, `energy`, xi_len and energy_weight)
+    /// were computed for: a pattern's slots, a law's failure stretch, energy constant and horizon.
     struct LimitsKey {
       const double* xi2 = nullptr;
       std::int64_t n = 0;
-      double critical0 = 0, critical_slope = 0, energy_constant = 0;
+      double critical0 = 0, critical_slope = 0, energy_constant = 0, inv_horizon = 0;
       bool energy = false;
       bool operator==(const LimitsKey& o) const {
         return xi2 == o.xi2 && n == o.n && critical0 == o.critical0 && critical_slope == o.critical_slope &&
-               energy_constant == o.energy_constant && energy == o.energy;
+               energy_constant == o.energy_constant && inv_horizon == o.inv_horizon && energy == o.energy;
       }
     };
     LimitsKey limits_of;
