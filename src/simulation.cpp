@@ -642,17 +642,17 @@ void Simulation::step(bool with_energy) {
       const double ir = inv_density_[r.begin];
       const double v2_third = motion_limit2_[r.body] / (3 * dt * dt) * (1 - 1e-12);
       const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
-      double* vr = v + k0;
-      double* ur = u + k0;
-      const double* fr = force_.data() + k0;
-      int fast = 1;
+      double* __restrict vr = v + k0;
+      double* __restrict ur = u + k0;
+      const double* __restrict fr = force_.data() + k0;
       for (std::size_t k = 0; k < n; ++k) {
         const double vk = vr[k] + 0.5 * dt * fr[k] * ir;
         vr[k] = vk;
         ur[k] += dt * vk;
-        fast &= vk * vk <= v2_third;
       }
-      if (!fast)
+      int slow = 0;
+      for (std::size_t k = 0; k < n; ++k) slow |= !(vr[k] * vr[k] <= v2_third);
+      if (slow)
         for (std::int32_t i = r.begin; i < r.end; ++i) {
           const std::size_t k = 3 * static_cast<std::size_t>(i);
           check_motion(i, dt * dt * v[k] * v[k] + dt * dt * v[k + 1] * v[k + 1] + dt * dt * v[k + 2] * v[k + 2]);
@@ -702,8 +702,8 @@ void Simulation::step(bool with_energy) {
     for (const FreeRun& r : free_runs_) {  // kick with damp_new = 1, one stream per run
       const double ir = inv_density_[r.begin];
       const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
-      double* vr = v + k0;
-      const double* fr = force_.data() + k0;
+      double* __restrict vr = v + k0;
+      const double* __restrict fr = force_.data() + k0;
       for (std::size_t k = 0; k < n; ++k) vr[k] = vr[k] + 0.5 * dt * fr[k] * ir;
     }
     for (std::int32_t i : bc_rows_) kick_node(i);
