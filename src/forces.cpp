@@ -11,6 +11,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -216,10 +217,11 @@ struct VecLaw {
         inv_horizon(S::set1(1.0 / L.horizon)) {}
 
   // A slot's limits on y^2, which depend on the slot alone: y2_floor = 1e-12 xi^2 (PMB: coincident
-  // nodes), y2_break = (lambda_0(xi) xi)^2 (the failure test, eqs. 11 and 29); in energy calls
-  // also |xi| and the factor of the slot's energy (energy_factor). A run computes them once per
-  // slot (scalars: the same bits as lane by lane), not once per block. The membrane law with a
-  // constant lambda_0 needs no limits outside energy calls (its test is r <= lambda_0^-2).
+  // nodes), y2_break = (lambda_0(xi) xi)^2 (the failure test, eqs. 11 and 29); PMB: its weight;
+  // for energy calls |xi| and the factor of the slot's energy (energy_factor). A plan computes
+  // them once per family pattern of its runs and law (scalars: the same bits as lane by lane),
+  // not once per block. The membrane law with a constant lambda_0 needs no limits outside
+  // energy calls (its test is r <= lambda_0^-2).
   static constexpr bool kLimits = K == ModelKind::PMB || Linear || Energy;
   // c_energy_s g w V / |xi| (PMB) or / |xi|^4 (membrane): what a bond's energy density multiplies
   // (coefficient), per slot.
@@ -244,10 +246,8 @@ struct VecLaw {
         weight_of[k] = weight(xi2[k], inv_xi[k], measure[k]);
         weight_per_xi[k] = weight_of[k] * inv_xi[k];
       }
-      if constexpr (Energy) {
-        xi_len[k] = xi2[k] * inv_xi[k];
-        energy_weight[k] = energy_factor(xi_len[k], inv_xi[k], measure[k]);
-      }
+      xi_len[k] = xi2[k] * inv_xi[k];  // energy calls' (computed for all: cached per pattern)
+      energy_weight[k] = energy_factor(xi_len[k], inv_xi[k], measure[k]);
     }
   }
   // The energy slots of gathered lanes (group_avx2), lane by lane as limits() computes them.
@@ -814,28 +814,34 @@ inline bool rows_intact(const BondView& v, std::int32_t first, std::int32_t s, s
 
 // The run's slots, and the law's limits of each (into the plan's scratch: RowBlocks::Scratch).
 template <class Law>
-RunSlots run_slots(const Law& law, const BondView& v, const RowRun& run, RowBlocks::Scratch& scratch) {
+RunSlots run_slots(const Law& law, const BondView& v, const RowBlocks& plan, const RowRun& run) {
   const FamilyPatterns& P = *v.patterns;
+  RowBlocks::Scratch& scratch = plan.scratch;
   const std::int64_t b0 = v.offsets[run.first], n = v.offsets[run.first + 1] - b0;
   const std::int64_t slot0 = P.begin[P.of_row[run.first]];
+  const std::int64_t at = plan.limits_at[static_cast<std::size_t>(run.limits)];
   if constexpr (Law::kLimits) {
-    // Once per pattern and law while consecutive runs share them (most runs of a body: a call of
-    // the 64^3 block computed them for each of its 4096 runs, 2.5% of its step).
-    const RowBlocks::Scratch::LimitsKey key{P.xi2.data() + slot0, n,           law.crit0_s,    law.crit_slope_s,
-                                            law.c_energy_s,           law.inv_horizon_s, Law::kEnergy};
+    // Once per pattern and law (the runs of a 3D block switch patterns at every face line: with
+    // the last pattern's limits alone, the 32^3 block of compare_lammps.py computed them 2.7% of
+    // its step).
+    const RowBlocks::Scratch::LimitsKey key{law.crit0_s, law.crit_slope_s, law.c_energy_s, law.inv_horizon_s};
     if (!(key == scratch.limits_of)) {
-      law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, P.measure.data() + slot0, n, scratch.y2_floor.data(),
-                 scratch.y2_break.data(), scratch.weight.data(), scratch.weight_per_xi.data(), scratch.xi_len.data(),
-                 scratch.energy_weight.data());
+      std::fill(scratch.limits_known.begin(), scratch.limits_known.end(), 0);
       scratch.limits_of = key;
+    }
+    if (!scratch.limits_known[static_cast<std::size_t>(run.limits)]) {
+      law.limits(P.xi2.data() + slot0, P.inv_xi.data() + slot0, P.measure.data() + slot0, n,
+                 scratch.y2_floor.data() + at, scratch.y2_break.data() + at, scratch.weight.data() + at,
+                 scratch.weight_per_xi.data() + at, scratch.xi_len.data() + at, scratch.energy_weight.data() + at);
+      scratch.limits_known[static_cast<std::size_t>(run.limits)] = 1;
     }
   }
   return {v.neighbor + b0,          n,
           P.xi2.data() + slot0,     P.measure.data() + slot0,
           P.inv_xi.data() + slot0,  P.measure_per_xi2.data() + slot0,
-          scratch.y2_floor.data(),  scratch.y2_break.data(),
-          scratch.weight.data(),    scratch.weight_per_xi.data(),
-          scratch.xi_len.data(),    scratch.energy_weight.data()};
+          scratch.y2_floor.data() + at,  scratch.y2_break.data() + at,
+          scratch.weight.data() + at,    scratch.weight_per_xi.data() + at,
+          scratch.xi_len.data() + at,    scratch.energy_weight.data() + at};
 }
 
 // The current positions of the plan's mirror columns (RowBlocks::mirror_columns), copied.
@@ -931,7 +937,7 @@ void run_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
   RowBlocks::Scratch& scratch = plan.scratch;
   const std::int32_t* slot_shift = run.slot_shifts >= 0 ? plan.slot_shifts.data() + run.slot_shifts : nullptr;
   const auto& law = laws.narrow;
-  const RunSlots slots = run_slots(law, v, run, scratch);
+  const RunSlots slots = run_slots(law, v, plan, run);
   if (run.stride == 1) {
     const bool whole_run = rows_intact(v, run.first, 1, run.count);
     const SlotSegment all{BoxSlot::Own, 0, static_cast<std::int32_t>(slots.n)};
@@ -1008,7 +1014,7 @@ void box_avx2(const Laws& laws, const BondLaw& L, const BondView& v, const RowBl
       append(scratch.edge, kind == BoxSlot::Consume ? BoxSlot::Own : kind, static_cast<std::int32_t>(k));
       scratch.at[k] = scratch.ring.data() + ((ring_line % box.window) * box.columns + s.column) * ring_width + box.pad + lane;
     }
-    const RunSlots slots = run_slots(laws.narrow, v, run, scratch);
+    const RunSlots slots = run_slots(laws.narrow, v, rows, run);
     // Blocks at lanes q .. q + rows - 1 whose Consume partners all lie in the line: pad <= q and
     // q + rows - 1 + pad < width. Eight rows at once where they fit and are inner, else four (a
     // block of eight near an end evaluates its Consume slots for all eight rows: 0.97-0.99 as fast).
@@ -1446,12 +1452,25 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     plan.dead_cache_entries += blocks * kWideBlocks;
   }
 #endif
-  scratch.y2_floor.assign(static_cast<std::size_t>(slots_per_row), 0.0);
-  scratch.y2_break.assign(static_cast<std::size_t>(slots_per_row), 0.0);
-  scratch.weight.assign(static_cast<std::size_t>(slots_per_row), 0.0);
-  scratch.weight_per_xi.assign(static_cast<std::size_t>(slots_per_row), 0.0);
-  scratch.xi_len.assign(static_cast<std::size_t>(slots_per_row), 0.0);
-  scratch.energy_weight.assign(static_cast<std::size_t>(slots_per_row), 0.0);
+  // The runs' family patterns, each with its slots' place in the arrays of limits.
+  {
+    std::unordered_map<std::int32_t, std::int32_t> index;
+    for (RowRun& run : plan.runs) {
+      const std::int32_t pattern = P.of_row[run.first];
+      const auto [it, fresh] = index.emplace(pattern, static_cast<std::int32_t>(index.size()));
+      if (fresh) {
+        const std::int64_t at = plan.limits_at.empty() ? 0 : plan.limits_at.back();
+        if (plan.limits_at.empty()) plan.limits_at.push_back(0);
+        plan.limits_at.push_back(at + v.offsets[run.first + 1] - v.offsets[run.first]);
+      }
+      run.limits = it->second;
+    }
+    const std::size_t slots = plan.limits_at.empty() ? 0 : static_cast<std::size_t>(plan.limits_at.back());
+    for (std::vector<double>* a : {&scratch.y2_floor, &scratch.y2_break, &scratch.weight, &scratch.weight_per_xi,
+                                   &scratch.xi_len, &scratch.energy_weight})
+      a->assign(slots, 0.0);
+    scratch.limits_known.assign(index.size(), 0);
+  }
   return plan;
 }
 

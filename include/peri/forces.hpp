@@ -71,6 +71,8 @@ struct RowRun {
   std::int32_t mirror = -1;
   /// -1, or the first of this run's entries in the plan's cache of dead lanes (RowBlocks).
   std::int32_t dead_cache = -1;
+  /// Its family pattern among the plan's run patterns (RowBlocks::limits_at).
+  std::int32_t limits = -1;
 };
 
 /// Nodes node + m step (m < length) of the local positions, copied to places at + m of a plan's
@@ -139,14 +141,18 @@ struct RowBlocks {
   /// stage, a restart, flags cleared in place) need forget_broken(); a call with another flag
   /// array than the last forgets by itself.
   std::int64_t dead_cache_entries = 0;
+  /// The bond law's limits of each slot of the runs' family patterns (Scratch::y2_floor ...),
+  /// computed once per pattern and law: pattern p of the runs (RowRun::limits) at limits_at[p]
+  /// .. limits_at[p + 1] of those arrays.
+  std::vector<std::int64_t> limits_at;
   void forget_broken() const;
   /// The loop's working memory, sized by plan_rows and reused by every call (no allocation per
   /// step): for the boxes, the coefficient ring, which lines completed their Produce slots, and a
   /// line's slot kinds as segments of consecutive slots (for blocks away from the line's ends,
   /// and near them) and ring addresses; for blocks of runs with broken bonds, the broken flags
   /// of the block's rows as one byte of lane bits per slot, and the slots not broken on every
-  /// lane; for every run, the bond law's limits
-  /// on y^2 of each slot of its pattern; the mirror (three planes, mirror_stride apart).
+  /// lane; for each family pattern of the runs, the bond law's limits on y^2 and weights of each
+  /// slot (and which patterns hold them); the mirror (three planes, mirror_stride apart).
   struct Scratch {
     struct Segment {
       BoxSlot::Kind kind;
@@ -159,16 +165,14 @@ struct RowBlocks {
     std::vector<std::uint8_t> dead_lanes;
     std::vector<std::uint32_t> live;
     std::vector<double> y2_floor, y2_break, weight, weight_per_xi, xi_len, energy_weight;
-    /// What y2_floor, y2_break, weight, weight_per_xi (and, `energy`, xi_len and energy_weight)
-    /// were computed for: a pattern's slots, a law's failure stretch, energy constant and horizon.
+    std::vector<std::uint8_t> limits_known;  ///< per run pattern (RowBlocks::limits_at)
+    /// The law the limits were computed for: failure stretch, energy constant and horizon (a
+    /// call with another law forgets them all).
     struct LimitsKey {
-      const double* xi2 = nullptr;
-      std::int64_t n = 0;
       double critical0 = 0, critical_slope = 0, energy_constant = 0, inv_horizon = 0;
-      bool energy = false;
       bool operator==(const LimitsKey& o) const {
-        return xi2 == o.xi2 && n == o.n && critical0 == o.critical0 && critical_slope == o.critical_slope &&
-               energy_constant == o.energy_constant && inv_horizon == o.inv_horizon && energy == o.energy;
+        return critical0 == o.critical0 && critical_slope == o.critical_slope &&
+               energy_constant == o.energy_constant && inv_horizon == o.inv_horizon;
       }
     };
     LimitsKey limits_of;
