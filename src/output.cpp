@@ -86,7 +86,7 @@ FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const 
   check_h5(H5Pset_fapl_mpio(fapl, state.comm(), MPI_INFO_NULL), "H5Pset_fapl_mpio");
   const std::string path = dir + "/" + stem + ".h5";
   if (resume_step >= 0) {
-    if (reopen(path, fapl, resume_step)) {
+    if (reopen(path, fapl, resume_step) || salvage(path, fapl, resume_step, resolved_scene)) {
       H5Pclose(fapl);
       if (domain_.rank == 0) write_xdmf();
       return;
@@ -95,24 +95,31 @@ FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const 
       std::fprintf(stderr, "peridrive: note: '%s' cannot be continued; starting it afresh at step %lld\n",
                    path.c_str(), static_cast<long long>(resume_step));
   }
-  file_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
+  file_ = create(path, fapl, resolved_scene);
   H5Pclose(fapl);
-  if (file_ < 0) throw Error("cannot create HDF5 file '" + path + "'");
-  string_attribute(file_, "peridrive_version", version());
-  string_attribute(file_, "git_revision", git_revision());
-  string_attribute(file_, "scene", resolved_scene);
-  scalar_attribute<long long>(file_, "nodes", H5T_NATIVE_LLONG, domain.global_nodes);
-  scalar_attribute<int>(file_, "ranks", H5T_NATIVE_INT, domain.ranks);
-  hid_t mesh = check_id(H5Gcreate2(file_, "/mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/mesh");
+}
+
+hid_t FrameWriter::create(const std::string& path, hid_t fapl, const std::string& resolved_scene) {
+  const Domain& domain = domain_;
+  State& state = state_;
+  hid_t file = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
+  if (file < 0) throw Error("cannot create HDF5 file '" + path + "'");
+  string_attribute(file, "peridrive_version", version());
+  string_attribute(file, "git_revision", git_revision());
+  string_attribute(file, "scene", resolved_scene);
+  scalar_attribute<long long>(file, "nodes", H5T_NATIVE_LLONG, domain.global_nodes);
+  scalar_attribute<int>(file, "ranks", H5T_NATIVE_INT, domain.ranks);
+  hid_t mesh = check_id(H5Gcreate2(file, "/mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/mesh");
   write_dataset(mesh, "reference_position", state.to_natural(domain.X.data(), 3), 3);
   std::vector<double> body(domain.owned);
   for (std::int32_t i = 0; i < domain.owned; ++i) body[i] = domain.body[i];
   write_dataset(mesh, "body", state.to_natural(body.data(), 1), 1);
   write_dataset(mesh, "volume", state.to_natural(domain.volume.data(), 1), 1);
   H5Gclose(mesh);
-  hid_t frames = check_id(H5Gcreate2(file_, "/frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/frames");
+  hid_t frames = check_id(H5Gcreate2(file, "/frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/frames");
   H5Gclose(frames);
-  check_h5(H5Fflush(file_, H5F_SCOPE_GLOBAL), "H5Fflush");
+  check_h5(H5Fflush(file, H5F_SCOPE_GLOBAL), "H5Fflush");
+  return file;
 }
 
 bool FrameWriter::reopen(const std::string& path, hid_t fapl, std::int64_t resume_step) {
@@ -127,6 +134,8 @@ bool FrameWriter::reopen(const std::string& path, hid_t fapl, std::int64_t resum
   hid_t frames = ok ? H5Gopen2(file_, "/frames", H5P_DEFAULT) : -1;
   H5G_info_t info;
   ok = ok && frames >= 0 && H5Gget_info(frames, &info) >= 0;
+  // Every frame readable first (a partly written one: salvage()); then those after the step go.
+  std::vector<std::string> after;
   for (hsize_t k = 0; ok && k < info.nlinks; ++k) {
     const std::string name = frame_name(static_cast<int>(k));
     hid_t g = H5Lexists(file_, name.c_str(), H5P_DEFAULT) > 0 ? H5Gopen2(file_, name.c_str(), H5P_DEFAULT) : -1;
@@ -140,13 +149,17 @@ bool FrameWriter::reopen(const std::string& path, hid_t fapl, std::int64_t resum
       if (b >= 0) H5Aclose(b);
       H5Gclose(g);
     }
-    if (ok && step <= resume_step) {
+    if (ok && step <= resume_step && after.empty()) {
       times_.push_back(time);
       steps_.push_back(step);
     } else {
-      ok = H5Ldelete(file_, name.c_str(), H5P_DEFAULT) >= 0;  // a frame after the checkpoint, or partial
+      after.push_back(name);
     }
   }
+  int all = ok;
+  MPI_Allreduce(MPI_IN_PLACE, &all, 1, MPI_INT, MPI_MIN, state_.comm());
+  ok = all;
+  for (std::size_t k = 0; ok && k < after.size(); ++k) ok = H5Ldelete(file_, after[k].c_str(), H5P_DEFAULT) >= 0;
   if (frames >= 0) H5Gclose(frames);
   ok = ok && H5Fflush(file_, H5F_SCOPE_GLOBAL) >= 0;
   if (!ok) {
@@ -156,6 +169,98 @@ bool FrameWriter::reopen(const std::string& path, hid_t fapl, std::int64_t resum
     steps_.clear();
   }
   return ok;
+}
+
+bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resume_step,
+                          const std::string& resolved_scene) {
+  // Collective. A run killed while writing a frame can leave that frame's objects half written
+  // (HDF5 is not crash-safe): they then can be neither read nor unlinked, and reopen() gives up.
+  // The frames before it were flushed whole; they are copied, in order, into a new file that
+  // replaces the old one. Every rank reads its own slice of each dataset, as write() wrote it.
+  std::error_code ec;
+  int exists = domain_.rank == 0 && std::filesystem::is_regular_file(path, ec);
+  MPI_Bcast(&exists, 1, MPI_INT, 0, state_.comm());
+  if (!exists) return false;
+  hid_t old = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
+  if (old < 0) return false;
+  std::vector<const char*> names = {"position", "displacement", "damage"};
+  if (write_velocity_) names.push_back("velocity");
+  const hsize_t begin = static_cast<hsize_t>(state_.natural_begin()), count = static_cast<hsize_t>(state_.natural_count());
+  const std::string tmp = path + ".salvage";
+  hid_t fresh = create(tmp, fapl, resolved_scene);
+  std::vector<double> slice;
+  int kept = 0;
+  for (;; ++kept) {
+    const std::string name = frame_name(kept);
+    // The frame's group, step and time, and its datasets with the right shape: readable on every rank?
+    long long step = -1;
+    double time = 0;
+    hid_t g = H5Lexists(old, name.c_str(), H5P_DEFAULT) > 0 ? H5Gopen2(old, name.c_str(), H5P_DEFAULT) : -1;
+    int ok = g >= 0;
+    if (ok) {
+      hid_t a = H5Aopen(g, "step", H5P_DEFAULT), b = H5Aopen(g, "time", H5P_DEFAULT);
+      ok = a >= 0 && b >= 0 && H5Aread(a, H5T_NATIVE_LLONG, &step) >= 0 && H5Aread(b, H5T_NATIVE_DOUBLE, &time) >= 0 &&
+           step <= resume_step;
+      if (a >= 0) H5Aclose(a);
+      if (b >= 0) H5Aclose(b);
+    }
+    for (std::size_t d = 0; ok && d < names.size(); ++d) {
+      hid_t ds = H5Dopen2(g, names[d], H5P_DEFAULT);
+      hid_t space = ds >= 0 ? H5Dget_space(ds) : -1;
+      hsize_t dims[2] = {0, 0};
+      const int rank = space >= 0 ? H5Sget_simple_extent_dims(space, dims, nullptr) : -1;
+      const int bs = d == 2 ? 1 : 3;
+      ok = rank == (bs == 1 ? 1 : 2) && dims[0] == static_cast<hsize_t>(domain_.global_nodes) &&
+           (bs == 1 || dims[1] == 3);
+      if (space >= 0) H5Sclose(space);
+      if (ds >= 0) H5Dclose(ds);
+    }
+    int all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, state_.comm());
+    if (!all) {
+      if (g >= 0) H5Gclose(g);
+      break;
+    }
+    hid_t to = check_id(H5Gcreate2(fresh, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), name.c_str());
+    scalar_attribute<long long>(to, "step", H5T_NATIVE_LLONG, step);
+    scalar_attribute<double>(to, "time", H5T_NATIVE_DOUBLE, time);
+    for (std::size_t d = 0; d < names.size(); ++d) {
+      const int bs = d == 2 ? 1 : 3;
+      hid_t ds = check_id(H5Dopen2(g, names[d], H5P_DEFAULT), names[d]);
+      hid_t filespace = check_id(H5Dget_space(ds), "H5Dget_space");
+      hsize_t start[2] = {begin, 0}, counts[2] = {count, static_cast<hsize_t>(bs)};
+      check_h5(H5Sselect_hyperslab(filespace, H5S_SELECT_SET, start, nullptr, counts, nullptr), "hyperslab");
+      hid_t memspace = check_id(H5Screate_simple(bs == 1 ? 1 : 2, counts, nullptr), "memspace");
+      hid_t dxpl = check_id(H5Pcreate(H5P_DATASET_XFER), "dxpl");
+      check_h5(H5Pset_dxpl_mpio(dxpl, H5FD_MPIO_COLLECTIVE), "H5Pset_dxpl_mpio");
+      slice.resize(static_cast<std::size_t>(count) * bs);
+      check_h5(H5Dread(ds, H5T_NATIVE_DOUBLE, memspace, filespace, dxpl, slice.data()), names[d]);
+      H5Pclose(dxpl);
+      H5Sclose(memspace);
+      H5Sclose(filespace);
+      H5Dclose(ds);
+      write_dataset(to, names[d], slice.data(), bs);
+    }
+    H5Gclose(to);
+    H5Gclose(g);
+    times_.push_back(time);
+    steps_.push_back(step);
+  }
+  H5Fclose(old);
+  check_h5(H5Fflush(fresh, H5F_SCOPE_GLOBAL), "H5Fflush");
+  H5Fclose(fresh);
+  char msg[512] = {0};
+  if (domain_.rank == 0 && std::rename(tmp.c_str(), path.c_str()) != 0)
+    std::snprintf(msg, sizeof msg, "cannot rename '%s' to '%s': %s", tmp.c_str(), path.c_str(), std::strerror(errno));
+  MPI_Bcast(msg, sizeof msg, MPI_CHAR, 0, state_.comm());
+  if (msg[0]) throw Error(msg);
+  file_ = check_id(H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl), path.c_str());
+  if (domain_.rank == 0)
+    std::fprintf(stderr,
+                 "peridrive: note: '%s' held a partly written frame (a run stopped while writing it); "
+                 "its first %d frames, up to step %lld, were copied into a new file, which continues\n",
+                 path.c_str(), kept, static_cast<long long>(resume_step));
+  return true;
 }
 
 FrameWriter::~FrameWriter() {

@@ -34,7 +34,8 @@ class FrameWriter {
  public:
   /// Opens <dir>/<stem>.h5 collectively and writes the mesh (reference positions, body, volume).
   /// With resume_step >= 0 the existing file is continued instead: frames after that step are
-  /// deleted and the XDMF rewritten (a file that cannot be continued is replaced, with a note).
+  /// deleted and the XDMF rewritten; a file holding a partly written frame is rebuilt from its
+  /// whole frames up to that step, and one that cannot be opened is replaced (each with a note).
   FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain, State& state,
               const std::string& resolved_scene, bool write_velocity, std::int64_t resume_step = -1);
   ~FrameWriter();
@@ -48,6 +49,11 @@ class FrameWriter {
   void write_dataset(hid_t group, const char* name, const double* natural_slice, int bs);
   void write_xdmf() const;
   bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
+  /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
+  /// that replaces it (false if it cannot be opened at all). Collective.
+  bool salvage(const std::string& path, hid_t fapl, std::int64_t resume_step, const std::string& resolved_scene);
+  hid_t create(const std::string& path, hid_t fapl, const std::string& resolved_scene);  // with the mesh
+
   std::string dir_, stem_;
   const Domain& domain_;
   State& state_;
