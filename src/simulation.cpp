@@ -567,7 +567,28 @@ bool Simulation::has_intact_bond(std::int32_t row) const {
   return false;
 }
 
-void Simulation::step(bool with_energy) {
+void Simulation::settle_kick() {
+  if (!kick_pending_) return;
+  PetscLogEventBegin(events().update, 0, 0, 0, 0);
+  double* v;
+  PERI_PETSC(VecGetArray(state_->velocity(), &v));
+  second_kick_free(v, kick_dt_);
+  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
+  kick_pending_ = false;
+  PetscLogEventEnd(events().update, 0, 0, 0, 0);
+}
+
+void Simulation::second_kick_free(double* v, double dt) const {
+  for (const FreeRun& r : free_runs_) {  // kick with damp_new = 1, one stream per run
+    const double ir = inv_density_[r.begin];
+    const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
+    double* __restrict vr = v + k0;
+    const double* __restrict fr = force_.data() + k0;
+    for (std::size_t k = 0; k < n; ++k) vr[k] = vr[k] + 0.5 * dt * fr[k] * ir;
+  }
+}
+
+void Simulation::step(bool with_energy, bool defer_kick) {
   const double dt = dt_, t0 = time_, t1 = time_ + dt;
   // Mass-proportional damping alpha (force -rho alpha v), integrated semi-implicitly:
   // v_half = (1 - alpha dt/2) v + dt/2 a(t),  v(t+dt) = (v_half + dt/2 a(t+dt)) / (1 + alpha dt/2).
@@ -633,6 +654,13 @@ void Simulation::step(bool with_energy) {
     check_motion(i, moved2);
   };
   const bool streaming = !damped_run && !kelvin;
+  if (kick_pending_ && (!streaming || kick_dt_ != dt)) {  // (the per-node loop below needs v(t))
+    second_kick_free(v, kick_dt_);
+    kick_pending_ = false;
+  }
+  // The free nodes' second half kick of the step before, when it was deferred to this pass.
+  const bool pending = kick_pending_;
+  kick_pending_ = false;
   if (streaming) {
     // Free runs: the same half kick and drift as kick_drift (damp_old = 1), one contiguous
     // stream of 3 (end - begin) components. Each component within (motion limit)^2 / 3 bounds
@@ -645,10 +673,19 @@ void Simulation::step(bool with_energy) {
       double* __restrict vr = v + k0;
       double* __restrict ur = u + k0;
       const double* __restrict fr = force_.data() + k0;
-      for (std::size_t k = 0; k < n; ++k) {
-        const double vk = vr[k] + 0.5 * dt * fr[k] * ir;
-        vr[k] = vk;
-        ur[k] += dt * vk;
+      if (pending) {
+        for (std::size_t k = 0; k < n; ++k) {  // the two kicks of one pass, each rounded as alone
+          const double v_full = vr[k] + 0.5 * dt * fr[k] * ir;
+          const double vk = v_full + 0.5 * dt * fr[k] * ir;
+          vr[k] = vk;
+          ur[k] += dt * vk;
+        }
+      } else {
+        for (std::size_t k = 0; k < n; ++k) {
+          const double vk = vr[k] + 0.5 * dt * fr[k] * ir;
+          vr[k] = vk;
+          ur[k] += dt * vk;
+        }
       }
       int slow = 0;
       for (std::size_t k = 0; k < n; ++k) slow |= !(vr[k] * vr[k] <= v2_third);
@@ -699,12 +736,13 @@ void Simulation::step(bool with_energy) {
     }
   };
   if (streaming) {
-    for (const FreeRun& r : free_runs_) {  // kick with damp_new = 1, one stream per run
-      const double ir = inv_density_[r.begin];
-      const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
-      double* __restrict vr = v + k0;
-      const double* __restrict fr = force_.data() + k0;
-      for (std::size_t k = 0; k < n; ++k) vr[k] = vr[k] + 0.5 * dt * fr[k] * ir;
+    // The free nodes' second half kick: now, or (defer_kick, no tool reading v below) in the next
+    // step's first pass, which then reads and writes velocity once for both kicks.
+    if (defer_kick && tools_.empty()) {
+      kick_pending_ = true;
+      kick_dt_ = dt;
+    } else {
+      second_kick_free(v, dt);
     }
     for (std::int32_t i : bc_rows_) kick_node(i);
   } else {
@@ -745,6 +783,7 @@ void Simulation::add_tool_forces(double t, bool book) {
 }
 
 double Simulation::kinetic_energy() {
+  settle_kick();
   const double* v;
   PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
   double ke = 0;
@@ -978,6 +1017,7 @@ void Simulation::summarize_crack_tips() {
 }
 
 void Simulation::write_frame() {
+  settle_kick();
   PetscLogEventBegin(events().output, 0, 0, 0, 0);
   const auto t0 = std::chrono::steady_clock::now();
   update_damage();
@@ -993,6 +1033,7 @@ void Simulation::write_frame() {
 }
 
 void Simulation::check_health(std::int64_t step, double time) {
+  settle_kick();
   // Collective: first non-finite node (natural id) and the broken-bond count.
   const double* u;
   const double* v;
@@ -1141,19 +1182,26 @@ std::int64_t Simulation::advance(std::int64_t n) {
     }
     if (taken >= n) break;
     const bool series = (step_ + 1) % scene_.output.series_every == 0 || step_ + 1 == total_steps_;
-    step(series);
+    step(series, true);
     ++stage_step_;
     ++taken;
     const bool frame = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_;
+    const bool check = series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_;
+    // v(t + dt) whole before anything reads it, and before this call or the stage ends.
+    if (check || taken >= n || stage_step_ >= stage_steps_[stage_]) settle_kick();
     // Nothing is written before the state is checked: no non-finite value reaches a file.
-    if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
+    if (check) check_health(step_, time_);
     if (series) write_series_row();
     if (frame) {
       write_frame();
       while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
     }
-    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
+    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) {
+      settle_kick();
+      write_checkpoint();
+    }
   }
+  settle_kick();
   return taken;
 }
 
@@ -1360,6 +1408,7 @@ std::vector<double> Simulation::natural_positions() {
 }
 
 std::vector<double> Simulation::natural_velocities() {
+  settle_kick();
   const double* v;
   PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
   std::vector<double> copy(v, v + 3 * static_cast<std::size_t>(domain_.owned));
@@ -1504,6 +1553,7 @@ Checkpoint Simulation::make_checkpoint() {
 }
 
 void Simulation::write_checkpoint() {
+  settle_kick();
   PetscLogEventBegin(events().output, 0, 0, 0, 0);
   const auto t0 = std::chrono::steady_clock::now();
   store_checkpoint(checkpoint_path(), make_checkpoint(), comm_);

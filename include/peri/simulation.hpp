@@ -136,7 +136,11 @@ class Simulation : public EquilibriumModel {
   void start_stage();               // stage_: set its boundaries and step, or run it (no-time stages)
   void run_quasistatic(const Stage& stage);
   void run_release(const Stage& stage);
-  void step(bool with_energy);
+  // defer_kick: the free nodes' second half kick may wait for the next step's first pass
+  // (kick_pending_; settle_kick() applies it, as every reader of the velocity does first).
+  void step(bool with_energy, bool defer_kick = false);
+  void settle_kick();
+  void second_kick_free(double* v, double dt) const;  // the free runs' second half kick
   /// The bond loop's plans forget what they keep of the broken flags (RowBlocks::forget_broken):
   /// after flags are written other than by the loop (release stage, restart).
   void flags_changed();
@@ -216,6 +220,8 @@ class Simulation : public EquilibriumModel {
   };
   std::vector<FreeRun> free_runs_;          // Verlet update streams (step(), without damping or dashpots)
   std::vector<std::int32_t> bc_rows_;       // owned nodes with a boundary
+  bool kick_pending_ = false;               // free runs' second half kick deferred (step())
+  double kick_dt_ = 0;                      // its time step
   std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
   std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step
                                                           // increment, old velocity, old force
