@@ -255,11 +255,14 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
   MPI_Bcast(msg, sizeof msg, MPI_CHAR, 0, state_.comm());
   if (msg[0]) throw Error(msg);
   file_ = check_id(H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl), path.c_str());
-  if (domain_.rank == 0)
+  if (domain_.rank == 0 && kept > 0)
     std::fprintf(stderr,
                  "peridrive: note: '%s' held a partly written frame (a run stopped while writing it); "
                  "its first %d frames, up to step %lld, were copied into a new file, which continues\n",
                  path.c_str(), kept, static_cast<long long>(resume_step));
+  else if (domain_.rank == 0)
+    std::fprintf(stderr, "peridrive: note: '%s' cannot be continued; starting it afresh at step %lld\n",
+                 path.c_str(), static_cast<long long>(resume_step));
   return true;
 }
 
