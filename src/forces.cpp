@@ -1455,17 +1455,13 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
   // The runs' family patterns, each with its slots' place in the arrays of limits.
   {
     std::unordered_map<std::int32_t, std::int32_t> index;
+    plan.limits_at.assign(1, 0);
     for (RowRun& run : plan.runs) {
-      const std::int32_t pattern = P.of_row[run.first];
-      const auto [it, fresh] = index.emplace(pattern, static_cast<std::int32_t>(index.size()));
-      if (fresh) {
-        const std::int64_t at = plan.limits_at.empty() ? 0 : plan.limits_at.back();
-        if (plan.limits_at.empty()) plan.limits_at.push_back(0);
-        plan.limits_at.push_back(at + v.offsets[run.first + 1] - v.offsets[run.first]);
-      }
+      const auto [it, fresh] = index.emplace(P.of_row[run.first], static_cast<std::int32_t>(index.size()));
+      if (fresh) plan.limits_at.push_back(plan.limits_at.back() + v.offsets[run.first + 1] - v.offsets[run.first]);
       run.limits = it->second;
     }
-    const std::size_t slots = plan.limits_at.empty() ? 0 : static_cast<std::size_t>(plan.limits_at.back());
+    const std::size_t slots = static_cast<std::size_t>(plan.limits_at.back());
     for (std::vector<double>* a : {&scratch.y2_floor, &scratch.y2_break, &scratch.weight, &scratch.weight_per_xi,
                                    &scratch.xi_len, &scratch.energy_weight})
       a->assign(slots, 0.0);

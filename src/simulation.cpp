@@ -11,6 +11,7 @@
 #include <set>
 #include <sstream>
 #include <unordered_map>
+#include <type_traits>
 
 #include "peri/build_info.hpp"
 #include "peri/checkpoint.hpp"
@@ -572,7 +573,7 @@ void Simulation::settle_kick() {
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   double* v;
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  second_kick_free(v, kick_dt_);
+  second_kick_free(v, dt_);
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   kick_pending_ = false;
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
@@ -654,11 +655,8 @@ void Simulation::step(bool with_energy, bool defer_kick) {
     check_motion(i, moved2);
   };
   const bool streaming = !damped_run && !kelvin;
-  if (kick_pending_ && (!streaming || kick_dt_ != dt)) {  // (the per-node loop below needs v(t))
-    second_kick_free(v, kick_dt_);
-    kick_pending_ = false;
-  }
-  // The free nodes' second half kick of the step before, when it was deferred to this pass.
+  // The free nodes' second half kick of the step before, when it was deferred to this pass (a
+  // stage, which alone sets damping and dt, begins with none pending).
   const bool pending = kick_pending_;
   kick_pending_ = false;
   if (streaming) {
@@ -673,20 +671,16 @@ void Simulation::step(bool with_energy, bool defer_kick) {
       double* __restrict vr = v + k0;
       double* __restrict ur = u + k0;
       const double* __restrict fr = force_.data() + k0;
-      if (pending) {
-        for (std::size_t k = 0; k < n; ++k) {  // the two kicks of one pass, each rounded as alone
-          const double v_full = vr[k] + 0.5 * dt * fr[k] * ir;
-          const double vk = v_full + 0.5 * dt * fr[k] * ir;
-          vr[k] = vk;
-          ur[k] += dt * vk;
-        }
-      } else {
+      auto stream = [&](auto both) {  // (a compile-time choice: a test in the loop kept it scalar)
         for (std::size_t k = 0; k < n; ++k) {
-          const double vk = vr[k] + 0.5 * dt * fr[k] * ir;
+          double vk = vr[k] + 0.5 * dt * fr[k] * ir;
+          if constexpr (decltype(both)::value) vk = vk + 0.5 * dt * fr[k] * ir;  // two kicks, each rounded alone
           vr[k] = vk;
           ur[k] += dt * vk;
         }
-      }
+      };
+      if (pending) stream(std::true_type{});
+      else stream(std::false_type{});
       int slow = 0;
       for (std::size_t k = 0; k < n; ++k) slow |= !(vr[k] * vr[k] <= v2_third);
       if (slow)
@@ -740,7 +734,6 @@ void Simulation::step(bool with_energy, bool defer_kick) {
     // step's first pass, which then reads and writes velocity once for both kicks.
     if (defer_kick && tools_.empty()) {
       kick_pending_ = true;
-      kick_dt_ = dt;
     } else {
       second_kick_free(v, dt);
     }
@@ -1137,6 +1130,7 @@ void Simulation::begin() {
 }
 
 void Simulation::start_stage() {
+  settle_kick();  // with the force and time step it was deferred with
   const Stage& st = scene_.stages[stage_];
   if (st.kind == StageKind::QuasiStatic) {
     run_quasistatic(st);
@@ -1186,22 +1180,17 @@ std::int64_t Simulation::advance(std::int64_t n) {
     ++stage_step_;
     ++taken;
     const bool frame = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_;
-    const bool check = series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_;
-    // v(t + dt) whole before anything reads it, and before this call or the stage ends.
-    if (check || taken >= n || stage_step_ >= stage_steps_[stage_]) settle_kick();
     // Nothing is written before the state is checked: no non-finite value reaches a file.
-    if (check) check_health(step_, time_);
+    // (Each reader of the velocity applies a deferred kick first: settle_kick().)
+    if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
     if (series) write_series_row();
     if (frame) {
       write_frame();
       while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
     }
-    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) {
-      settle_kick();
-      write_checkpoint();
-    }
+    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
   }
-  settle_kick();
+  settle_kick();  // v(t) whole when the call returns
   return taken;
 }
 

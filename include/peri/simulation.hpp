@@ -220,8 +220,7 @@ class Simulation : public EquilibriumModel {
   };
   std::vector<FreeRun> free_runs_;          // Verlet update streams (step(), without damping or dashpots)
   std::vector<std::int32_t> bc_rows_;       // owned nodes with a boundary
-  bool kick_pending_ = false;               // free runs' second half kick deferred (step())
-  double kick_dt_ = 0;                      // its time step
+  bool kick_pending_ = false;               // free runs' second half kick deferred (step(); dt_, force_)
   std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
   std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step
                                                           // increment, old velocity, old force
