@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <numeric>
 #include <unordered_map>
@@ -13,7 +14,71 @@ double reach(const BodyGeometry& g) {
   return g.horizon + g.spacing * (g.kind == BodyKind::Solid ? 0.8660254037844387 : 0.7071067811865476);
 }
 
-CellList::CellList(const Nodes& nodes, double reach_) {
+namespace {
+
+// The grid's unit along each axis: the spacing on square and cubic grids; dx/2 and dx sqrt(3)/2
+// along x and y on hexagonal ones (the units discretize() places nodes on, the same expressions).
+std::array<double, 3> lattice_units(const BodyGeometry& g) {
+  const double dx = g.spacing;
+  const bool hex = g.grid == Grid::Hexagonal;
+  return {hex ? 0.5 * dx : dx, hex ? dx * std::sqrt(3.0) / 2.0 : dx, dx};
+}
+
+// Offset of grid node (i, j, k) from the body's first node in lattice units (hexagonal grids: x
+// in half spacings, odd rows one further).
+std::array<std::int64_t, 3> units_from_first(const BodyGeometry& g, std::int64_t i, std::int64_t j, std::int64_t k) {
+  return {g.grid == Grid::Hexagonal ? 2 * i + (j % 2) : i, j, k};
+}
+
+// The stencil of body g, or an empty one when its nodes do not fill its grid in raster order.
+LatticeStencil lattice_stencil(const Nodes& nodes, int body) {
+  const BodyGeometry& g = nodes.bodies[body];
+  LatticeStencil st;
+  const std::int64_t nx = g.cells[0], ny = g.cells[1], nz = g.cells[2];
+  if (g.count <= 0 || nx * ny * nz != g.count || g.first + g.count > nodes.size() || !(g.spacing > 0)) return st;
+  const std::array<double, 3> unit = lattice_units(g);
+  const double* x0 = &nodes.X[3 * g.first];
+  for (std::int64_t l = 0; l < g.count; ++l) {  // every node where the raster order puts it
+    const std::int64_t n = g.first + l;
+    if (nodes.body[n] != body) return st;
+    const auto u = units_from_first(g, l % nx, (l / nx) % ny, l / (nx * ny));
+    for (int c = 0; c < 3; ++c)
+      if (std::fabs((nodes.X[3 * n + c] - x0[c]) / unit[c] - static_cast<double>(u[c])) > 1e-3) return st;
+  }
+  st.cells = g.cells;
+  st.uniform_volume = std::all_of(nodes.volume.begin() + g.first, nodes.volume.begin() + g.first + g.count,
+                                  [&](double v) { return v == nodes.volume[g.first]; });
+  const double far = reach(g) + 1e-6 * g.spacing, far2 = far * far;
+  const std::int64_t mx = static_cast<std::int64_t>(std::ceil(far / g.spacing)) + 1;
+  const std::int64_t my = static_cast<std::int64_t>(std::ceil(far / unit[1])) + 1;
+  const std::int64_t mz = g.kind == BodyKind::Solid ? mx : 0;
+  const int parities = g.grid == Grid::Hexagonal ? 2 : 1;
+  for (int p = 0; p < parities; ++p)
+    for (std::int64_t dk = -mz; dk <= mz; ++dk)  // (dk, dj, di) ascending: natural ids ascending
+      for (std::int64_t dj = -my; dj <= my; ++dj)
+        for (std::int64_t di = -mx; di <= mx; ++di) {
+          if (di == 0 && dj == 0 && dk == 0) continue;
+          const std::int64_t ux = parities == 2 ? 2 * di + (((p + dj) % 2 + 2) % 2) - p : di;
+          // What reference_offset gives for this pair: nearbyint(difference / unit) * unit.
+          const double xi[3] = {static_cast<double>(ux) * unit[0], static_cast<double>(dj) * unit[1],
+                                static_cast<double>(dk) * unit[2]};
+          if (xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2] > far2) continue;
+          const double w = quadrature_weight(g, xi);
+          if (!(w > 0)) continue;
+          st.by_parity[p].push_back({static_cast<std::int32_t>(di), static_cast<std::int32_t>(dj),
+                                     static_cast<std::int32_t>(dk), (dk * ny + dj) * nx + di, w,
+                                     xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]});
+          st.extent = {std::max(st.extent[0], std::abs(di)), std::max(st.extent[1], std::abs(dj)),
+                       std::max(st.extent[2], std::abs(dk))};
+        }
+  return st;
+}
+
+}  // namespace
+
+CellList::CellList(const Nodes& nodes, double reach_, bool stencils) {
+  if (stencils)
+    for (std::size_t b = 0; b < nodes.bodies.size(); ++b) stencils_.push_back(lattice_stencil(nodes, static_cast<int>(b)));
   const std::int64_t n = nodes.size();
   std::array<double, 3> hi{};
   lo_ = {0, 0, 0};
@@ -132,10 +197,7 @@ double quadrature_weight(const BodyGeometry& g, const double xi[3]) {
 }
 
 void reference_offset(const BodyGeometry& g, const double* Xi, const double* Xj, double xi[3]) {
-  const double dx = g.spacing;
-  const bool hex = g.grid == Grid::Hexagonal;
-  // The units discretize() places nodes on (the same expressions, so the same bits).
-  const double unit[3] = {hex ? 0.5 * dx : dx, hex ? dx * std::sqrt(3.0) / 2.0 : dx, dx};
+  const std::array<double, 3> unit = lattice_units(g);
   for (int c = 0; c < 3; ++c) {
     xi[c] = Xj[c] - Xi[c];
     if (unit[c] > 0) xi[c] = std::nearbyint(xi[c] / unit[c]) * unit[c];
@@ -143,17 +205,42 @@ void reference_offset(const BodyGeometry& g, const double* Xi, const double* Xj,
 }
 
 void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
-                   std::vector<std::int64_t>& ids, std::vector<double>& weights) {
+                   std::vector<std::int64_t>& ids, std::vector<double>& weights, std::vector<double>* xi2) {
   ids.clear();
   weights.clear();
+  if (xi2) xi2->clear();
   const int body = nodes.body[i];
   const BodyGeometry& g = nodes.bodies[body];
+  if (const LatticeStencil* st = cells.stencil(body)) {
+    const std::int64_t nx = st->cells[0], ny = st->cells[1], nz = st->cells[2];
+    const std::int64_t l = i - g.first, ix = l % nx, iy = (l / nx) % ny, iz = l / (nx * ny);
+    const std::vector<LatticeStencil::Offset>& list = st->by_parity[g.grid == Grid::Hexagonal ? iy % 2 : 0];
+    const auto& e = st->extent;
+    const bool inside = ix >= e[0] && ix + e[0] < nx && iy >= e[1] && iy + e[1] < ny && iz >= e[2] && iz + e[2] < nz;
+    ids.reserve(list.size());
+    weights.reserve(list.size());
+    if (xi2) xi2->reserve(list.size());
+    for (const LatticeStencil::Offset& o : list) {
+      if (!inside) {
+        const std::int64_t jx = ix + o.di, jy = iy + o.dj, jz = iz + o.dk;
+        if (jx < 0 || jx >= nx || jy < 0 || jy >= ny || jz < 0 || jz >= nz) continue;
+      }
+      ids.push_back(i + o.step);
+      weights.push_back(o.weight);
+      if (xi2) xi2->push_back(o.xi2);
+    }
+    return;
+  }
   const double* xi = &nodes.X[3 * i];
   // A candidate beyond reach() (the horizon; plus a cell's half-diagonal for partial areas) has
   // no weight: rejected on its raw distance before the snapped offset and the weight (most of a
   // cell-list search's candidates; the margin covers the snapping's round-off).
   const double far = reach(g) + 1e-6 * g.spacing, far2 = far * far;
-  thread_local std::vector<std::pair<std::int64_t, double>> found;
+  struct Found {
+    std::int64_t j;
+    double w, xi2;
+  };
+  thread_local std::vector<Found> found;
   found.clear();
   cells.for_each_candidate(xi, [&](std::int64_t j) {
     if (j == i || nodes.body[j] != body) return;
@@ -163,13 +250,31 @@ void neighbours_of(const Nodes& nodes, const CellList& cells, std::int64_t i,
     double d[3];
     reference_offset(g, xi, &nodes.X[3 * j], d);
     const double w = quadrature_weight(g, d);
-    if (w > 0) found.emplace_back(j, w);
+    if (w > 0) found.push_back({j, w, d[0] * d[0] + d[1] * d[1] + d[2] * d[2]});
   });
-  std::sort(found.begin(), found.end());
-  for (const auto& [j, w] : found) {
-    ids.push_back(j);
-    weights.push_back(w);
+  std::sort(found.begin(), found.end(), [](const Found& a, const Found& b) { return a.j < b.j; });
+  for (const Found& f : found) {
+    ids.push_back(f.j);
+    weights.push_back(f.w);
+    if (xi2) xi2->push_back(f.xi2);
   }
+}
+
+std::int64_t family_class(const Nodes& nodes, const CellList& cells, std::int64_t i) {
+  const int body = nodes.body[i];
+  const LatticeStencil* st = cells.stencil(body);
+  if (!st || !st->uniform_volume || body >= (1 << 14)) return -1;
+  const BodyGeometry& g = nodes.bodies[body];
+  const std::int64_t nx = st->cells[0], ny = st->cells[1];
+  const std::int64_t l = i - g.first, at[3] = {l % nx, (l / nx) % ny, l / (nx * ny)};
+  std::int64_t key = 2 * body + (g.grid == Grid::Hexagonal ? at[1] % 2 : 0);  // 15 bits
+  for (int d = 0; d < 3; ++d) {  // distance to the low and the high face, up to the extent: 7 bits each
+    const std::int64_t e = st->extent[d];
+    if (e >= 127) return -1;
+    key = (key << 7) | std::min(at[d], e);
+    key = (key << 7) | std::min(st->cells[d] - 1 - at[d], e);
+  }
+  return key;
 }
 
 bool crosses(const double* a, const double* b, const Crack& crack) {
@@ -209,8 +314,15 @@ void PatternBuilder::add_row(const std::vector<double>& xi2, const std::vector<d
     std::memcpy(&bits, &v, sizeof bits);
     h = (h ^ bits) * 1099511628211ull;
   };
+  // rounded_xi2 with the horizon's quantum (a power of two: scaling by it and its inverse is
+  // exact) worked out once per row; |xi|^2 beyond the horizon squared has a quantum of its own.
+  const double h2 = horizon * horizon;
+  const bool by_horizon = h2 > 0 && std::isnormal(h2);
+  const double quantum = by_horizon ? std::ldexp(1.0, std::ilogb(h2) - 46) : 0.0;
+  const double inv_quantum = by_horizon ? std::ldexp(1.0, 46 - std::ilogb(h2)) : 0.0;
   for (std::size_t k = 0; k < n; ++k) {
-    rounded[k] = rounded_xi2(xi2[k], horizon);
+    rounded[k] = by_horizon && xi2[k] <= h2 ? std::nearbyint(xi2[k] * inv_quantum) * quantum
+                                             : rounded_xi2(xi2[k], horizon);
     mix(rounded[k]);
     mix(measure[k]);
   }

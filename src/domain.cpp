@@ -66,13 +66,16 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   const std::int64_t nb = d.bonds.offsets.back();
   d.bonds.neighbor.resize(nb);
   d.bonds.broken.assign(nb, 0);
+  d.bonds.row_broken.assign(d.owned, 0);  // set with the flags below
   PatternBuilder patterns;
   std::vector<double> xi2, measure;
+  std::unordered_map<std::int64_t, std::int32_t> pattern_of_class;  // family_class -> pattern
   for (std::int32_t r = 0; r < d.owned; ++r) {
     bool touches_ghost = false;
     const std::int64_t i = d.natural[r];
-    neighbours_of(nodes, cells, i, ids, w);
-    xi2.clear();
+    const std::int64_t family = family_class(nodes, cells, i);
+    const auto known = family >= 0 ? pattern_of_class.find(family) : pattern_of_class.end();
+    neighbours_of(nodes, cells, i, ids, w, known == pattern_of_class.end() ? &xi2 : nullptr);
     measure.clear();
     for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
       const std::size_t k = static_cast<std::size_t>(b - d.bonds.offsets[r]);
@@ -86,12 +89,9 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         touches_ghost = true;
       }
       d.bonds.neighbor[b] = lj;
-      double xi_ij[3];
-      reference_offset(nodes.bodies[nodes.body[i]], &nodes.X[3 * i], &nodes.X[3 * j], xi_ij);
-      const double s2 = xi_ij[0] * xi_ij[0] + xi_ij[1] * xi_ij[1] + xi_ij[2] * xi_ij[2];
-      xi2.push_back(s2);
       // Weights are kept to float precision, as the per-bond weights they replace were.
-      measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);
+      if (known == pattern_of_class.end())
+        measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);
       if (nodes.bodies[nodes.body[i]].kind != BodyKind::Solid) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
@@ -99,16 +99,21 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         for (const Crack& crack : scene.cracks)
           if (crosses(a, c, crack)) {
             d.bonds.broken[b] = 1;
+            d.bonds.row_broken[r] = 1;
             ++d.initially_broken;
             break;
           }
       }
     }
-    patterns.add_row(xi2, measure, nodes.bodies[nodes.body[i]].horizon);
+    if (known != pattern_of_class.end()) {
+      patterns.repeat_pattern(known->second);
+    } else {
+      patterns.add_row(xi2, measure, nodes.bodies[nodes.body[i]].horizon);
+      if (family >= 0) pattern_of_class.emplace(family, patterns.last_pattern());
+    }
     (touches_ghost ? d.boundary_rows : d.interior_rows).push_back(r);
   }
   d.bonds.patterns = patterns.finish();
-  d.bonds.summarize_rows();
   return d;
 }
 

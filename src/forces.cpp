@@ -1522,8 +1522,15 @@ void node_damage(const BondView& v, const std::int32_t* rows, std::size_t nrows,
 double stable_time_step(const BondLaw& law, double density, const BondView& v,
                         const std::int32_t* rows, std::size_t nrows) {
   double dt = std::numeric_limits<double>::infinity();
+  // A row's stiffness sum depends on its family pattern alone: each pattern's is summed once.
+  std::vector<char> pattern_done(v.patterns ? static_cast<std::size_t>(v.patterns->patterns()) : 0, 0);
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
+    if (v.patterns) {
+      char& done = pattern_done[v.patterns->of_row[i]];
+      if (done) continue;
+      done = 1;
+    }
     double sum = 0;
     for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) {
       sum += law.reference_stiffness(v.xi2(i, b)) * v.measure(i, b);

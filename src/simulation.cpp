@@ -33,11 +33,17 @@ double ramp_integral(double t, double tr) {
 }
 
 struct Events {
-  PetscLogEvent setup, forces, halo, update, output;
+  PetscLogEvent setup, nodes, partition, bonds, plans, forces, halo, update, output;
   Events() {
     PetscClassId id;
     PetscClassIdRegister("peridrive", &id);
     PetscLogEventRegister("PeriSetup", id, &setup);
+    // Phases of PeriSetup: nodes and the neighbour search structure, the partition, this rank's
+    // bond families and ghosts, and the bond loop's plans.
+    PetscLogEventRegister("PeriNodes", id, &nodes);
+    PetscLogEventRegister("PeriPartition", id, &partition);
+    PetscLogEventRegister("PeriBonds", id, &bonds);
+    PetscLogEventRegister("PeriPlans", id, &plans);
     PetscLogEventRegister("PeriForces", id, &forces);
     PetscLogEventRegister("PeriHalo", id, &halo);
     PetscLogEventRegister("PeriUpdate", id, &update);
@@ -162,6 +168,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
 
   // Nodes, and every check that needs them, before anything is allocated per rank.
   PartitionSettings partition_settings = partition_settings_from_options();
+  PetscLogEventBegin(events().nodes, 0, 0, 0, 0);
   check_fits(scene_, comm_, partition_settings.method == PartitionMethod::Bonds);
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
@@ -187,13 +194,18 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     double max_reach = 0;
     for (const BodyGeometry& g : nodes_.bodies) max_reach = std::max(max_reach, reach(g));
     const CellList cells(nodes_, max_reach);
+    PetscLogEventEnd(events().nodes, 0, 0, 0, 0);
     mark_memory("nodes");
+    PetscLogEventBegin(events().partition, 0, 0, 0, 0);
     partition_settings.method = resolve_partition_method(partition_settings.method, nodes_);  // auto: rcb or cells
     partition_ = partition_nodes(nodes_, cells, ranks_, comm_, partition_settings);
+    PetscLogEventEnd(events().partition, 0, 0, 0, 0);
     mark_memory("partition");
     Scene initial_cracks = scene_;  // cracks named by release stages break later
     std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
+    PetscLogEventBegin(events().bonds, 0, 0, 0, 0);
     domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_);
+    PetscLogEventEnd(events().bonds, 0, 0, 0, 0);
     if (partition_.edge_cut < 0) {  // a partitioner without a graph (rcb): the bonds to ghost nodes
       long long cut = 0, all = 0;
       for (std::int32_t i : domain_.boundary_rows)
@@ -229,6 +241,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   lattice_setup();
   interior_plan_.resize(nb);
   boundary_plan_.resize(nb);
+  PetscLogEventBegin(events().plans, 0, 0, 0, 0);
   {
     const BondView topology = bond_view();
     for (std::size_t b = 0; b < nb; ++b) {
@@ -237,6 +250,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       boundary_plan_[b] = plan_rows(topology, boundary_by_body_[b].data(), boundary_by_body_[b].size());
     }
   }
+  PetscLogEventEnd(events().plans, 0, 0, 0, 0);
   inv_density_.resize(domain_.owned);
   mass_.resize(domain_.owned);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {

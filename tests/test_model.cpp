@@ -91,44 +91,55 @@ TEST(Quadrature, WeightsAreSymmetric) {
     }
 }
 
-// The cell-list search (which skips candidates beyond reach() on their raw distance) finds
-// exactly the nodes a search over every pair gives a positive weight, with the same weights: square
-// and hexagonal membranes and a solid, each quadrature, horizons that are and are not multiples
-// of the spacing.
+// Both neighbour searches, the lattice stencils and the cell list (which skips candidates beyond
+// reach() on their raw distance), find exactly the nodes a search over every pair gives a positive
+// weight, with the same weights, in ascending order: square and hexagonal membranes and solids,
+// each quadrature, horizons that are and are not multiples of the spacing, bodies of one and two
+// rows or layers, and two bodies in one scene (the second's natural ids offset by the first's).
 TEST(Bonds, NeighbourSearchMatchesAllPairs) {
   const char* bodies[] = {
-      "{material: m, origin: [0, 0, 0], size: [0.013, 0.011], thickness: 0.001, spacing: 0.001, horizon: 0.003, quadrature: partial_area}",
-      "{material: m, origin: [0.2, -0.1, 0], size: [0.013, 0.011], thickness: 0.001, spacing: 0.001, horizon: 0.0035, quadrature: full, grid: hexagonal}",
-      "{material: m, origin: [0, 0, 0], size: [0.013, 0.011], thickness: 0.001, spacing: 0.001, horizon: 0.004, quadrature: partial_area, grid: hexagonal}",
-      "{kind: solid, material: m, origin: [0, 0, 0], size: [0.008, 0.007, 0.006], spacing: 0.001, horizon: 0.003015, quadrature: taper}",
-      "{kind: solid, material: m, origin: [1.0, 2.0, 3.0], size: [0.008, 0.007, 0.006], spacing: 0.001, horizon: 0.0025, quadrature: partial_area}"};
+      "  b: {material: m, origin: [0, 0, 0], size: [0.013, 0.011], thickness: 0.001, spacing: 0.001, horizon: 0.003, quadrature: partial_area}",
+      "  b: {material: m, origin: [0.2, -0.1, 0], size: [0.013, 0.011], thickness: 0.001, spacing: 0.001, horizon: 0.0035, quadrature: full, grid: hexagonal}",
+      "  b: {material: m, origin: [0, 0, 0], size: [0.013, 0.011], thickness: 0.001, spacing: 0.001, horizon: 0.004, quadrature: partial_area, grid: hexagonal}",
+      "  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.008, 0.007, 0.006], spacing: 0.001, horizon: 0.003015, quadrature: taper}",
+      "  b: {kind: solid, material: m, origin: [1.0, 2.0, 3.0], size: [0.008, 0.007, 0.006], spacing: 0.001, horizon: 0.0025, quadrature: partial_area}",
+      "  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.009, 0.002, 0.001], spacing: 0.001, horizon: 0.003, quadrature: partial_area}",
+      "  b: {material: m, origin: [0, 0, 0], size: [0.012, 0.001], thickness: 0.001, spacing: 0.001, horizon: 0.003, grid: hexagonal}",
+      "  a: {material: m, origin: [0, 0, 0], size: [0.007, 0.005], thickness: 0.001, spacing: 0.001, horizon: 0.003}\n"
+      "  b: {material: m, origin: [0.003, 0.002, 0], size: [0.009, 0.006], thickness: 0.001, spacing: 0.0015, horizon: 0.0045, grid: hexagonal}"};
   for (const char* body : bodies) {
     const std::string text = std::string("name: k\nmaterials:\n  m: {model: pmb, density: 1000, bulk_modulus: 1.0e9}\n"
-                                         "bodies:\n  b: ") + body + "\nstages:\n  - {name: r, steps: 1}\n";
+                                         "bodies:\n") + body + "\nstages:\n  - {name: r, steps: 1}\n";
     const Scene scene = parse_scene(text, "t");
     const Nodes nodes = discretize(scene);
-    const BodyGeometry& g = nodes.bodies[0];
-    const CellList cells(nodes, reach(g));
-    std::vector<std::int64_t> ids;
-    std::vector<double> w;
-    std::int64_t pairs = 0, mismatched = 0;
-    for (std::int64_t i = 0; i < nodes.size(); ++i) {
-      neighbours_of(nodes, cells, i, ids, w);
-      std::size_t k = 0;
-      for (std::int64_t j = 0; j < nodes.size(); ++j) {
-        if (j == i) continue;
-        double xi[3];
-        reference_offset(g, &nodes.X[3 * i], &nodes.X[3 * j], xi);
-        const double wj = quadrature_weight(g, xi);
-        if (!(wj > 0)) continue;
-        ++pairs;
-        mismatched += !(k < ids.size() && ids[k] == j && w[k] == wj);
-        ++k;
+    double max_reach = 0;
+    for (const BodyGeometry& g : nodes.bodies) max_reach = std::max(max_reach, reach(g));
+    for (const bool stencils : {true, false}) {
+      const CellList cells(nodes, max_reach, stencils);
+      for (std::size_t b = 0; b < nodes.bodies.size(); ++b)
+        EXPECT_EQ(cells.stencil(static_cast<int>(b)) != nullptr, stencils) << body;
+      std::vector<std::int64_t> ids;
+      std::vector<double> w;
+      std::int64_t pairs = 0, mismatched = 0;
+      for (std::int64_t i = 0; i < nodes.size(); ++i) {
+        const BodyGeometry& g = nodes.bodies[nodes.body[i]];
+        neighbours_of(nodes, cells, i, ids, w);
+        std::size_t k = 0;
+        for (std::int64_t j = 0; j < nodes.size(); ++j) {
+          if (j == i || nodes.body[j] != nodes.body[i]) continue;
+          double xi[3];
+          reference_offset(g, &nodes.X[3 * i], &nodes.X[3 * j], xi);
+          const double wj = quadrature_weight(g, xi);
+          if (!(wj > 0)) continue;
+          ++pairs;
+          mismatched += !(k < ids.size() && ids[k] == j && w[k] == wj);
+          ++k;
+        }
+        mismatched += static_cast<std::int64_t>(ids.size() - k);
       }
-      mismatched += static_cast<std::int64_t>(ids.size() - k);
+      EXPECT_GT(pairs, 4 * nodes.size()) << body;
+      EXPECT_EQ(mismatched, 0) << body << (stencils ? " (stencils)" : " (cells)");
     }
-    EXPECT_GT(pairs, 10 * nodes.size()) << body;
-    EXPECT_EQ(mismatched, 0) << body;
   }
 }
 
