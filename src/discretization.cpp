@@ -1,5 +1,6 @@
 #include "peri/discretization.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -11,9 +12,18 @@ std::int64_t count_along(double length, double dx) {
   return std::max<std::int64_t>(1, std::llround(length / dx));
 }
 
+double path_length(const std::vector<Vec3>& path) {
+  double length = 0;
+  for (std::size_t k = 1; k < path.size(); ++k)
+    length += std::sqrt(std::pow(path[k][0] - path[k - 1][0], 2) + std::pow(path[k][1] - path[k - 1][1], 2) +
+                        std::pow(path[k][2] - path[k - 1][2], 2));
+  return length;
+}
+
 // Number of neighbours inside a horizon of m spacings (continuum estimate + boundary cells).
 double neighbours_estimate(const Body& b) {
   if (b.kind == BodyKind::Lattice) return 6.0;  // nearest neighbours of a triangular lattice
+  if (b.kind == BodyKind::Fiber) return 2.0 * std::floor(b.horizon_value() / b.spacing + 1e-9);
   const double m = b.horizon_value() / b.spacing + 0.71;
   return b.kind == BodyKind::Solid ? 4.18879 * m * m * m : 3.14159 * m * m;
 }
@@ -24,8 +34,9 @@ SizeEstimate estimate_size(const Scene& scene) {
   SizeEstimate e;
   for (const Body& b : scene.bodies) {
     double n = 1;
-    const int dims = b.kind == BodyKind::Solid ? 3 : 2;
+    const int dims = b.kind == BodyKind::Solid ? 3 : b.kind == BodyKind::Fiber ? 0 : 2;
     for (int d = 0; d < dims; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
+    if (b.kind == BodyKind::Fiber) n = std::max(1.0, std::round(path_length(b.path) / b.spacing));
     if (b.grid == Grid::Hexagonal || b.kind == BodyKind::Lattice) n *= 2.0 / std::sqrt(3.0);
     e.nodes += n;
     e.bonds += n * neighbours_estimate(b);
@@ -70,7 +81,34 @@ Nodes discretize(const Scene& scene) {
       g.quadrature = Quadrature::Full;
       g.horizon = 1.1 * dx;
     }
-    if (b.kind != BodyKind::Solid) {
+    if (b.kind == BodyKind::Fiber) {
+      // Nodes at the centres of n equal arc-length steps ds = L/n along the path (eq. 31's ds),
+      // each with the measure A ds; no lattice, so reference offsets are not snapped.
+      const double length = path_length(b.path);
+      const std::int64_t n = count_along(length, dx);
+      const double ds = length / static_cast<double>(n);
+      g.spacing = ds;
+      g.area = 0.25 * 3.14159265358979323846 * b.diameter * b.diameter;
+      g.segment_length = b.segment_length;
+      g.quadrature = Quadrature::Full;
+      g.cells = {n, 1, 1};
+      std::size_t leg = 1;
+      double leg_start = 0, leg_length = 0;
+      auto leg_len = [&](std::size_t k) { return path_length({b.path[k - 1], b.path[k]}); };
+      leg_length = leg_len(1);
+      for (std::int64_t k = 0; k < n; ++k) {
+        const double s = (static_cast<double>(k) + 0.5) * ds;
+        while (s > leg_start + leg_length && leg + 1 < b.path.size()) {
+          leg_start += leg_length;
+          ++leg;
+          leg_length = leg_len(leg);
+        }
+        const double t = std::clamp((s - leg_start) / leg_length, 0.0, 1.0);
+        const Vec3& p = b.path[leg - 1];
+        const Vec3& q = b.path[leg];
+        push(p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1]), p[2] + t * (q[2] - p[2]), g.area * ds);
+      }
+    } else if (b.kind != BodyKind::Solid) {
       g.thickness = b.thickness;
       if (g.grid == Grid::Square) {
         // Cell-centred square grid: node (i, j) sits at the centre of its dx-by-dx cell.

@@ -22,13 +22,22 @@ double mu_per_c(ModelKind kind, const BodyGeometry& g, bool conical) {
   return 0.6 * 2.0 * pi * moment(3, g.horizon, conical) / 9.0;
 }
 
+// Fibers (eq. 31, cross-section A, uniaxial): W = A int_0^delta w dxi per unit volume, so
+//   membrane law (eq. 33's w1): W = A c R0 (lambda^2 + lambda^-2 - 2) = 4 A c R0 eps^2 + ...,
+//                               E = 8 A c R0, R0 = int_0^delta g dxi (g = 1: delta)
+//   PMB law:                    W = A c R1 s^2 / 2, E = A c R1, R1 = int_0^delta xi g dxi.
+double youngs_per_c_fiber(ModelKind kind, const BodyGeometry& g, bool conical) {
+  return kind == ModelKind::Membrane ? 8.0 * g.area * moment(0, g.horizon, conical)
+                                     : g.area * moment(1, g.horizon, conical);
+}
+
 }  // namespace
 
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where) {
-  if (m.model == ModelKind::Membrane && g.kind != BodyKind::Membrane)
+  if (m.model == ModelKind::Membrane && g.kind != BodyKind::Membrane && g.kind != BodyKind::Fiber)
     throw InputError(where + ": material '" + m.name +
                      "' uses the membrane micropotential (eq. 13), which is defined for membrane "
-                     "bodies only; expected model: pmb for a solid body");
+                     "and fiber bodies only; expected model: pmb for a solid body");
   BondLaw law;
   law.kind = m.model;
   law.horizon = g.horizon;
@@ -39,6 +48,13 @@ BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& w
   double mu = 0;
   if (m.micromodulus) {
     law.c = *m.micromodulus;
+  } else if (g.kind == BodyKind::Fiber) {
+    // One modulus in 1D: the bar's E (a "bulk modulus" of a fiber is read as E too).
+    double e = 0;
+    if (m.wave_speed) e = m.density * *m.wave_speed * *m.wave_speed;
+    if (m.bulk_modulus) e = *m.bulk_modulus;
+    if (m.youngs_modulus) e = *m.youngs_modulus;
+    law.c = e / youngs_per_c_fiber(m.model, g, law.conical);
   } else {
     if (m.wave_speed) mu = m.density * *m.wave_speed * *m.wave_speed / 3.0;
     if (m.bulk_modulus) mu = membrane ? *m.bulk_modulus / 2.0 : 0.6 * *m.bulk_modulus;
@@ -76,6 +92,11 @@ double rayleigh_ratio(double a) {
 
 ElasticConstants elastic_constants(const BondLaw& law, const BodyGeometry& g, double density) {
   ElasticConstants e;
+  if (g.kind == BodyKind::Fiber) {  // a bar: E, its wave speed sqrt(E / rho); no shear
+    e.youngs = e.bulk = law.c * youngs_per_c_fiber(law.kind, g, law.conical);
+    e.c_longitudinal = std::sqrt(e.youngs / density);
+    return e;
+  }
   e.mu = law.c * mu_per_c(law.kind, g, law.conical);
   const bool membrane = g.kind == BodyKind::Membrane;
   e.bulk = membrane ? 2.0 * e.mu : e.mu / 0.6;

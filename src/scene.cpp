@@ -420,6 +420,7 @@ const Keys kSceneKeys = {
     {"cracks", false, ""},
     {"boundaries", false, ""},
     {"tools", false, ""},
+    {"long_range", false, ""},
     {"initial", false, ""},
     {"stages", true, "list of stages, at least one"},
     {"stability", false, ""},
@@ -456,15 +457,31 @@ const Keys kHardeningKeys = {
 const Keys kBodyKeys = {
     {"kind", false, ""},
     {"material", true, "name of a material"},
-    {"origin", true, "lower corner [x, y, z], m"},
-    {"size", true, "extent [Lx, Ly] of a membrane or [Lx, Ly, Lz] of a solid, m"},
+    {"origin", false, ""},
+    {"size", false, ""},
     {"thickness", false, ""},
-    {"spacing", true, "grid spacing, m"},
+    {"spacing", false, ""},
     {"grid", false, ""},
     {"horizon_factor", false, ""},
     {"horizon", false, ""},
     {"quadrature", false, ""},
     {"breakable", false, ""},
+    {"path", false, ""},
+    {"diameter", false, ""},
+    {"segment_length", false, ""},
+};
+
+const Keys kLongRangeKeys = {
+    {"length", true, "a of w2 = alpha (a/y)^12 - beta (a/y)^6, m"},
+    {"cutoff", true, "largest interacting distance, m"},
+    {"exclusion", false, ""},
+    {"pairs", true, "list of pair rules {between, alpha, beta}"},
+};
+
+const Keys kPairRuleKeys = {
+    {"between", true, "adjacent_segments, distant_segments or other_fibers"},
+    {"alpha", true, "coefficient of (a/y)^12, J/m^6"},
+    {"beta", true, "coefficient of (a/y)^6, J/m^6 (negative: repulsive tail)"},
 };
 
 const Keys kBoxKeys = {
@@ -678,14 +695,64 @@ Material read_material(const std::string& name, const Value& v) {
   return mat;
 }
 
+// Horizon keys shared by peridynamic bodies: horizon_factor (m spacings) or horizon [m].
+void read_horizon(const Map& m, Body& b) {
+  if (auto x = m.get("horizon_factor")) {
+    b.horizon_factor = x->number("a number >= 1");
+    if (!(b.horizon_factor >= 1))
+      x->fail("horizon must be at least one spacing (expected >= 1), got " + x->got());
+  }
+  if (auto x = m.get("horizon")) {
+    if (m.given("horizon_factor")) x->fail("give either horizon [m] or horizon_factor, not both");
+    const double h = x->number("a number [m]");
+    if (!(h >= b.spacing))
+      x->fail("horizon must be at least one spacing (expected >= " + format_number(b.spacing) + " m), got " +
+              x->got());
+    b.horizon = h;
+  }
+}
+
+// A fiber: polyline path, diameter, spacing along the path, horizon, segments (eq. 31).
+void read_fiber(const Map& m, Body& b) {
+  for (const char* key : {"origin", "size", "thickness", "grid", "quadrature", "breakable"})
+    if (auto x = m.get(key))
+      x->fail(std::string("not used by a fiber body (nodes along its path, full weights within the horizon)"));
+  if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m");
+  const Value path = m.at("path");
+  const std::vector<Value> points = path.list("a list of at least 2 points [x, y, z], m");
+  if (points.size() < 2) path.fail("expected a list of at least 2 points [x, y, z], m, got " + path.got());
+  double length = 0;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    b.path.push_back(points[k].vec3("m"));
+    if (k == 0) continue;
+    double d2 = 0;
+    for (int c = 0; c < 3; ++c) d2 += std::pow(b.path[k][c] - b.path[k - 1][c], 2);
+    if (!(d2 > 0)) points[k].fail("expected a point different from the one before it, got " + points[k].got());
+    length += std::sqrt(d2);
+  }
+  if (!m.given("diameter")) m.missing("diameter", "fiber diameter, m");
+  b.diameter = m.at("diameter").positive("m");
+  if (!m.given("spacing")) m.missing("spacing", "node spacing along the path, m");
+  const Value spacing = m.at("spacing");
+  b.spacing = spacing.positive("m");
+  if (b.spacing > length)
+    spacing.fail("spacing must not exceed the fiber's length along its path (" + format_number(length) +
+                 " m), got " + spacing.got());
+  if (auto x = m.get("segment_length")) b.segment_length = x->non_negative("m");
+  read_horizon(m, b);
+  b.quadrature = Quadrature::Full;
+}
+
 Body read_body(const std::string& name, const Value& v, const std::vector<Material>& materials) {
   const Map m(v, &kBodyKeys, "a map describing the body");
   Body b;
   b.name = name;
   b.where = m.where();
   if (auto x = m.get("kind"))
-    b.kind = x->choice<BodyKind>(
-        {{"membrane", BodyKind::Membrane}, {"solid", BodyKind::Solid}, {"lattice", BodyKind::Lattice}});
+    b.kind = x->choice<BodyKind>({{"membrane", BodyKind::Membrane},
+                                  {"solid", BodyKind::Solid},
+                                  {"lattice", BodyKind::Lattice},
+                                  {"fiber", BodyKind::Fiber}});
   const bool membrane = b.kind != BodyKind::Solid;  // membranes and lattices are flat sheets
 
   const Value material = m.at("material");
@@ -703,6 +770,15 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
                       ? "a lattice body needs a material with model: marder, got '" + b.material + "'"
                       : "material '" + b.material + "' has model: marder, which needs a body with kind: lattice");
 
+  if (b.kind == BodyKind::Fiber) {
+    read_fiber(m, b);
+    return b;
+  }
+  for (const char* key : {"path", "diameter", "segment_length"})
+    if (auto x = m.get(key)) x->fail("only a fiber body (kind: fiber) takes " + std::string(key));
+  if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m");
+  if (!m.given("size")) m.missing("size", "extent [Lx, Ly] of a membrane or [Lx, Ly, Lz] of a solid, m");
+  if (!m.given("spacing")) m.missing("spacing", "grid spacing, m");
   b.origin = m.at("origin").vec3("m");
 
   const Value size = m.at("size");
@@ -771,19 +847,7 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
       x->fail("a solid body supports only grid square, got " + x->got());
   }
 
-  if (auto x = m.get("horizon_factor")) {
-    b.horizon_factor = x->number("a number >= 1");
-    if (!(b.horizon_factor >= 1))
-      x->fail("horizon must be at least one spacing (expected >= 1), got " + x->got());
-  }
-  if (auto x = m.get("horizon")) {
-    if (m.given("horizon_factor")) x->fail("give either horizon [m] or horizon_factor, not both");
-    const double h = x->number("a number [m]");
-    if (!(h >= b.spacing))
-      x->fail("horizon must be at least one spacing (expected >= " + format_number(b.spacing) + " m), got " +
-              x->got());
-    b.horizon = h;
-  }
+  read_horizon(m, b);
 
   if (auto x = m.get("quadrature"))
     b.quadrature =
@@ -987,6 +1051,35 @@ Output read_output(const Value& v) {
   return out;
 }
 
+LongRange read_long_range(const Value& v, const std::vector<Body>& bodies) {
+  const Map m(v, &kLongRangeKeys, "a map {length, cutoff, exclusion, pairs}");
+  LongRange lr;
+  lr.where = m.where();
+  if (std::none_of(bodies.begin(), bodies.end(), [](const Body& b) { return b.kind == BodyKind::Fiber; }))
+    v.fail("long-range forces act between fiber nodes (eqs. 32-36); the scene has no body with kind: fiber");
+  lr.length = m.at("length").positive("m");
+  lr.cutoff = m.at("cutoff").positive("m");
+  // Default: the largest fiber horizon (bonded neighbours do not also interact at long range).
+  for (const Body& b : bodies)
+    if (b.kind == BodyKind::Fiber) lr.exclusion = std::max(lr.exclusion, b.horizon_value());
+  if (auto x = m.get("exclusion")) lr.exclusion = x->non_negative("m");
+  const Value pairs = m.at("pairs");
+  const std::vector<Value> rules = pairs.list("a list of pair rules {between, alpha, beta}");
+  if (rules.empty()) pairs.fail("expected at least one pair rule {between, alpha, beta}, got an empty list");
+  for (const Value& r : rules) {
+    const Map rm(r, &kPairRuleKeys, "a map {between, alpha, beta}");
+    PairRule rule;
+    rule.where = rm.where();
+    rule.between = rm.at("between").choice<PairKind>({{"adjacent_segments", PairKind::AdjacentSegments},
+                                                      {"distant_segments", PairKind::DistantSegments},
+                                                      {"other_fibers", PairKind::OtherFibers}});
+    rule.alpha = rm.at("alpha").non_negative("J/m^6");
+    rule.beta = rm.at("beta").number("a number [J/m^6] (negative: a repulsive 1/y^6 tail)");
+    lr.pairs.push_back(rule);
+  }
+  return lr;
+}
+
 Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& file) {
   const Map top(Value(ctx, root, ""), &kSceneKeys, "a map");
   Scene s;
@@ -1014,6 +1107,8 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   const auto tools = optional_list(top, "tools", "a list of tools");
   for (const Value& v : tools) s.tools.push_back(read_tool(v, tool_names));
 
+  if (auto x = top.get("long_range")) s.long_range = read_long_range(*x, s.bodies);
+
   if (auto x = top.get("initial")) s.initial = read_initial(*x);
 
   const Value stages_value = top.at("stages");
@@ -1034,6 +1129,11 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
     if (s.stages[i].kind == StageKind::QuasiStatic)
       stages[i].fail("a quasistatic stage in a scene with tools; tools act in dynamic stages only (tools: '" +
                      s.tools.front().name + "')");
+
+  for (std::size_t i = 0; i < s.stages.size() && s.long_range; ++i)
+    if (s.stages[i].kind == StageKind::QuasiStatic)
+      stages[i].fail("a quasistatic stage in a scene with long_range; long-range forces act in dynamic stages "
+                     "only (the quasi-static tangent holds the bonds alone)");
 
   if (auto x = top.get("stability")) {
     const Map m(*x, &kStabilityKeys, "a map {energy_error, motion_per_step}");
@@ -1280,7 +1380,12 @@ const char* to_text(ModelKind k) {
 }
 const char* to_text(Influence k) { return k == Influence::Constant ? "constant" : "conical"; }
 const char* to_text(BodyKind k) {
-  return k == BodyKind::Membrane ? "membrane" : k == BodyKind::Solid ? "solid" : "lattice";
+  return k == BodyKind::Membrane ? "membrane" : k == BodyKind::Solid ? "solid" : k == BodyKind::Lattice ? "lattice" : "fiber";
+}
+const char* to_text(PairKind k) {
+  return k == PairKind::AdjacentSegments ? "adjacent_segments"
+         : k == PairKind::DistantSegments ? "distant_segments"
+                                          : "other_fibers";
 }
 const char* to_text(Grid k) { return k == Grid::Square ? "square" : "hexagonal"; }
 const char* to_text(Quadrature k) {
@@ -1344,6 +1449,19 @@ void emit_body(Writer& w, const Body& b) {
   w.key(2, yaml_string(b.name), "");
   w.key(4, "kind", to_text(b.kind));
   w.key(4, "material", yaml_string(b.material));
+  if (b.kind == BodyKind::Fiber) {
+    std::vector<std::string> points;
+    for (const Vec3& p : b.path) points.push_back(flow(p));
+    w.key(4, "path", "[" + join(points) + "]");
+    w.key(4, "diameter", b.diameter);
+    w.key(4, "spacing", b.spacing);
+    w.key(4, "segment_length", b.segment_length);
+    if (b.horizon)
+      w.key(4, "horizon", *b.horizon);
+    else
+      w.key(4, "horizon_factor", b.horizon_factor);
+    return;
+  }
   w.key(4, "origin", flow(b.origin));
   w.key(4, "size", membrane ? flow({b.size[0], b.size[1]}) : flow(b.size));
   if (membrane) w.key(4, "thickness", b.thickness);
@@ -1495,6 +1613,17 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
   if (!s.tools.empty()) {
     w.key(0, "tools", "");
     for (const Tool& t : s.tools) emit_tool(w, t);
+  }
+  if (s.long_range) {
+    const LongRange& lr = *s.long_range;
+    w.key(0, "long_range", "");
+    w.key(2, "length", lr.length);
+    w.key(2, "cutoff", lr.cutoff);
+    w.key(2, "exclusion", lr.exclusion);
+    w.key(2, "pairs", "");
+    for (const PairRule& r : lr.pairs)
+      w.line(4, std::string("- {between: ") + to_text(r.between) + ", alpha: " + format_number(r.alpha) +
+                    ", beta: " + format_number(r.beta) + "}");
   }
   const Initial& init = s.initial;
   w.key(0, "initial", "");

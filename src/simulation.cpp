@@ -223,6 +223,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       for (std::int64_t i : bc_nodes[b]) bc_natural[i] = static_cast<int>(b);
     for (std::int32_t i = 0; i < domain_.owned; ++i) bc_[i] = bc_natural[domain_.natural[i]];
   }
+  if (scene_.long_range) long_range_setup();
   // The global node arrays and maps end here: every rank keeps its own nodes (owned and ghosts)
   // in domain_, which is all that the stages, output, checkpoints and crack tips read.
   decltype(bc_nodes)().swap(bc_nodes);
@@ -423,6 +424,13 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
     summary_.derived.push_back({p + "micromodulus", laws_[b].c});
     summary_.derived.push_back({p + "horizon", laws_[b].horizon});
+    if (nodes_.bodies[b].kind == BodyKind::Fiber) {  // a bar: E and its wave speed only
+      summary_.derived.push_back({p + "youngs_modulus", e.youngs});
+      summary_.derived.push_back({p + "longitudinal_wave_speed", e.c_longitudinal});
+      summary_.derived.push_back({p + "spacing_along_path", nodes_.bodies[b].spacing});
+      summary_.derived.push_back({p + "nodes", double(nodes_.bodies[b].count)});
+      continue;
+    }
     summary_.derived.push_back({p + "shear_modulus", e.mu});
     summary_.derived.push_back({p + "bulk_modulus", e.bulk});
     summary_.derived.push_back({p + "youngs_modulus", e.youngs});
@@ -565,10 +573,59 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
   }
   if (has_lattice_) lattice_reduce();
+  if (long_range_) {
+    LocalArray u(state_->displacement());
+    t.strain_energy += add_long_range_forces(u.data(), with_energy);
+  }
   tally_.dissipated += t.dissipated;
   tally_.newly_broken += t.newly_broken;
   tally_.strain_energy = t.strain_energy;
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
+}
+
+void Simulation::long_range_setup() {
+  LongRangeState lr{PairLaw(*scene_.long_range), long_range_table(nodes_), {}, {}, {}, {}, {}, {}, {}, {}, {}};
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    const std::int64_t p = lr.table.index_of(domain_.natural[i]);
+    if (p < 0) continue;
+    lr.mine.push_back(p);
+    lr.mine_local.push_back(i);
+  }
+  const int n = static_cast<int>(lr.mine.size());
+  lr.counts.resize(ranks_);
+  lr.displs.assign(ranks_, 0);
+  MPI_Allgather(&n, 1, MPI_INT, lr.counts.data(), 1, MPI_INT, comm_);
+  for (int r = 1; r < ranks_; ++r) lr.displs[r] = lr.displs[r - 1] + lr.counts[r - 1];
+  lr.gathered.resize(lr.table.size());
+  MPI_Allgatherv(lr.mine.data(), n, MPI_INT64_T, lr.gathered.data(), lr.counts.data(), lr.displs.data(),
+                 MPI_INT64_T, comm_);
+  for (int r = 0; r < ranks_; ++r) {  // positions travel as 3 doubles per node
+    lr.counts[r] *= 3;
+    lr.displs[r] *= 3;
+  }
+  lr.send.resize(3 * static_cast<std::size_t>(n));
+  lr.recv.resize(3 * static_cast<std::size_t>(lr.table.size()));
+  lr.x.resize(lr.recv.size());
+  lr.force.resize(lr.send.size());
+  long_range_.emplace(std::move(lr));
+}
+
+double Simulation::add_long_range_forces(const double* u, bool with_energy) {
+  LongRangeState& lr = *long_range_;
+  for (std::size_t k = 0; k < lr.mine.size(); ++k)
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t i = static_cast<std::size_t>(lr.mine_local[k]);
+      lr.send[3 * k + c] = domain_.X[3 * i + c] + u[3 * i + c];
+    }
+  MPI_Allgatherv(lr.send.data(), static_cast<int>(lr.send.size()), MPI_DOUBLE, lr.recv.data(), lr.counts.data(),
+                 lr.displs.data(), MPI_DOUBLE, comm_);
+  for (std::size_t g = 0; g < lr.gathered.size(); ++g)
+    for (int c = 0; c < 3; ++c) lr.x[3 * lr.gathered[g] + c] = lr.recv[3 * g + c];
+  std::fill(lr.force.begin(), lr.force.end(), 0.0);
+  const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), with_energy);
+  for (std::size_t k = 0; k < lr.mine.size(); ++k)
+    for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(lr.mine_local[k]) + c] += lr.force[3 * k + c];
+  return energy;
 }
 
 void Simulation::flags_changed() {
@@ -904,7 +961,8 @@ void Simulation::setup_crack_tips() {
   double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
   tip_bodies_.assign(laws_.size(), false);
   for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (!laws_[b].breaks || nodes_.bodies[b].kind == BodyKind::Solid) continue;
+    if (!laws_[b].breaks || nodes_.bodies[b].kind == BodyKind::Solid || nodes_.bodies[b].kind == BodyKind::Fiber)
+      continue;  // fibers break at points, not along paths
     tip_bodies_[b] = true;
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
     dx = std::max(dx, nodes_.bodies[b].spacing);
@@ -1140,6 +1198,7 @@ void Simulation::begin() {
     std::fflush(stdout);
   }
   loop_start_ = std::chrono::steady_clock::now();
+  output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
   last_progress_ = loop_start_;
 }
 
@@ -1371,7 +1430,8 @@ std::int64_t Simulation::break_bonds() {
 
 void Simulation::finish() {
   const auto t_end = std::chrono::steady_clock::now();
-  summary_.step_seconds = std::chrono::duration<double>(t_end - loop_start_).count() - summary_.output_seconds;
+  summary_.step_seconds = std::chrono::duration<double>(t_end - loop_start_).count() -
+                          (summary_.output_seconds - output_seconds_at_loop_start_);
   summary_.wall_seconds = std::chrono::duration<double>(t_end - start_).count();
   summary_.simulated_time = time_;
   summary_.frames = frames_ ? frames_->frames() : 0;
@@ -1701,6 +1761,7 @@ void Simulation::restore(const Checkpoint& c) {
     std::fflush(stdout);
   }
   loop_start_ = std::chrono::steady_clock::now();
+  output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
   last_progress_ = loop_start_;
 }
 

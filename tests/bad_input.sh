@@ -82,6 +82,18 @@ expect tool_center "tools.0.center: expected a list of 2 numbers [x, y] [m]" -- 
 sed 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$tool" > "$work/tool_qs.yaml"
 expect tool_quasistatic "a quasistatic stage in a scene with tools" -- "$work/tool_qs.yaml"
 
+fiber=$src/drivers/scenes/fiber_long_range.yaml
+expect fiber_one_point "bodies.fiber.path: expected a list of at least 2 points [x, y, z], m" -- "$fiber" --set 'bodies.fiber.path=[[0,0,0]]'
+expect fiber_repeated_point "bodies.fiber.path.1: expected a point different from the one before it" -- "$fiber" --set 'bodies.fiber.path=[[0,0,0],[0,0,0]]'
+expect fiber_diameter "bodies.fiber.diameter: expected a positive number [m], got -1e-9" -- "$fiber" --set bodies.fiber.diameter=-1e-9
+expect fiber_origin "bodies.fiber.origin: not used by a fiber body" -- "$fiber" --set 'bodies.fiber.origin=[0,0,0]'
+expect fiber_spacing "bodies.fiber.spacing: spacing must not exceed the fiber's length along its path" -- "$fiber" --set bodies.fiber.spacing=1e-6
+expect pair_kind "long_range.pairs.0.between: expected one of: adjacent_segments, distant_segments, other_fibers" -- "$fiber" --set long_range.pairs.0.between=neighbours
+expect pair_alpha "long_range.pairs.1.alpha: expected a non-negative number [J/m^6], got -1" -- "$fiber" --set long_range.pairs.1.alpha=-1
+expect long_range_no_fiber "long_range: long-range forces act between fiber nodes" -- "$scene" --set 'long_range={length: 1e-9, cutoff: 3e-9, pairs: [{between: other_fibers, alpha: 1, beta: 1}]}'
+sed 's/- {name: coil, duration: 4.0e-9/- {name: settle, kind: quasistatic}\n  - {name: coil, duration: 4.0e-9/' "$fiber" > "$work/fiber_qs.yaml"
+expect long_range_quasistatic "a quasistatic stage in a scene with long_range" -- "$work/fiber_qs.yaml"
+
 # A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,
 # which the grips' nodes exceed at once): status 3, one message, and the same message in a FAILED
 # marker beside the partial output.

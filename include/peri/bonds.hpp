@@ -71,7 +71,8 @@ class CellList {
 /// integer multiple of the grid's unit along it (dx on square and cubic grids; dx/2 and
 /// dx sqrt(3)/2 along x and y on hexagonal ones). The raw differences of the stored coordinates
 /// vary in their last bits from row to row; snapped, every row of a grid sees the same offsets,
-/// weights and family patterns bit for bit wherever it sits, and xi(j, i) == -xi(i, j).
+/// weights and family patterns bit for bit wherever it sits, and xi(j, i) == -xi(i, j). Fibers
+/// have no grid: their offsets are the raw differences (still antisymmetric bit for bit).
 void reference_offset(const BodyGeometry& g, const double* Xi, const double* Xj, double xi[3]);
 
 /// Quadrature weight of neighbour j (reference offset xi from i) in body geometry g: the fraction

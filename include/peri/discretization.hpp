@@ -18,6 +18,8 @@ struct BodyGeometry {
   double horizon = 0.0;      ///< delta [m]
   double thickness = 0.0;    ///< h [m] (membranes; 0 for solids)
   double cell_area = 0.0;    ///< in-plane area per node [m^2] (membranes)
+  double area = 0.0;         ///< cross-section A [m^2] (fibers; their spacing is the arc step ds)
+  double segment_length = 0.0;  ///< fibers: length of the segments long-range rules tell apart (0: one)
   Quadrature quadrature = Quadrature::PartialArea;
   std::int64_t first = 0;    ///< first natural node id
   std::int64_t count = 0;    ///< number of nodes

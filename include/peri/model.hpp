@@ -17,6 +17,10 @@
 //                           c = 18 K / (pi delta^4)); nu = 1/4, lambda = mu = 3K/5
 // Membranes: c_l^2 = 3 mu / rho, c_s^2 = mu / rho, in-plane bulk K = lambda + mu = 2 mu,
 // in-plane Young's E = 8 mu / 3. Solids: c_l^2 = 3 mu / rho, E = 5 mu / 2.
+// Fibers of cross-section A (eq. 31, uniaxial; E from youngs_modulus, bulk_modulus or rho c_l^2):
+//   membrane law (eq. 33):  E = 8 A c R0,   R0 = int_0^delta g dxi      (g=1: delta)
+//   PMB law:                E = A c R1,     R1 = int_0^delta xi g dxi   (g=1: delta^2/2)
+// and c_l^2 = E / rho (the bar wave speed).
 #pragma once
 #include <cmath>
 #include <string>

@@ -37,6 +37,7 @@ enum class BodyKind {
   Membrane,  ///< flat rectangle of nodes, measure = cell area * thickness
   Solid,     ///< box of simple-cubic points, measure = dx^3
   Lattice,   ///< triangular lattice of spacing Delta, nearest neighbours (Marder model)
+  Fiber,     ///< nodes along a polyline, measure = cross-section area * arc length (eq. 31)
 };
 
 enum class Grid { Square, Hexagonal };
@@ -97,6 +98,12 @@ struct Body {
   /// may break; empty = every bond (Marder's simulations often let bonds break only along the
   /// crack line, so that the crack neither branches nor tears the clamped edges).
   std::optional<std::array<Vec3, 2>> breakable;
+  // Fibers (eq. 31): nodes at equal arc-length steps along the polyline `path`, cross-section
+  // A = pi diameter^2 / 4; `segment_length` > 0 numbers the stretches of that length along the
+  // fiber (segments) that long-range rules tell apart (0: the whole fiber is one segment).
+  std::vector<Vec3> path;
+  double diameter = 0.0;        ///< [m] (> 0)
+  double segment_length = 0.0;  ///< [m] (>= 0)
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
 };
 
@@ -224,6 +231,32 @@ struct Output {
   double checkpoint_every_seconds = 900.0; ///< checkpoint every T wall seconds (0: not by time)
 };
 
+/// Which pairs of fiber nodes a long-range rule applies to (Silling & Bobaru eq. 34: the
+/// coefficients may depend on the pair, symmetrically). Nodes of one segment never interact.
+enum class PairKind {
+  AdjacentSegments,  ///< one fiber, segments k and k +- 1
+  DistantSegments,   ///< one fiber, segments two or more apart
+  OtherFibers,       ///< nodes of different fiber bodies
+};
+
+struct PairRule {
+  SourceLoc where;
+  PairKind between = PairKind::AdjacentSegments;
+  double alpha = 0.0;  ///< repulsive coefficient of (a/y)^12 [J/m^6] (>= 0)
+  double beta = 0.0;   ///< attractive coefficient of (a/y)^6 [J/m^6] (< 0: a repulsive tail)
+};
+
+/// Long-range forces between fiber nodes, w2(y) = alpha (a/y)^12 - beta (a/y)^6 on the current
+/// distance y (eqs. 32-36), never damaged, with their own horizon (cutoff). Pairs closer than
+/// `exclusion` in the reference configuration (neighbours in one continuous body) do not interact.
+struct LongRange {
+  SourceLoc where;
+  double length = 0.0;     ///< a [m] (> 0)
+  double cutoff = 0.0;     ///< largest current distance of an interacting pair [m] (> 0)
+  double exclusion = 0.0;  ///< [m] (>= 0)
+  std::vector<PairRule> pairs;  ///< first matching rule wins; a pair no rule matches does not interact
+};
+
 struct Scene {
   std::string file;         ///< path it was read from ("<default scene>" for the embedded one)
   std::string name;         ///< short identifier
@@ -233,6 +266,7 @@ struct Scene {
   std::vector<Crack> cracks;
   std::vector<Boundary> boundaries;
   std::vector<Tool> tools;
+  std::optional<LongRange> long_range;
   Initial initial;
   std::vector<Stage> stages;
   Stability stability;

@@ -16,6 +16,7 @@
 #include "peri/contact.hpp"
 #include "peri/crack_tips.hpp"
 #include "peri/forces.hpp"
+#include "peri/long_range.hpp"
 #include "peri/marder.hpp"
 #include "peri/output.hpp"
 #include "peri/quasistatic.hpp"
@@ -187,6 +188,20 @@ class Simulation : public EquilibriumModel {
   std::vector<BondLaw> laws_;           // per body
   std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
   bool has_lattice_ = false;
+  // Long-range forces (scene long_range): every rank holds the table of all fiber nodes and, each
+  // force evaluation, their current positions (gathered); it evaluates the pairs of its own.
+  struct LongRangeState {
+    PairLaw law;
+    LongRangeTable table;
+    std::vector<std::int64_t> mine;         // table indices of this rank's owned fiber nodes
+    std::vector<std::int32_t> mine_local;   // their local (owned) indices
+    std::vector<int> counts, displs;        // per rank: how many, where in the gathered order
+    std::vector<std::int64_t> gathered;     // gathered order -> table index
+    std::vector<double> send, recv, x, force;
+  };
+  std::optional<LongRangeState> long_range_;
+  void long_range_setup();                          // before the global node arrays are freed
+  double add_long_range_forces(const double* u, bool with_energy);  // returns this rank's energy share
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   bool has_kelvin_ = false;                 // some lattice body has bond dashpots (velocity halo)
   std::vector<double> viscous_;             // dashpot force densities, 3 * local (owned rows written)
@@ -236,6 +251,7 @@ class Simulation : public EquilibriumModel {
   std::size_t stage_ = 0;           // current stage
   std::int64_t stage_step_ = 0;     // steps taken in it
   std::chrono::steady_clock::time_point loop_start_;
+  double output_seconds_at_loop_start_ = 0;  ///< output time spent before the loop (the first frame)
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;
   std::unique_ptr<CrackTipTracker> tracker_;

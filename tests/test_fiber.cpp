@@ -1,0 +1,255 @@
+// Fibers (eq. 31) and long-range forces (eqs. 32-36): nodes along the path, the bar calibration
+// against the discrete energy, eq. (37) from the bonds across a cut, and the long-range pair
+// forces as the exact negative gradient of their energy, with the pair rules of eq. (34).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "peri/bonds.hpp"
+#include "peri/discretization.hpp"
+#include "peri/long_range.hpp"
+#include "peri/model.hpp"
+#include "peri/scene.hpp"
+
+namespace peri {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A straight fiber from the origin along (1, 2, 2)/3 (off every grid axis) of length L, m
+// spacings to the horizon.
+Scene fiber_scene(const std::string& model, const std::string& stiffness, int m, double length = 60e-9) {
+  const double ds = 0.5e-9;
+  const double e[3] = {1.0 / 3, 2.0 / 3, 2.0 / 3};
+  char text[1024];
+  std::snprintf(text, sizeof text,
+                "name: f\nmaterials:\n  p: {model: %s, density: 3000, %s}\n"
+                "bodies:\n  fiber: {kind: fiber, material: p, path: [[0, 0, 0], [%.17g, %.17g, %.17g]], "
+                "diameter: 1.0e-9, spacing: %.17g, horizon: %.17g, segment_length: 7.0e-9}\n"
+                "stages:\n  - {name: r, steps: 1}\n",
+                model.c_str(), stiffness.c_str(), length * e[0], length * e[1], length * e[2], ds, m * ds * (1 + 1e-9));
+  return parse_scene(text, "fiber-test");
+}
+
+TEST(Fiber, NodesSitAlongThePathWithTheirMeasure) {
+  const Scene scene = fiber_scene("membrane", "youngs_modulus: 40.0e9", 3, 60e-9);
+  const Nodes nodes = discretize(scene);
+  const BodyGeometry& g = nodes.bodies[0];
+  ASSERT_EQ(nodes.size(), 120);
+  EXPECT_NEAR(g.spacing, 0.5e-9, 1e-24);
+  EXPECT_NEAR(g.area, kPi * 0.25e-18, 1e-33);
+  for (std::int64_t k = 0; k < nodes.size(); ++k) {
+    const double s = (k + 0.5) * g.spacing;  // arc length of node k
+    EXPECT_NEAR(nodes.X[3 * k + 0], s / 3, 1e-20);
+    EXPECT_NEAR(nodes.X[3 * k + 1], 2 * s / 3, 1e-20);
+    EXPECT_NEAR(nodes.X[3 * k + 2], 2 * s / 3, 1e-20);
+    EXPECT_DOUBLE_EQ(nodes.volume[k], g.area * g.spacing);
+  }
+  // A polyline: the nodes follow both legs, equally spaced by arc length.
+  const Scene bent = parse_scene(
+      "name: f\nmaterials:\n  p: {model: pmb, density: 3000, youngs_modulus: 1.5e9}\n"
+      "bodies:\n  fiber: {kind: fiber, material: p, path: [[0, 0, 0], [4.0e-9, 0, 0], [4.0e-9, 3.0e-9, 0]], "
+      "diameter: 1.0e-9, spacing: 1.0e-9}\nstages:\n  - {name: r, steps: 1}\n",
+      "bent");
+  const Nodes b = discretize(bent);
+  ASSERT_EQ(b.size(), 7);
+  EXPECT_NEAR(b.X[3 * 3 + 0], 3.5e-9, 1e-21);
+  EXPECT_NEAR(b.X[3 * 4 + 1], 0.5e-9, 1e-21);
+  EXPECT_NEAR(b.X[3 * 4 + 0], 4.0e-9, 1e-21);
+}
+
+// c from E (model.hpp): membrane law E = 8 A c delta, PMB E = A c delta^2 / 2 (g = 1); and the
+// discrete energy of an interior node of the straight fiber under a small uniaxial stretch:
+// exact for the membrane law (its w does not depend on |xi| at a given lambda), (m + 1)/m times
+// the continuum for PMB (the sum of k ds over k = 1..m against the integral of xi to m ds).
+TEST(Fiber, BarCalibrationMatchesTheDiscreteEnergy) {
+  for (int m : {3, 12}) {
+    for (const bool membrane : {true, false}) {
+      const double E = membrane ? 40e9 : 1.5e9;
+      const Scene scene = fiber_scene(membrane ? "membrane" : "pmb", "youngs_modulus: " + std::to_string(E), m);
+      const Nodes nodes = discretize(scene);
+      const BodyGeometry& g = nodes.bodies[0];
+      const BondLaw law = calibrate(scene.materials[0], g, "t");
+      const double delta = g.horizon, A = g.area;
+      EXPECT_NEAR(law.c, membrane ? E / (8 * A * delta) : 2 * E / (A * delta * delta), law.c * 1e-12);
+      EXPECT_NEAR(elastic_constants(law, g, 3000).c_longitudinal, std::sqrt(E / 3000), 1e-9);
+      // Energy density of the middle node: W = 1/2 sum_j w V_j, stretched by 1 + e.
+      const double e = 1e-5;
+      const CellList cells(nodes, reach(g));
+      std::vector<std::int64_t> ids;
+      std::vector<double> w, xi2;
+      const std::int64_t i = nodes.size() / 2;
+      neighbours_of(nodes, cells, i, ids, w, &xi2);
+      ASSERT_EQ(ids.size(), static_cast<std::size_t>(2 * m));
+      double W = 0;
+      for (std::size_t k = 0; k < ids.size(); ++k)
+        W += 0.5 * law.energy(xi2[k], (1 + e) * (1 + e) * xi2[k]) * w[k] * nodes.volume[ids[k]];
+      const double expected = 0.5 * E * e * e * (membrane ? 1.0 : (m + 1.0) / m);
+      EXPECT_NEAR(W / expected, 1.0, 2e-4) << (membrane ? "membrane" : "pmb") << " m = " << m;
+    }
+  }
+}
+
+// Eq. (37): G = A w0 delta^2 / 2 for the membrane law with constant lambda_0; the bonds across a
+// cut of the discrete fiber give (m + 1)/m of it (m(m+1)/2 pairs of nodes ds apart).
+TEST(Fiber, EnergyReleaseRateEq37) {
+  for (int m : {3, 6, 24}) {
+    Scene scene = fiber_scene("membrane", "youngs_modulus: 40.0e9, critical_stretch: 1.3", m);
+    const Nodes nodes = discretize(scene);
+    const BodyGeometry& g = nodes.bodies[0];
+    const BondLaw law = calibrate(scene.materials[0], g, "t");
+    const double l0 = 1.3, w0 = law.c * (l0 * l0 + 1 / (l0 * l0) - 2);
+    const CellList cells(nodes, reach(g));
+    std::vector<std::int64_t> ids;
+    std::vector<double> w, xi2;
+    const std::int64_t cut = nodes.size() / 2;  // between nodes cut - 1 and cut
+    double G = 0;
+    for (std::int64_t i = 0; i < cut; ++i) {
+      neighbours_of(nodes, cells, i, ids, w, &xi2);
+      for (std::size_t k = 0; k < ids.size(); ++k)
+        if (ids[k] >= cut) G += law.energy(xi2[k], l0 * l0 * xi2[k]) * w[k] * nodes.volume[i] * nodes.volume[ids[k]] / g.area;
+    }
+    const double closed = g.area * w0 * g.horizon * g.horizon / 2;
+    EXPECT_NEAR(G / closed, (m + 1.0) / m, 1e-6) << "m = " << m;
+  }
+}
+
+// A table of nodes of two fibers with segments, for the long-range kernel.
+LongRangeTable random_table(int n, std::mt19937& rng) {
+  std::uniform_real_distribution<double> U(0, 4e-9);
+  LongRangeTable t;
+  for (int k = 0; k < n; ++k) {
+    t.natural.push_back(k);
+    t.body.push_back(k < n / 2 ? 0 : 1);
+    t.segment.push_back((k % (n / 2)) / 5);
+    for (int c = 0; c < 3; ++c) t.X.push_back(U(rng));
+    t.volume.push_back(3.9e-28 * (1 + 0.1 * (k % 3)));
+  }
+  return t;
+}
+
+LongRange long_range_spec() {
+  LongRange lr;
+  lr.length = 1e-9;
+  lr.cutoff = 2.5e-9;
+  lr.exclusion = 0;
+  lr.pairs = {{{}, PairKind::AdjacentSegments, 2.6e35, 5.2e35},
+              {{}, PairKind::DistantSegments, 0, -5.2e34},
+              {{}, PairKind::OtherFibers, 1.0e35, 1.0e35},
+              {{}, PairKind::OtherFibers, 9e99, 9e99}};  // never used: the first rule wins
+  return lr;
+}
+
+// Forces are the exact negative gradient of the energy (finite differences, no pair near the
+// cutoff), and sum to zero with the nodes' measures (eq. 34's symmetry conserves momentum).
+TEST(LongRange, ForcesAreTheNegativeGradientAndConserveMomentum) {
+  std::mt19937 rng(11);
+  LongRangeTable t = random_table(40, rng);
+  const PairLaw law(long_range_spec());
+  std::vector<double> x = t.X;
+  std::vector<std::int64_t> all(t.size());
+  for (std::int64_t p = 0; p < t.size(); ++p) all[p] = p;
+  // Keep the nodes apart (no pair closer than 0.8 a) and no pair within 1e-3 a of the cutoff.
+  auto total_energy = [&](const std::vector<double>& pos, std::vector<double>* f) {
+    std::vector<double> force(3 * t.size(), 0.0);
+    const double E = long_range_forces(law, t, pos.data(), all, force.data());
+    if (f) *f = force;
+    return E;
+  };
+  for (std::int64_t p = 0; p < t.size(); ++p)
+    for (std::int64_t q = 0; q < p; ++q) {
+      double d2 = 0;
+      for (int c = 0; c < 3; ++c) d2 += std::pow(x[3 * p + c] - x[3 * q + c], 2);
+      if (std::sqrt(d2) < 0.8e-9) x[3 * p] += 5e-9;  // move p away along x
+    }
+  std::vector<double> f;
+  const double E0 = total_energy(x, &f);
+  EXPECT_NE(E0, 0.0);
+  double momentum[3] = {0, 0, 0}, scale = 0;
+  for (std::int64_t p = 0; p < t.size(); ++p)
+    for (int c = 0; c < 3; ++c) {
+      momentum[c] += f[3 * p + c] * t.volume[p];
+      scale += std::fabs(f[3 * p + c] * t.volume[p]);
+    }
+  for (int c = 0; c < 3; ++c) EXPECT_LT(std::fabs(momentum[c]), 1e-12 * scale);
+  ASSERT_GT(scale, 0);
+  const double h = 1e-15;
+  int checked = 0;
+  for (std::int64_t p = 0; p < t.size(); p += 3)
+    for (int c = 0; c < 3; ++c) {
+      std::vector<double> xp = x, xm = x;
+      xp[3 * p + c] += h;
+      xm[3 * p + c] -= h;
+      const double dE = (total_energy(xp, nullptr) - total_energy(xm, nullptr)) / (2 * h);
+      const double force = f[3 * p + c] * t.volume[p];  // N
+      if (std::fabs(force) < 1e-6 * scale / t.size()) continue;
+      EXPECT_NEAR(-dE / force, 1.0, 1e-5) << "node " << p << " component " << c;
+      ++checked;
+    }
+  EXPECT_GT(checked, 10);
+}
+
+// Which pairs interact and with which coefficients: one segment never; adjacent and distant
+// segments and other fibers by their rule; none closer than the exclusion in the reference
+// configuration; none beyond the cutoff; the energy shifted to zero at the cutoff.
+TEST(LongRange, PairRules) {
+  LongRangeTable t;
+  auto add = [&](int body, int segment, double x, double X) {
+    t.natural.push_back(t.size());
+    t.body.push_back(body);
+    t.segment.push_back(segment);
+    t.X.insert(t.X.end(), {X, 0, 0});
+    t.volume.push_back(1e-27);
+    return std::vector<double>{x, 0.0, 0.0};
+  };
+  const LongRange spec = long_range_spec();
+  const PairLaw law(spec);
+  const double y = 1.3e-9;
+  struct Case {
+    int body_q, segment_q;
+    double X_q;
+    int kind;  // expected PairKind, -1: no force
+  } cases[] = {{0, 0, 5e-9, -1},                                     // same segment
+               {0, 1, 5e-9, int(PairKind::AdjacentSegments)},  // adjacent
+               {0, 3, 5e-9, int(PairKind::DistantSegments)},   // distant
+               {1, 0, 5e-9, int(PairKind::OtherFibers)},       // another fiber
+               {1, 0, 0.5e-9, -1}};                                  // within the exclusion (set below)
+  for (const Case& k : cases) {
+    t = LongRangeTable{};
+    std::vector<double> x = add(0, 0, 0.0, 0.0);
+    const std::vector<double> xq = add(k.body_q, k.segment_q, y, k.X_q);
+    x.insert(x.end(), xq.begin(), xq.end());
+    LongRange s = spec;
+    s.exclusion = 1e-9;
+    const PairLaw l(s);
+    std::vector<double> f(6, 0.0);
+    const double E = long_range_forces(l, t, x.data(), {0, 1}, f.data());
+    if (k.kind < 0) {
+      EXPECT_EQ(f[0], 0.0);
+      EXPECT_EQ(E, 0.0);
+      continue;
+    }
+    const PairKind pk = static_cast<PairKind>(k.kind);
+    EXPECT_NEAR(f[0], law.force(pk, y) * 1e-27, 1e-12 * std::fabs(law.force(pk, y) * 1e-27));
+    EXPECT_EQ(f[3], -f[0]);
+    EXPECT_NEAR(E, (law.energy(pk, y) - law.energy(pk, spec.cutoff)) * 1e-54,
+                1e-12 * std::fabs(law.energy(pk, y) * 1e-54));
+  }
+  // Beyond the cutoff: nothing.
+  t = LongRangeTable{};
+  std::vector<double> x = add(0, 0, 0.0, 0.0);
+  const std::vector<double> xq = add(0, 1, 2.6e-9, 5e-9);
+  x.insert(x.end(), xq.begin(), xq.end());
+  std::vector<double> f(6, 0.0);
+  EXPECT_EQ(long_range_forces(law, t, x.data(), {0, 1}, f.data()), 0.0);
+  EXPECT_EQ(f[0], 0.0);
+  // eq. (35): w2'(y) = -12 alpha/a (a/y)^13 + 6 beta/a (a/y)^7, zero at y = (2 alpha/beta)^(1/6) a.
+  EXPECT_NEAR(law.force(PairKind::AdjacentSegments, 1e-9), 0.0, 1e-6 * 12 * 2.6e35 / 1e-9);
+  EXPECT_GT(law.force(PairKind::AdjacentSegments, 1.5e-9), 0.0);  // attracts beyond the minimum
+  EXPECT_LT(law.force(PairKind::DistantSegments, 1.5e-9), 0.0);   // negative beta: repels
+}
+
+}  // namespace
+}  // namespace peri
