@@ -28,7 +28,71 @@ double neighbours_estimate(const Body& b) {
   return b.kind == BodyKind::Solid ? 4.18879 * m * m * m : 3.14159 * m * m;
 }
 
+// Splitmix64: a fully specified generator (the same numbers on every rank and platform).
+struct SplitMix {
+  std::uint64_t state;
+  std::uint64_t next() {
+    std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return (static_cast<double>(next() >> 11) + 0.5) * 0x1.0p-53; }  // (0, 1)
+  double normal() {  // Box-Muller
+    const double u = uniform(), v = uniform();
+    return std::sqrt(-2.0 * std::log(u)) * std::cos(2.0 * 3.14159265358979323846 * v);
+  }
+};
+
+// Mirror coordinate x back into [lo, hi].
+double mirror_into(double x, double lo, double hi) {
+  for (int k = 0; k < 8 && (x < lo || x > hi); ++k) x = x < lo ? 2 * lo - x : 2 * hi - x;
+  return std::clamp(x, lo, hi);
+}
+
+std::vector<std::vector<Vec3>> network_paths(const FiberNetwork& n) {
+  SplitMix rng{static_cast<std::uint64_t>(n.seed) * 0x2545f4914f6cdd1dull + 1};
+  std::vector<std::vector<Vec3>> paths;
+  for (const FiberFamily& f : n.families) {
+    const int a = f.axis, t = 1 - a;  // along, across (in the plane); z out of the plane
+    for (long k = 0; k < f.count; ++k) {
+      Vec3 p;
+      p[a] = n.min[a] + n.start_band * rng.uniform();
+      p[t] = n.min[t] + (n.max[t] - n.min[t]) * rng.uniform();
+      p[2] = n.min[2] + (n.max[2] - n.min[2]) * rng.uniform();
+      std::vector<Vec3> path{p};
+      while (path.back()[a] < n.max[a]) {
+        const double theta = n.deviation * rng.normal(), phi = n.deviation * rng.normal();
+        Vec3 q = path.back();
+        q[a] += n.step * std::cos(phi) * std::cos(theta);
+        q[t] += n.step * std::cos(phi) * std::sin(theta);
+        q[2] += n.step * std::sin(phi);
+        q[t] = mirror_into(q[t], n.min[t], n.max[t]);
+        q[2] = mirror_into(q[2], n.min[2], n.max[2]);
+        if (q[a] > n.max[a]) {  // end on the far face
+          const Vec3& o = path.back();
+          const double s = (n.max[a] - o[a]) / (q[a] - o[a]);
+          for (int c = 0; c < 3; ++c) q[c] = o[c] + s * (q[c] - o[c]);
+          q[a] = n.max[a];
+        }
+        if (q[a] <= path.back()[a]) {  // a step backwards (|theta| > pi/2): draw again
+          if (path.size() > 100000) break;
+          continue;
+        }
+        path.push_back(q);
+      }
+      if (path.size() >= 2) paths.push_back(std::move(path));
+    }
+  }
+  return paths;
+}
+
 }  // namespace
+
+std::vector<std::vector<Vec3>> fiber_paths(const Body& b) {
+  if (b.network) return network_paths(*b.network);
+  return {b.path};
+}
 
 SizeEstimate estimate_size(const Scene& scene) {
   SizeEstimate e;
@@ -36,7 +100,14 @@ SizeEstimate estimate_size(const Scene& scene) {
     double n = 1;
     const int dims = b.kind == BodyKind::Solid ? 3 : b.kind == BodyKind::Fiber ? 0 : 2;
     for (int d = 0; d < dims; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
-    if (b.kind == BodyKind::Fiber) n = std::max(1.0, std::round(path_length(b.path) / b.spacing));
+    if (b.kind == BodyKind::Fiber) {
+      n = 0;
+      if (b.network)  // every fiber crosses the box, about sqrt(2) times its length
+        for (const FiberFamily& f : b.network->families)
+          n += 1.5 * f.count * (b.network->max[f.axis] - b.network->min[f.axis]) / b.spacing;
+      else
+        n = std::max(1.0, std::round(path_length(b.path) / b.spacing));
+    }
     if (b.grid == Grid::Hexagonal || b.kind == BodyKind::Lattice) n *= 2.0 / std::sqrt(3.0);
     e.nodes += n;
     e.bonds += n * neighbours_estimate(b);
@@ -82,32 +153,37 @@ Nodes discretize(const Scene& scene) {
       g.horizon = 1.1 * dx;
     }
     if (b.kind == BodyKind::Fiber) {
-      // Nodes at the centres of n equal arc-length steps ds = L/n along the path (eq. 31's ds),
-      // each with the measure A ds; no lattice, so reference offsets are not snapped.
-      const double length = path_length(b.path);
-      const std::int64_t n = count_along(length, dx);
-      const double ds = length / static_cast<double>(n);
-      g.spacing = ds;
+      // Nodes at the centres of n equal arc-length steps ds = L/n along each path (eq. 31's
+      // ds), each with the measure A ds; no lattice, so reference offsets are not snapped.
       g.area = 0.25 * 3.14159265358979323846 * b.diameter * b.diameter;
       g.segment_length = b.segment_length;
       g.quadrature = Quadrature::Full;
-      g.cells = {n, 1, 1};
-      std::size_t leg = 1;
-      double leg_start = 0, leg_length = 0;
-      auto leg_len = [&](std::size_t k) { return path_length({b.path[k - 1], b.path[k]}); };
-      leg_length = leg_len(1);
-      for (std::int64_t k = 0; k < n; ++k) {
-        const double s = (static_cast<double>(k) + 0.5) * ds;
-        while (s > leg_start + leg_length && leg + 1 < b.path.size()) {
-          leg_start += leg_length;
-          ++leg;
-          leg_length = leg_len(leg);
+      for (const std::vector<Vec3>& path : fiber_paths(b)) {
+        const double length = path_length(path);
+        const std::int64_t n = count_along(length, dx);
+        const double ds = length / static_cast<double>(n);
+        g.path_spacing.push_back(ds);
+        std::size_t leg = 1;
+        double leg_start = 0;
+        auto leg_len = [&](std::size_t k) { return path_length({path[k - 1], path[k]}); };
+        double leg_length = leg_len(1);
+        for (std::int64_t k = 0; k < n; ++k) {
+          const double s = (static_cast<double>(k) + 0.5) * ds;
+          while (s > leg_start + leg_length && leg + 1 < path.size()) {
+            leg_start += leg_length;
+            ++leg;
+            leg_length = leg_len(leg);
+          }
+          const double t = std::clamp((s - leg_start) / leg_length, 0.0, 1.0);
+          const Vec3& p = path[leg - 1];
+          const Vec3& q = path[leg];
+          push(p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1]), p[2] + t * (q[2] - p[2]), g.area * ds);
         }
-        const double t = std::clamp((s - leg_start) / leg_length, 0.0, 1.0);
-        const Vec3& p = b.path[leg - 1];
-        const Vec3& q = b.path[leg];
-        push(p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1]), p[2] + t * (q[2] - p[2]), g.area * ds);
+        g.path_first.push_back(static_cast<std::int64_t>(nodes.size()) - g.first);
       }
+      // One spacing for the body (stable-step and motion checks): the finest path's.
+      g.spacing = *std::min_element(g.path_spacing.begin(), g.path_spacing.end());
+      g.cells = {g.path_first.back(), 1, 1};
     } else if (b.kind != BodyKind::Solid) {
       g.thickness = b.thickness;
       if (g.grid == Grid::Square) {

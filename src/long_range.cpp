@@ -15,19 +15,21 @@ std::int64_t LongRangeTable::index_of(std::int64_t natural_id) const {
 
 LongRangeTable long_range_table(const Nodes& nodes) {
   LongRangeTable t;
+  int fiber = 0;
   for (std::size_t b = 0; b < nodes.bodies.size(); ++b) {
     const BodyGeometry& g = nodes.bodies[b];
     if (g.kind != BodyKind::Fiber) continue;
-    for (std::int64_t k = 0; k < g.count; ++k) {
-      const std::int64_t n = g.first + k;
-      t.natural.push_back(n);
-      t.body.push_back(static_cast<int>(b));
-      // Node k sits at arc length (k + 1/2) ds (discretize).
-      const double s = (static_cast<double>(k) + 0.5) * g.spacing;
-      t.segment.push_back(g.segment_length > 0 ? static_cast<std::int32_t>(std::floor(s / g.segment_length)) : 0);
-      t.X.insert(t.X.end(), {nodes.X[3 * n], nodes.X[3 * n + 1], nodes.X[3 * n + 2]});
-      t.volume.push_back(nodes.volume[n]);
-    }
+    for (std::size_t path = 0; path + 1 < g.path_first.size(); ++path, ++fiber)
+      for (std::int64_t k = g.path_first[path]; k < g.path_first[path + 1]; ++k) {
+        const std::int64_t n = g.first + k;
+        t.natural.push_back(n);
+        t.fiber.push_back(fiber);
+        // The node's arc length along its path: (k' + 1/2) ds (discretize).
+        const double s = (static_cast<double>(k - g.path_first[path]) + 0.5) * g.path_spacing[path];
+        t.segment.push_back(g.segment_length > 0 ? static_cast<std::int32_t>(std::floor(s / g.segment_length)) : 0);
+        t.X.insert(t.X.end(), {nodes.X[3 * n], nodes.X[3 * n + 1], nodes.X[3 * n + 2]});
+        t.volume.push_back(nodes.volume[n]);
+      }
   }
   return t;
 }
@@ -59,7 +61,7 @@ namespace {
 
 // Pair kind of table nodes p and q, or -1 when they do not interact (one segment).
 int pair_kind(const LongRangeTable& t, std::int64_t p, std::int64_t q) {
-  if (t.body[p] != t.body[q]) return static_cast<int>(PairKind::OtherFibers);
+  if (t.fiber[p] != t.fiber[q]) return static_cast<int>(PairKind::OtherFibers);
   const std::int32_t d = std::abs(t.segment[p] - t.segment[q]);
   if (d == 0) return -1;
   return static_cast<int>(d == 1 ? PairKind::AdjacentSegments : PairKind::DistantSegments);
@@ -67,11 +69,14 @@ int pair_kind(const LongRangeTable& t, std::int64_t p, std::int64_t q) {
 
 }  // namespace
 
-double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
-                         const std::vector<std::int64_t>& mine, double* force, bool with_energy) {
+namespace {
+
+// Rebuilds the list: a cell list on the current positions (cells at least cutoff + skin wide, at
+// most ~4n of them), every partner of each node of `mine` within that reach.
+void build_list(const PairLaw& law, const LongRangeTable& table, const double* x,
+                const std::vector<std::int64_t>& mine, LongRangeList& list) {
   const std::int64_t n = table.size();
-  if (n == 0 || mine.empty()) return 0.0;
-  // Cell list on the current positions, cells at least the cutoff wide (at most ~4n of them).
+  const double reach = law.cutoff + list.skin, reach2 = reach * reach;
   std::array<double, 3> lo{}, hi{};
   for (int c = 0; c < 3; ++c) lo[c] = hi[c] = x[c];
   for (std::int64_t p = 0; p < n; ++p)
@@ -79,7 +84,7 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
       lo[c] = std::min(lo[c], x[3 * p + c]);
       hi[c] = std::max(hi[c], x[3 * p + c]);
     }
-  double size = law.cutoff;
+  double size = reach;
   std::array<std::int64_t, 3> dims{};
   for (;;) {
     double total = 1;
@@ -93,53 +98,92 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
   auto cell_of = [&](const double* xp, int c) {
     return std::clamp<std::int64_t>(static_cast<std::int64_t>((xp[c] - lo[c]) / size), 0, dims[c] - 1);
   };
-  thread_local std::vector<std::int64_t> start, sorted, cell, fill;
-  start.assign(static_cast<std::size_t>(dims[0] * dims[1] * dims[2] + 1), 0);
-  cell.resize(n);
+  std::vector<std::int64_t> start(static_cast<std::size_t>(dims[0] * dims[1] * dims[2] + 1), 0), cell(n), sorted(n);
   for (std::int64_t p = 0; p < n; ++p) {
     const double* xp = &x[3 * p];
     cell[p] = (cell_of(xp, 2) * dims[1] + cell_of(xp, 1)) * dims[0] + cell_of(xp, 0);
     ++start[cell[p] + 1];
   }
   for (std::size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
-  sorted.resize(n);
-  fill.assign(start.begin(), start.end() - 1);
+  std::vector<std::int64_t> fill(start.begin(), start.end() - 1);
   for (std::int64_t p = 0; p < n; ++p) sorted[fill[cell[p]]++] = p;
 
-  const double cut2 = law.cutoff * law.cutoff, excl2 = law.exclusion * law.exclusion;
-  double shift[3];
-  for (int k = 0; k < 3; ++k) shift[k] = law.energy(static_cast<PairKind>(k), law.cutoff);
-  double energy = 0;
-  for (std::size_t m = 0; m < mine.size(); ++m) {
-    const std::int64_t p = mine[m];
+  const double excl2 = law.exclusion * law.exclusion;
+  list.begin.assign(1, 0);
+  list.partner.clear();
+  list.kind.clear();
+  for (const std::int64_t p : mine) {
     const double* xp = &x[3 * p];
     const double* Xp = &table.X[3 * p];
     const std::int64_t ci[3] = {cell_of(xp, 0), cell_of(xp, 1), cell_of(xp, 2)};
-    double f[3] = {0, 0, 0};
     for (std::int64_t k = std::max<std::int64_t>(ci[2] - 1, 0); k <= std::min(ci[2] + 1, dims[2] - 1); ++k)
       for (std::int64_t j = std::max<std::int64_t>(ci[1] - 1, 0); j <= std::min(ci[1] + 1, dims[1] - 1); ++j)
         for (std::int64_t i = std::max<std::int64_t>(ci[0] - 1, 0); i <= std::min(ci[0] + 1, dims[0] - 1); ++i) {
           const std::int64_t c = (k * dims[1] + j) * dims[0] + i;
           for (std::int64_t s = start[c]; s < start[c + 1]; ++s) {
             const std::int64_t q = sorted[s];
+            if (q == p) continue;
             const double* xq = &x[3 * q];
-            const double d[3] = {xq[0] - xp[0], xq[1] - xp[1], xq[2] - xp[2]};
-            const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            if (y2 > cut2 || q == p) continue;
+            const double y2 = std::pow(xq[0] - xp[0], 2) + std::pow(xq[1] - xp[1], 2) + std::pow(xq[2] - xp[2], 2);
+            if (y2 > reach2) continue;
             const int kind = pair_kind(table, p, q);
             if (kind < 0 || !law.acts[kind]) continue;
-            if (!(y2 > 0)) continue;  // coincident nodes: no direction (the repulsion keeps them apart)
             const double* Xq = &table.X[3 * q];
-            const double e[3] = {Xq[0] - Xp[0], Xq[1] - Xp[1], Xq[2] - Xp[2]};
-            if (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < excl2) continue;
-            const double y = std::sqrt(y2);
-            const PairKind pk = static_cast<PairKind>(kind);
-            const double scale = law.force(pk, y) / y * table.volume[q];
-            for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
-            if (with_energy) energy += 0.5 * (law.energy(pk, y) - shift[kind]) * table.volume[p] * table.volume[q];
+            if (std::pow(Xq[0] - Xp[0], 2) + std::pow(Xq[1] - Xp[1], 2) + std::pow(Xq[2] - Xp[2], 2) < excl2) continue;
+            list.partner.push_back(q);
+            list.kind.push_back(static_cast<std::int8_t>(kind));
           }
         }
+    list.begin.push_back(static_cast<std::int64_t>(list.partner.size()));
+  }
+  list.x_built.assign(x, x + 3 * n);
+  ++list.builds;
+}
+
+}  // namespace
+
+double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
+                         const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
+                         bool with_energy) {
+  const std::int64_t n = table.size();
+  if (n == 0 || mine.empty()) return 0.0;
+  if (!(list.skin > 0)) list.skin = 0.25 * law.cutoff;
+  // Rebuild once some node has moved more than skin/2 (every rank decides alike: same x).
+  bool rebuild = list.x_built.size() != static_cast<std::size_t>(3 * n) || list.begin.size() != mine.size() + 1;
+  const double half2 = 0.25 * list.skin * list.skin;
+  for (std::int64_t p = 0; p < n && !rebuild; ++p)
+    rebuild = std::pow(x[3 * p] - list.x_built[3 * p], 2) + std::pow(x[3 * p + 1] - list.x_built[3 * p + 1], 2) +
+                  std::pow(x[3 * p + 2] - list.x_built[3 * p + 2], 2) > half2;
+  if (rebuild) build_list(law, table, x, mine, list);
+
+  // Per pair one division and no square root: with r2 = a^2 / y^2, w2'(y) / y =
+  // (-12 alpha r2^6 + 6 beta r2^3) / y^2 (eq. 35) and w2 = alpha r2^6 - beta r2^3 (eq. 33).
+  const double cut2 = law.cutoff * law.cutoff, a2 = law.length * law.length;
+  double shift[3], alpha12[3], beta6[3];
+  for (int k = 0; k < 3; ++k) {
+    shift[k] = law.energy(static_cast<PairKind>(k), law.cutoff);
+    alpha12[k] = 12.0 * law.alpha[k];
+    beta6[k] = 6.0 * law.beta[k];
+  }
+  double energy = 0;
+  for (std::size_t m = 0; m < mine.size(); ++m) {
+    const std::int64_t p = mine[m];
+    const double* xp = &x[3 * p];
+    double f[3] = {0, 0, 0}, e_p = 0;
+    for (std::int64_t e = list.begin[m]; e < list.begin[m + 1]; ++e) {
+      const std::int64_t q = list.partner[e];
+      const double* xq = &x[3 * q];
+      const double d[3] = {xq[0] - xp[0], xq[1] - xp[1], xq[2] - xp[2]};
+      const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      if (y2 > cut2 || !(y2 > 0)) continue;  // coincident nodes: no direction
+      const int k = list.kind[e];
+      const double inv_y2 = 1.0 / y2, r2 = a2 * inv_y2, r6 = r2 * r2 * r2;
+      const double scale = (beta6[k] - alpha12[k] * r6) * r6 * inv_y2 * table.volume[q];
+      for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
+      if (with_energy) e_p += ((law.alpha[k] * r6 - law.beta[k]) * r6 - shift[k]) * table.volume[q];
+    }
     for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
+    energy += 0.5 * e_p * table.volume[p];
   }
   return energy;
 }

@@ -467,8 +467,23 @@ const Keys kBodyKeys = {
     {"quadrature", false, ""},
     {"breakable", false, ""},
     {"path", false, ""},
+    {"network", false, ""},
     {"diameter", false, ""},
     {"segment_length", false, ""},
+};
+
+const Keys kNetworkKeys = {
+    {"box", true, "box {min: [x, y, z], max: [x, y, z]} the fibers fill, m"},
+    {"families", true, "list of fiber families {direction: x or y, count}"},
+    {"deviation", false, ""},
+    {"step", true, "path length between direction draws, m"},
+    {"start_band", false, ""},
+    {"seed", false, ""},
+};
+
+const Keys kFamilyKeys = {
+    {"direction", true, "x or y"},
+    {"count", true, "number of fibers, >= 1"},
 };
 
 const Keys kLongRangeKeys = {
@@ -712,12 +727,55 @@ void read_horizon(const Map& m, Body& b) {
   }
 }
 
+FiberNetwork read_network(const Value& v) {
+  const Map m(v, &kNetworkKeys, "a map {box, families, deviation, step, start_band, seed}");
+  FiberNetwork n;
+  n.where = m.where();
+  const Map box(m.at("box"), &kBoxKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+  n.min = box.at("min").vec3("m");
+  const Value max = box.at("max");
+  n.max = max.vec3("m");
+  for (int d = 0; d < 3; ++d)
+    if (!(n.min[d] < n.max[d]))
+      max.fail(std::string("expected min < max in every component, got ") + "xyz"[d] + ": min " +
+               format_number(n.min[d]) + ", max " + format_number(n.max[d]));
+  const Value families = m.at("families");
+  const std::vector<Value> list = families.list("a list of fiber families {direction: x or y, count}");
+  if (list.empty()) families.fail("expected at least one family {direction: x or y, count}, got an empty list");
+  for (const Value& f : list) {
+    const Map fm(f, &kFamilyKeys, "a map {direction: x or y, count}");
+    FiberFamily fam;
+    fam.where = fm.where();
+    fam.axis = fm.at("direction").choice<int>({{"x", 0}, {"y", 1}});
+    fam.count = fm.at("count").integer(1, 100000);
+    n.families.push_back(fam);
+  }
+  if (auto x = m.get("deviation")) n.deviation = x->non_negative("rad");
+  n.step = m.at("step").positive("m");
+  n.start_band = 0.05 * std::min(n.max[0] - n.min[0], n.max[1] - n.min[1]);
+  if (auto x = m.get("start_band")) n.start_band = x->non_negative("m");
+  if (auto x = m.get("seed")) n.seed = x->integer(0);
+  return n;
+}
+
 // A fiber: polyline path, diameter, spacing along the path, horizon, segments (eq. 31).
 void read_fiber(const Map& m, Body& b) {
   for (const char* key : {"origin", "size", "thickness", "grid", "quadrature", "breakable"})
     if (auto x = m.get(key))
       x->fail(std::string("not used by a fiber body (nodes along its path, full weights within the horizon)"));
-  if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m");
+  if (auto x = m.get("network")) {
+    if (m.given("path")) x->fail("give either path (one fiber) or network (many), not both");
+    b.network = read_network(*x);
+    if (!m.given("diameter")) m.missing("diameter", "fiber diameter, m");
+    b.diameter = m.at("diameter").positive("m");
+    if (!m.given("spacing")) m.missing("spacing", "node spacing along the paths, m");
+    b.spacing = m.at("spacing").positive("m");
+    if (auto x2 = m.get("segment_length")) b.segment_length = x2->non_negative("m");
+    read_horizon(m, b);
+    b.quadrature = Quadrature::Full;
+    return;
+  }
+  if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m (or network)");
   const Value path = m.at("path");
   const std::vector<Value> points = path.list("a list of at least 2 points [x, y, z], m");
   if (points.size() < 2) path.fail("expected a list of at least 2 points [x, y, z], m, got " + path.got());
@@ -1450,9 +1508,23 @@ void emit_body(Writer& w, const Body& b) {
   w.key(4, "kind", to_text(b.kind));
   w.key(4, "material", yaml_string(b.material));
   if (b.kind == BodyKind::Fiber) {
-    std::vector<std::string> points;
-    for (const Vec3& p : b.path) points.push_back(flow(p));
-    w.key(4, "path", "[" + join(points) + "]");
+    if (b.network) {
+      const FiberNetwork& n = *b.network;
+      w.key(4, "network", "");
+      w.key(6, "box", "{min: " + flow(n.min) + ", max: " + flow(n.max) + "}");
+      std::vector<std::string> fams;
+      for (const FiberFamily& f : n.families)
+        fams.push_back(std::string("{direction: ") + (f.axis == 0 ? "x" : "y") + ", count: " + std::to_string(f.count) + "}");
+      w.key(6, "families", "[" + join(fams) + "]");
+      w.key(6, "deviation", n.deviation);
+      w.key(6, "step", n.step);
+      w.key(6, "start_band", n.start_band);
+      w.key(6, "seed", std::to_string(n.seed));
+    } else {
+      std::vector<std::string> points;
+      for (const Vec3& p : b.path) points.push_back(flow(p));
+      w.key(4, "path", "[" + join(points) + "]");
+    }
     w.key(4, "diameter", b.diameter);
     w.key(4, "spacing", b.spacing);
     w.key(4, "segment_length", b.segment_length);

@@ -584,7 +584,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
 }
 
 void Simulation::long_range_setup() {
-  LongRangeState lr{PairLaw(*scene_.long_range), long_range_table(nodes_), {}, {}, {}, {}, {}, {}, {}, {}, {}};
+  LongRangeState lr{PairLaw(*scene_.long_range), long_range_table(nodes_), {}, {}, {}, {}, {}, {}, {}, {}, {}, {}};
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const std::int64_t p = lr.table.index_of(domain_.natural[i]);
     if (p < 0) continue;
@@ -622,7 +622,7 @@ double Simulation::add_long_range_forces(const double* u, bool with_energy) {
   for (std::size_t g = 0; g < lr.gathered.size(); ++g)
     for (int c = 0; c < 3; ++c) lr.x[3 * lr.gathered[g] + c] = lr.recv[3 * g + c];
   std::fill(lr.force.begin(), lr.force.end(), 0.0);
-  const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), with_energy);
+  const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), lr.list, with_energy);
   for (std::size_t k = 0; k < lr.mine.size(); ++k)
     for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(lr.mine_local[k]) + c] += lr.force[3 * k + c];
   return energy;

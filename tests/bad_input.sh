@@ -93,6 +93,10 @@ expect pair_alpha "long_range.pairs.1.alpha: expected a non-negative number [J/m
 expect long_range_no_fiber "long_range: long-range forces act between fiber nodes" -- "$scene" --set 'long_range={length: 1e-9, cutoff: 3e-9, pairs: [{between: other_fibers, alpha: 1, beta: 1}]}'
 sed 's/- {name: coil, duration: 4.0e-9/- {name: settle, kind: quasistatic}\n  - {name: coil, duration: 4.0e-9/' "$fiber" > "$work/fiber_qs.yaml"
 expect long_range_quasistatic "a quasistatic stage in a scene with long_range" -- "$work/fiber_qs.yaml"
+network=$src/drivers/scenes/fiber_network.yaml
+expect network_direction "bodies.net.network.families.0.direction: expected one of: x, y; got z" -- "$network" --set 'bodies.net.network.families=[{direction: z, count: 3}]'
+expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'
+expect network_and_path "bodies.net.network: give either path (one fiber) or network (many), not both" -- "$network" --set 'bodies.net.path=[[0,0,0],[1e-8,0,0]]'
 
 # A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,
 # which the grips' nodes exceed at once): status 3, one message, and the same message in a FAILED

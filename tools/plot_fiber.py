@@ -4,9 +4,13 @@
 usage: /usr/bin/python3 tools/plot_fiber.py OUTDIR [--segment-length L]
 
 Writes into OUTDIR:
-  fiber.png       the first, a middle and the last frame, each from the side and from above,
-                  every segment of the fiber in its own colour (equal scales on all axes)
-  fiber_shape.csv per frame: time, end-to-end distance and the extent along x, y, z [m]
+  fiber.png       one fiber (a path): the first, a middle and the last frame, each from the side
+                  and from above, every segment of the fiber in its own colour (equal scales)
+  network.png     a network (scene body with network:): the first, a middle and the last frame
+                  seen from above, coloured by the out-of-plane position z, broken-bond
+                  (damaged) nodes marked red
+  fiber_shape.csv per frame: time, end-to-end distance (first to last node) and the extent
+                  along x, y, z [m]
 The segment length defaults to the one in OUTDIR/scene.resolved.yaml (the first fiber body).
 Needs Debian's python3-h5py, python3-numpy and python3-matplotlib.
 """
@@ -33,6 +37,34 @@ def segment_length_of(outdir):
         return 0.0
 
 
+def is_network(outdir):
+    try:
+        with open(os.path.join(outdir, "scene.resolved.yaml")) as f:
+            return re.search(r"^\s+network:", f.read(), re.M) is not None
+    except OSError:
+        return False
+
+
+def plot_network(outdir, times, positions, damages):
+    picks = [0, len(positions) // 2, len(positions) - 1]
+    fig, axs = plt.subplots(1, 3, figsize=(16, 5.6))
+    z = np.concatenate([p[:, 2] for p in positions]) * 1e9
+    for ax, k in zip(axs, picks):
+        p = positions[k] * 1e9
+        sc = ax.scatter(p[:, 0], p[:, 1], s=0.6, c=p[:, 2], cmap="viridis", vmin=z.min(), vmax=z.max())
+        hit = damages[k] > 0
+        if hit.any():
+            ax.scatter(p[hit, 0], p[hit, 1], s=4, c="red", label="damaged")
+            ax.legend(loc="upper right", fontsize=8)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [nm]")
+        ax.set_ylabel("y [nm]")
+        ax.set_title(f"frame {k}, t = {times[k]:.3g} s", fontsize=10)
+    fig.colorbar(sc, ax=axs, label="z [nm]", shrink=0.8)
+    plt.savefig(os.path.join(outdir, "network.png"), dpi=90)
+    print(f"wrote {outdir}/network.png and fiber_shape.csv")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("outdir")
@@ -47,12 +79,16 @@ def main():
         keys = sorted(frames.keys())
         times = [float(frames[k].attrs.get("time", np.nan)) for k in keys]
         positions = [frames[k]["position"][()] for k in keys]
+        damages = [frames[k]["damage"][()] for k in keys]
     with open(os.path.join(args.outdir, "fiber_shape.csv"), "w", newline="") as out:
         w = csv.writer(out)
         w.writerow(["frame", "time", "end_to_end", "extent_x", "extent_y", "extent_z"])
         for k, (t, p) in enumerate(zip(times, positions)):
             ext = p.max(0) - p.min(0)
             w.writerow([k, t, np.linalg.norm(p[-1] - p[0]), *ext])
+    if is_network(args.outdir):
+        plot_network(args.outdir, times, positions, damages)
+        return
     p0 = positions[0]
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p0, axis=0), axis=1))])
     seg = (arc // seg_len).astype(int) if seg_len > 0 else np.zeros(len(p0), int)

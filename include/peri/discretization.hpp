@@ -20,6 +20,10 @@ struct BodyGeometry {
   double cell_area = 0.0;    ///< in-plane area per node [m^2] (membranes)
   double area = 0.0;         ///< cross-section A [m^2] (fibers; their spacing is the arc step ds)
   double segment_length = 0.0;  ///< fibers: length of the segments long-range rules tell apart (0: one)
+  /// Fibers: node offsets (from `first`) where each path starts, paths + 1 entries, and each
+  /// path's arc step ds (one path unless the body is a network).
+  std::vector<std::int64_t> path_first{0};
+  std::vector<double> path_spacing;
   Quadrature quadrature = Quadrature::PartialArea;
   std::int64_t first = 0;    ///< first natural node id
   std::int64_t count = 0;    ///< number of nodes
@@ -39,6 +43,9 @@ struct SizeEstimate {
   double nodes = 0, bonds = 0, bytes = 0;
 };
 SizeEstimate estimate_size(const Scene& scene);
+
+/// The polylines of a fiber body: its path, or the paths of its network (FiberNetwork).
+std::vector<std::vector<Vec3>> fiber_paths(const Body& b);
 
 /// Generate the nodes of every body. Throws InputError for absurd resolutions (more nodes than
 /// fit in 32-bit local indices) naming the body.

@@ -28,7 +28,7 @@ namespace peri {
 /// Every fiber node of a scene with long_range, in natural order, with what the rules read.
 struct LongRangeTable {
   std::vector<std::int64_t> natural;  ///< node -> natural id (ascending)
-  std::vector<int> body;              ///< body index
+  std::vector<int> fiber;             ///< fiber (a path of a fiber body), numbered over the scene
   std::vector<std::int32_t> segment;  ///< segment along its fiber (0 when segment_length is 0)
   std::vector<double> X;              ///< 3 per node: reference position [m]
   std::vector<double> volume;         ///< measure A ds [m^3]
@@ -52,11 +52,26 @@ struct PairLaw {
   double force(PairKind k, double y) const noexcept;
 };
 
+/// Verlet list of the long-range pairs of some nodes: every partner within cutoff + skin (and
+/// not excluded by the rules) when it was built; rebuilt once any node has moved more than
+/// skin / 2 since (then no pair within the cutoff can be missing from it).
+struct LongRangeList {
+  double skin = 0;                     ///< [m]; 0: 1/4 of the cutoff
+  std::vector<std::int64_t> begin;     ///< per node of `mine`, into partner (mine.size() + 1)
+  std::vector<std::int64_t> partner;   ///< table index
+  std::vector<std::int8_t> kind;       ///< PairKind of each pair
+  std::vector<double> x_built;         ///< positions of all table nodes at the build
+  long builds = 0;
+};
+
 /// Forces and energy of the long-range pairs of the nodes `mine` (table indices), given the
 /// current positions `x` (3 per table node). Adds the force densities of mine[k] to
 /// force[3 * k ..] [N/m^3]; with_energy: returns half the shifted pair energies w2 V_i V_j summed
-/// over the pairs of those nodes (each pair is counted once over all ranks) [J], else 0.
+/// over the pairs of those nodes (each pair is counted once over all ranks) [J], else 0. The
+/// pairs come from `list` (rebuilt here when needed; its order fixes the summation order, the
+/// same on every rank).
 double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
-                         const std::vector<std::int64_t>& mine, double* force, bool with_energy = true);
+                         const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
+                         bool with_energy = true);
 
 }  // namespace peri

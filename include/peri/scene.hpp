@@ -81,6 +81,27 @@ struct Material {
   std::optional<MarderParams> marder;  ///< model marder only
 };
 
+/// A network of fibers (example 7.6) generated in a box: per family, `count` fibers start at
+/// uniformly random points within `start_band` of the box face normal to the family's direction
+/// (and anywhere across the other two) and walk across the box in steps of `step`, each step's
+/// direction deviating from the family's by Gaussian angles of standard deviation `deviation`
+/// in the plane and out of it (mirrored back at the box's side faces), until they leave the far
+/// face. Deterministic for a seed (its own generator: the same paths on every rank and platform).
+struct FiberFamily {
+  SourceLoc where;
+  int axis = 0;    ///< 0: fibers along x, 1: along y
+  long count = 0;  ///< >= 1
+};
+struct FiberNetwork {
+  SourceLoc where;
+  Vec3 min{0, 0, 0}, max{0, 0, 0};  ///< the box [m]
+  std::vector<FiberFamily> families;
+  double deviation = 0.15;   ///< sigma of the direction noise [rad], >= 0
+  double step = 0.0;         ///< path length between direction draws [m] (> 0)
+  double start_band = 0.0;   ///< [m] (>= 0)
+  long seed = 1;
+};
+
 struct Body {
   std::string name;
   SourceLoc where;
@@ -102,6 +123,8 @@ struct Body {
   // A = pi diameter^2 / 4; `segment_length` > 0 numbers the stretches of that length along the
   // fiber (segments) that long-range rules tell apart (0: the whole fiber is one segment).
   std::vector<Vec3> path;
+  std::optional<FiberNetwork> network;  ///< instead of path: many fibers in one body (cross-linked
+                                        ///< where they pass within the horizon)
   double diameter = 0.0;        ///< [m] (> 0)
   double segment_length = 0.0;  ///< [m] (>= 0)
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }

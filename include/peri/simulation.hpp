@@ -198,6 +198,7 @@ class Simulation : public EquilibriumModel {
     std::vector<int> counts, displs;        // per rank: how many, where in the gathered order
     std::vector<std::int64_t> gathered;     // gathered order -> table index
     std::vector<double> send, recv, x, force;
+    LongRangeList list;
   };
   std::optional<LongRangeState> long_range_;
   void long_range_setup();                          // before the global node arrays are freed
