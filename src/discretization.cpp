@@ -1,6 +1,7 @@
 #include "peri/discretization.hpp"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -87,7 +88,83 @@ std::vector<std::vector<Vec3>> network_paths(const FiberNetwork& n) {
   return paths;
 }
 
+// Geodesic sphere of frequency n: every face of the icosahedron split into n^2 triangles, the
+// points projected onto the unit sphere. A point shared by faces is made once, from its corner
+// or edge (lower vertex index first), so that it has one id and one set of bits. Triangles are
+// counter-clockwise seen from outside.
+void geodesic_sphere(std::int64_t n, std::vector<Vec3>& points, std::vector<std::array<std::int64_t, 3>>& triangles) {
+  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+  const double v[12][3] = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  const int faces[20][3] = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                            {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                            {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  std::map<std::array<std::int64_t, 4>, std::int64_t> ids;
+  auto point = [&](int f, std::int64_t i, std::int64_t j) {
+    // Barycentric weights (n - i - j, i, j) on the face's corners.
+    const int c[3] = {faces[f][0], faces[f][1], faces[f][2]};
+    const std::int64_t w[3] = {n - i - j, i, j};
+    std::array<std::int64_t, 4> key;
+    int nz = 0;
+    for (int k = 0; k < 3; ++k) nz += w[k] > 0;
+    if (nz == 1) {  // a corner
+      int k = w[0] > 0 ? 0 : w[1] > 0 ? 1 : 2;
+      key = {0, c[k], 0, 0};
+    } else if (nz == 2) {  // an edge: (lower corner, higher corner, weight of the higher)
+      int a = -1, b = -1;
+      for (int k = 0; k < 3; ++k)
+        if (w[k] > 0) (a < 0 ? a : b) = k;
+      if (c[a] > c[b]) std::swap(a, b);
+      key = {1, c[a], c[b], w[b]};
+    } else {
+      key = {2, f, i, j};
+    }
+    const auto it = ids.find(key);
+    if (it != ids.end()) return it->second;
+    double p[3];
+    if (key[0] == 0) {
+      for (int d = 0; d < 3; ++d) p[d] = v[key[1]][d];
+    } else if (key[0] == 1) {
+      const double s = static_cast<double>(key[3]) / static_cast<double>(n);
+      for (int d = 0; d < 3; ++d) p[d] = v[key[1]][d] + s * (v[key[2]][d] - v[key[1]][d]);
+    } else {
+      for (int d = 0; d < 3; ++d)
+        p[d] = (static_cast<double>(w[0]) * v[c[0]][d] + static_cast<double>(w[1]) * v[c[1]][d] +
+                static_cast<double>(w[2]) * v[c[2]][d]) / static_cast<double>(n);
+    }
+    const double r = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    points.push_back({p[0] / r, p[1] / r, p[2] / r});
+    const std::int64_t id = static_cast<std::int64_t>(points.size()) - 1;
+    ids.emplace(key, id);
+    return id;
+  };
+  for (int f = 0; f < 20; ++f)
+    for (std::int64_t i = 0; i < n; ++i)
+      for (std::int64_t j = 0; i + j < n; ++j) {
+        triangles.push_back({point(f, i, j), point(f, i + 1, j), point(f, i, j + 1)});
+        if (i + j + 1 < n) triangles.push_back({point(f, i + 1, j), point(f, i + 1, j + 1), point(f, i, j + 1)});
+      }
+  for (auto& tri : triangles) {  // outward: (b - a) x (c - a) along the position
+    const Vec3 &a = points[tri[0]], &b = points[tri[1]], &c = points[tri[2]];
+    const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    if (nrm[0] * (a[0] + b[0] + c[0]) + nrm[1] * (a[1] + b[1] + c[1]) + nrm[2] * (a[2] + b[2] + c[2]) < 0)
+      std::swap(tri[1], tri[2]);
+  }
+}
+
+double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  const double nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+  return 0.5 * std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+}
+
 }  // namespace
+
+std::int64_t sphere_frequency(double radius, double spacing) {
+  // The icosahedron's edge subtends 1.1071 rad; its n-fold subdivision, about 1.1071 R / n.
+  return std::max<std::int64_t>(1, std::llround(1.1071487177940904 * radius / spacing));
+}
 
 std::vector<std::vector<Vec3>> fiber_paths(const Body& b) {
   if (b.network) return network_paths(*b.network);
@@ -100,6 +177,7 @@ SizeEstimate estimate_size(const Scene& scene) {
     double n = 1;
     const int dims = b.kind == BodyKind::Solid ? 3 : b.kind == BodyKind::Fiber ? 0 : 2;
     for (int d = 0; d < dims; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
+    if (b.kind == BodyKind::Shell) n = 10.0 * std::pow(static_cast<double>(sphere_frequency(b.radius, b.spacing)), 2) + 2;
     if (b.kind == BodyKind::Fiber) {
       n = 0;
       if (b.network)  // every fiber crosses the box, about sqrt(2) times its length
@@ -152,7 +230,37 @@ Nodes discretize(const Scene& scene) {
       g.quadrature = Quadrature::Full;
       g.horizon = 1.1 * dx;
     }
-    if (b.kind == BodyKind::Fiber) {
+    if (b.kind == BodyKind::Shell) {
+      // Geodesic nodes on the sphere; a node's area is a third of its triangles' (flat) areas,
+      // scaled so that they sum to 4 pi R^2; no lattice (reference offsets are not snapped).
+      std::vector<Vec3> unit;
+      std::vector<std::array<std::int64_t, 3>> tris;
+      geodesic_sphere(sphere_frequency(b.radius, b.spacing), unit, tris);
+      const double R = b.radius;
+      std::vector<double> area(unit.size(), 0.0);
+      double total = 0, edges = 0;
+      for (const auto& t : tris) {
+        const double a = triangle_area(unit[t[0]], unit[t[1]], unit[t[2]]) * R * R;
+        for (int k = 0; k < 3; ++k) area[t[k]] += a / 3;
+        total += a;
+        for (int k = 0; k < 3; ++k) {
+          const Vec3 &p = unit[t[k]], &q = unit[t[(k + 1) % 3]];
+          edges += R * std::sqrt(std::pow(p[0] - q[0], 2) + std::pow(p[1] - q[1], 2) + std::pow(p[2] - q[2], 2));
+        }
+      }
+      const double scale = 4.0 * 3.14159265358979323846 * R * R / total;
+      g.thickness = b.thickness;
+      g.quadrature = Quadrature::Full;
+      g.center = b.origin;
+      g.radius = R;
+      g.spacing = edges / (3.0 * static_cast<double>(tris.size()));  // mean edge length
+      g.cell_area = 4.0 * 3.14159265358979323846 * R * R / static_cast<double>(unit.size());
+      for (std::size_t k = 0; k < unit.size(); ++k)
+        push(b.origin[0] + R * unit[k][0], b.origin[1] + R * unit[k][1], b.origin[2] + R * unit[k][2],
+             area[k] * scale * b.thickness);
+      for (const auto& t : tris) g.triangles.push_back({g.first + t[0], g.first + t[1], g.first + t[2]});
+      g.cells = {static_cast<std::int64_t>(unit.size()), 1, 1};
+    } else if (b.kind == BodyKind::Fiber) {
       // Nodes at the centres of n equal arc-length steps ds = L/n along each path (eq. 31's
       // ds), each with the measure A ds; no lattice, so reference offsets are not snapped.
       g.area = 0.25 * 3.14159265358979323846 * b.diameter * b.diameter;

@@ -14,7 +14,7 @@ double moment(int k, double delta, bool conical) {
 // mu per unit micromodulus for the law in the body (see model.hpp).
 double mu_per_c(ModelKind kind, const BodyGeometry& g, bool conical) {
   const double pi = 3.14159265358979323846;
-  if (g.kind == BodyKind::Membrane) {
+  if (g.kind == BodyKind::Membrane || g.kind == BodyKind::Shell) {
     if (kind == ModelKind::Membrane) return pi * g.thickness * moment(1, g.horizon, conical);
     return pi * g.thickness * moment(2, g.horizon, conical) / 8.0;
   }
@@ -34,7 +34,7 @@ double youngs_per_c_fiber(ModelKind kind, const BodyGeometry& g, bool conical) {
 }  // namespace
 
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where) {
-  if (m.model == ModelKind::Membrane && g.kind != BodyKind::Membrane && g.kind != BodyKind::Fiber)
+  if (m.model == ModelKind::Membrane && g.kind == BodyKind::Solid)
     throw InputError(where + ": material '" + m.name +
                      "' uses the membrane micropotential (eq. 13), which is defined for membrane "
                      "and fiber bodies only; expected model: pmb for a solid body");
@@ -44,7 +44,7 @@ BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& w
   law.conical = m.influence == Influence::Conical;
   const double k = mu_per_c(m.model, g, law.conical);
   // In-plane (membrane) and 3D (solid, nu = 1/4) relations between mu and the inputs.
-  const bool membrane = g.kind == BodyKind::Membrane;
+  const bool membrane = g.kind == BodyKind::Membrane || g.kind == BodyKind::Shell;
   double mu = 0;
   if (m.micromodulus) {
     law.c = *m.micromodulus;
@@ -98,7 +98,7 @@ ElasticConstants elastic_constants(const BondLaw& law, const BodyGeometry& g, do
     return e;
   }
   e.mu = law.c * mu_per_c(law.kind, g, law.conical);
-  const bool membrane = g.kind == BodyKind::Membrane;
+  const bool membrane = g.kind == BodyKind::Membrane || g.kind == BodyKind::Shell;
   e.bulk = membrane ? 2.0 * e.mu : e.mu / 0.6;
   e.youngs = membrane ? 8.0 * e.mu / 3.0 : 2.5 * e.mu;
   e.c_longitudinal = std::sqrt(3.0 * e.mu / density);

@@ -470,6 +470,10 @@ const Keys kBodyKeys = {
     {"network", false, ""},
     {"diameter", false, ""},
     {"segment_length", false, ""},
+    {"center", false, ""},
+    {"radius", false, ""},
+    {"pressure", false, ""},
+    {"pressure_ramp_time", false, ""},
 };
 
 const Keys kNetworkKeys = {
@@ -520,7 +524,7 @@ const Keys kBoundaryKeys = {
 
 const Keys kToolKeys = {
     {"name", true, "tool name, unique"},
-    {"kind", true, "tool kind: cylinder"},
+    {"kind", true, "tool kind: cylinder or sphere"},
     {"radius", true, "cylinder radius, m"},
     {"center", true, "axis position [x, y] at t = 0, m"},
     {"velocity", false, ""},
@@ -801,6 +805,29 @@ void read_fiber(const Map& m, Body& b) {
   b.quadrature = Quadrature::Full;
 }
 
+// A spherical membrane: center, radius, thickness, spacing, horizon, internal pressure (7.2).
+void read_sphere(const Map& m, Body& b) {
+  for (const char* key : {"origin", "size", "grid", "quadrature", "breakable", "path", "network", "diameter",
+                          "segment_length"})
+    if (auto x = m.get(key))
+      x->fail("not used by a sphere body (geodesic nodes on the sphere, full weights within the horizon)");
+  if (!m.given("center")) m.missing("center", "center of the sphere [x, y, z], m");
+  b.origin = m.at("center").vec3("m");
+  if (!m.given("radius")) m.missing("radius", "radius of the sphere, m");
+  b.radius = m.at("radius").positive("m");
+  if (!m.given("thickness")) m.missing("thickness", "membrane thickness, m");
+  b.thickness = m.at("thickness").positive("m");
+  if (!m.given("spacing")) m.missing("spacing", "node spacing on the sphere, m");
+  const Value spacing = m.at("spacing");
+  b.spacing = spacing.positive("m");
+  if (b.spacing > b.radius)
+    spacing.fail("spacing must not exceed the radius (" + format_number(b.radius) + " m), got " + spacing.got());
+  read_horizon(m, b);
+  if (auto x = m.get("pressure")) b.pressure = x->non_negative("Pa");
+  if (auto x = m.get("pressure_ramp_time")) b.pressure_ramp_time = x->non_negative("s");
+  b.quadrature = Quadrature::Full;
+}
+
 Body read_body(const std::string& name, const Value& v, const std::vector<Material>& materials) {
   const Map m(v, &kBodyKeys, "a map describing the body");
   Body b;
@@ -810,7 +837,8 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
     b.kind = x->choice<BodyKind>({{"membrane", BodyKind::Membrane},
                                   {"solid", BodyKind::Solid},
                                   {"lattice", BodyKind::Lattice},
-                                  {"fiber", BodyKind::Fiber}});
+                                  {"fiber", BodyKind::Fiber},
+                                  {"sphere", BodyKind::Shell}});
   const bool membrane = b.kind != BodyKind::Solid;  // membranes and lattices are flat sheets
 
   const Value material = m.at("material");
@@ -832,7 +860,14 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
     read_fiber(m, b);
     return b;
   }
-  for (const char* key : {"path", "diameter", "segment_length"})
+  for (const char* key : {"center", "radius", "pressure", "pressure_ramp_time"})
+    if (b.kind != BodyKind::Shell && m.given(key))
+      m.get(key)->fail("only a sphere body (kind: sphere) takes " + std::string(key));
+  if (b.kind == BodyKind::Shell) {
+    read_sphere(m, b);
+    return b;
+  }
+  for (const char* key : {"path", "network", "diameter", "segment_length"})
     if (auto x = m.get(key)) x->fail("only a fiber body (kind: fiber) takes " + std::string(key));
   if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m");
   if (!m.given("size")) m.missing("size", "extent [Lx, Ly] of a membrane or [Lx, Ly, Lz] of a solid, m");
@@ -980,10 +1015,19 @@ Tool read_tool(const Value& v, UniqueNames& names) {
   Tool t;
   t.name = entry_name(m, "", 0, names);
   t.where = m.where();
-  m.at("kind").choice<int>({{"cylinder", 0}});
+  t.sphere = m.at("kind").choice<bool>({{"cylinder", false}, {"sphere", true}});
   t.radius = m.at("radius").positive("m");
-  t.center = m.at("center").vec2("m");
-  if (auto x = m.get("velocity")) t.velocity = x->vec2("m/s");
+  if (t.sphere) {
+    t.center = m.at("center").vec3("m");
+    if (auto x = m.get("velocity")) t.velocity = x->vec3("m/s");
+  } else {
+    const auto c = m.at("center").vec2("m");
+    t.center = {c[0], c[1], 0.0};
+    if (auto x = m.get("velocity")) {
+      const auto u = x->vec2("m/s");
+      t.velocity = {u[0], u[1], 0.0};
+    }
+  }
   if (auto x = m.get("friction")) t.friction = x->non_negative("");
   if (auto x = m.get("stiffness")) t.stiffness = x->positive("");
   return t;
@@ -1188,6 +1232,11 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
       stages[i].fail("a quasistatic stage in a scene with tools; tools act in dynamic stages only (tools: '" +
                      s.tools.front().name + "')");
 
+  const bool pressurized = std::any_of(s.bodies.begin(), s.bodies.end(), [](const Body& b) { return b.pressure > 0; });
+  for (std::size_t i = 0; i < s.stages.size() && pressurized; ++i)
+    if (s.stages[i].kind == StageKind::QuasiStatic)
+      stages[i].fail("a quasistatic stage in a scene with a pressurized sphere; the pressure acts in dynamic stages "
+                     "only (the quasi-static residual holds the bonds alone)");
   for (std::size_t i = 0; i < s.stages.size() && s.long_range; ++i)
     if (s.stages[i].kind == StageKind::QuasiStatic)
       stages[i].fail("a quasistatic stage in a scene with long_range; long-range forces act in dynamic stages "
@@ -1438,7 +1487,11 @@ const char* to_text(ModelKind k) {
 }
 const char* to_text(Influence k) { return k == Influence::Constant ? "constant" : "conical"; }
 const char* to_text(BodyKind k) {
-  return k == BodyKind::Membrane ? "membrane" : k == BodyKind::Solid ? "solid" : k == BodyKind::Lattice ? "lattice" : "fiber";
+  return k == BodyKind::Membrane ? "membrane"
+         : k == BodyKind::Solid  ? "solid"
+         : k == BodyKind::Lattice ? "lattice"
+         : k == BodyKind::Fiber  ? "fiber"
+                                 : "sphere";
 }
 const char* to_text(PairKind k) {
   return k == PairKind::AdjacentSegments ? "adjacent_segments"
@@ -1507,6 +1560,19 @@ void emit_body(Writer& w, const Body& b) {
   w.key(2, yaml_string(b.name), "");
   w.key(4, "kind", to_text(b.kind));
   w.key(4, "material", yaml_string(b.material));
+  if (b.kind == BodyKind::Shell) {
+    w.key(4, "center", flow(b.origin));
+    w.key(4, "radius", b.radius);
+    w.key(4, "thickness", b.thickness);
+    w.key(4, "spacing", b.spacing);
+    if (b.horizon)
+      w.key(4, "horizon", *b.horizon);
+    else
+      w.key(4, "horizon_factor", b.horizon_factor);
+    w.key(4, "pressure", b.pressure);
+    w.key(4, "pressure_ramp_time", b.pressure_ramp_time);
+    return;
+  }
   if (b.kind == BodyKind::Fiber) {
     if (b.network) {
       const FiberNetwork& n = *b.network;
@@ -1565,10 +1631,10 @@ void emit_boundary(Writer& w, const Boundary& b) {
 
 void emit_tool(Writer& w, const Tool& t) {
   w.key(2, "- name", yaml_string(t.name));
-  w.key(4, "kind", "cylinder");
+  w.key(4, "kind", t.sphere ? "sphere" : "cylinder");
   w.key(4, "radius", t.radius);
-  w.key(4, "center", flow({t.center[0], t.center[1]}));
-  w.key(4, "velocity", flow({t.velocity[0], t.velocity[1]}));
+  w.key(4, "center", t.sphere ? flow(t.center) : flow({t.center[0], t.center[1]}));
+  w.key(4, "velocity", t.sphere ? flow(t.velocity) : flow({t.velocity[0], t.velocity[1]}));
   w.key(4, "friction", t.friction);
   w.key(4, "stiffness", t.stiffness);
 }

@@ -224,6 +224,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     for (std::int32_t i = 0; i < domain_.owned; ++i) bc_[i] = bc_natural[domain_.natural[i]];
   }
   if (scene_.long_range) long_range_setup();
+  pressure_setup();
   // The global node arrays and maps end here: every rank keeps its own nodes (owned and ghosts)
   // in domain_, which is all that the stages, output, checkpoints and crack tips read.
   decltype(bc_nodes)().swap(bc_nodes);
@@ -317,9 +318,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   double stiffest_tool = 0;
   bool friction = false;
   for (const Tool& t : scene_.tools) {
-    RigidCylinder c;
+    RigidTool c;
+    c.sphere = t.sphere;
     c.radius = t.radius;
-    for (int d = 0; d < 2; ++d) {
+    for (int d = 0; d < 3; ++d) {  // a cylinder's z components are 0
       c.center[d] = t.center[d];
       c.velocity[d] = t.velocity[d];
     }
@@ -775,6 +777,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   // "Kelvin dissipation").
   compute_forces(with_energy);
   add_tool_forces(t1, true);
+  add_pressure_forces(t1, true);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
   // Free component k of node i: second half kick.
@@ -824,6 +827,85 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   ++step_;
 }
 
+void Simulation::pressure_setup() {
+  std::unordered_map<std::int64_t, std::int32_t> local;  // natural -> local, nodes of loaded spheres
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    const Body& body = scene_.bodies[b];
+    if (body.kind != BodyKind::Shell || !(body.pressure > 0)) continue;
+    if (local.empty())
+      for (std::int32_t l = 0; l < domain_.local(); ++l) local.emplace(domain_.natural[l], l);
+    const BodyGeometry& g = nodes_.bodies[b];
+    std::vector<std::vector<std::pair<std::int32_t, std::int32_t>>> corners(domain_.owned);
+    for (const auto& t : g.triangles)
+      for (int k = 0; k < 3; ++k) {
+        const auto i = local.find(t[k]);
+        if (i == local.end() || i->second >= domain_.owned) continue;
+        const auto a = local.find(t[(k + 1) % 3]), c = local.find(t[(k + 2) % 3]);
+        if (a == local.end() || c == local.end()) continue;  // a corner beyond the halo: no share
+        corners[i->second].push_back({a->second, c->second});
+      }
+    PressureLoad load;
+    load.pressure = body.pressure;
+    load.ramp = body.pressure_ramp_time;
+    auto bond_to = [&](std::int32_t i, std::int32_t j) -> std::int64_t {
+      for (std::int64_t q = domain_.bonds.offsets[i]; q < domain_.bonds.offsets[i + 1]; ++q)
+        if (domain_.bonds.neighbor[q] == j) return q;
+      return -1;
+    };
+    for (std::int32_t i = 0; i < domain_.owned; ++i) {
+      if (corners[i].empty()) continue;
+      load.node.push_back(i);
+      for (const auto& [a, c] : corners[i]) {
+        load.others.push_back({a, c});
+        load.bonds.push_back({bond_to(i, a), bond_to(i, c)});
+      }
+      load.begin.push_back(static_cast<std::int64_t>(load.others.size()));
+    }
+    load.force_prev.assign(3 * load.node.size(), 0.0);
+    load.x_prev.assign(3 * load.node.size(), 0.0);
+    pressure_.push_back(std::move(load));
+  }
+}
+
+void Simulation::add_pressure_forces(double t, bool book) {
+  if (pressure_.empty()) return;
+  PetscLogEventBegin(events().update, 0, 0, 0, 0);
+  const double* x = positions_.data();
+  const std::int64_t s = position_stride_;
+  auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
+  auto intact = [&](std::int64_t q) { return q < 0 || !(domain_.bonds.broken[q] & 1); };
+  for (PressureLoad& load : pressure_) {
+    const double p = load.pressure * (load.ramp > 0 ? std::min(t / load.ramp, 1.0) : 1.0);
+    double work = 0;
+    for (std::size_t m = 0; m < load.node.size(); ++m) {
+      const std::int32_t i = load.node[m];
+      double f[3] = {0, 0, 0};
+      for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
+        if (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1])) continue;
+        const std::int32_t a = load.others[e][0], c = load.others[e][1];
+        const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
+        const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
+        // p times the triangle's area vector (1/2 e1 x e2), a third to this corner.
+        const double k = p / 6.0;
+        f[0] += k * (e1[1] * e2[2] - e1[2] * e2[1]);
+        f[1] += k * (e1[2] * e2[0] - e1[0] * e2[2]);
+        f[2] += k * (e1[0] * e2[1] - e1[1] * e2[0]);
+      }
+      const double inv_volume = 1.0 / domain_.volume[i];
+      for (int c = 0; c < 3; ++c) {
+        force_[3 * static_cast<std::size_t>(i) + c] += f[c] * inv_volume;
+        const double xc = pos(i, c);
+        if (book && load.started) work += 0.5 * (load.force_prev[3 * m + c] + f[c]) * (xc - load.x_prev[3 * m + c]);
+        load.force_prev[3 * m + c] = f[c];
+        load.x_prev[3 * m + c] = xc;
+      }
+    }
+    load.started = true;
+    external_work_ += work;
+  }
+  PetscLogEventEnd(events().update, 0, 0, 0, 0);
+}
+
 void Simulation::add_tool_forces(double t, bool book) {
   if (tools_.empty()) return;
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
@@ -837,7 +919,7 @@ void Simulation::add_tool_forces(double t, bool book) {
     tally_.strain_energy += c.energy;
     // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
     if (book)
-      for (int d = 0; d < 2; ++d)
+      for (int d = 0; d < 3; ++d)
         external_work_ += 0.5 * dt_ * (tool_contact_[k].force[d] + c.force[d]) * tool.velocity[d];
     tool_contact_[k] = std::move(c);
   }
@@ -961,8 +1043,7 @@ void Simulation::setup_crack_tips() {
   double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
   tip_bodies_.assign(laws_.size(), false);
   for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (!laws_[b].breaks || nodes_.bodies[b].kind == BodyKind::Solid || nodes_.bodies[b].kind == BodyKind::Fiber)
-      continue;  // fibers break at points, not along paths
+    if (!laws_[b].breaks || nodes_.bodies[b].kind != BodyKind::Membrane) continue;  // flat sheets only
     tip_bodies_[b] = true;
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
     dx = std::max(dx, nodes_.bodies[b].spacing);
@@ -1184,6 +1265,7 @@ void Simulation::begin() {
   }
   compute_forces(true);
   add_tool_forces(time_, false);
+  add_pressure_forces(time_, false);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
   if (frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) {
@@ -1232,6 +1314,7 @@ std::int64_t Simulation::advance(std::int64_t n) {
       ++stage_;
       compute_forces(true);
       add_tool_forces(time_, false);
+      add_pressure_forces(time_, false);
       write_series_row();
       if (scene_.stages[stage_ - 1].kind == StageKind::QuasiStatic)
         summary_.initial_total_energy = summary_.final_energy.total();
@@ -1751,6 +1834,7 @@ void Simulation::restore(const Checkpoint& c) {
   // step; every bond past its critical stretch there is already broken, so none breaks now.
   compute_forces(true);
   add_tool_forces(time_, false);
+  add_pressure_forces(time_, false);
   summary_.final_energy = reduce_energies(tally_.strain_energy);
   while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
   last_checkpoint_step_ = step_;

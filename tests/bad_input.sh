@@ -77,7 +77,7 @@ expect missing_checkpoint "checkpoint '$work/none': no such file" -- --resume "$
 
 tool=$src/drivers/scenes/blunt_tool.yaml
 expect tool_radius "tools.0.radius: expected a positive number [m], got -0.001" -- "$tool" --set tools.rod.radius=-0.001
-expect tool_kind "tools.0.kind: expected one of" -- "$tool" --set tools.rod.kind=sphere
+expect tool_kind "tools.0.kind: expected one of: cylinder, sphere; got cube" -- "$tool" --set tools.rod.kind=cube
 expect tool_center "tools.0.center: expected a list of 2 numbers [x, y] [m]" -- "$tool" --set tools.rod.center=[0,0,0]
 sed 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$tool" > "$work/tool_qs.yaml"
 expect tool_quasistatic "a quasistatic stage in a scene with tools" -- "$work/tool_qs.yaml"
@@ -93,6 +93,14 @@ expect pair_alpha "long_range.pairs.1.alpha: expected a non-negative number [J/m
 expect long_range_no_fiber "long_range: long-range forces act between fiber nodes" -- "$scene" --set 'long_range={length: 1e-9, cutoff: 3e-9, pairs: [{between: other_fibers, alpha: 1, beta: 1}]}'
 sed 's/- {name: coil, duration: 4.0e-9/- {name: settle, kind: quasistatic}\n  - {name: coil, duration: 4.0e-9/' "$fiber" > "$work/fiber_qs.yaml"
 expect long_range_quasistatic "a quasistatic stage in a scene with long_range" -- "$work/fiber_qs.yaml"
+balloon=$src/drivers/scenes/balloon.yaml
+expect sphere_size "bodies.balloon.size: not used by a sphere body" -- "$balloon" --set 'bodies.balloon.size=[1, 1]'
+expect sphere_pressure "bodies.balloon.pressure: expected a non-negative number [Pa], got -1" -- "$balloon" --set bodies.balloon.pressure=-1
+expect sphere_spacing "bodies.balloon.spacing: spacing must not exceed the radius (0.1 m), got 0.5" -- "$balloon" --set bodies.balloon.spacing=0.5
+expect sphere_tool_center "tools.0.center: expected a list of 3 numbers [x, y, z] [m]" -- "$balloon" --set 'tools.fragment.center=[1, 0]'
+expect membrane_pressure "bodies.sheet.pressure: only a sphere body (kind: sphere) takes pressure" -- "$scene" --set bodies.sheet.pressure=1e5
+sed -e '/^tools:$/,+1d' -e 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$balloon" > "$work/balloon_qs.yaml"
+expect pressure_quasistatic "a quasistatic stage in a scene with a pressurized sphere" -- "$work/balloon_qs.yaml"
 network=$src/drivers/scenes/fiber_network.yaml
 expect network_direction "bodies.net.network.families.0.direction: expected one of: x, y; got z" -- "$network" --set 'bodies.net.network.families=[{direction: z, count: 3}]'
 expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'

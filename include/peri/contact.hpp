@@ -6,16 +6,20 @@
 
 namespace peri {
 
-/// A rigid cylinder of infinite length, axis along z through (cx + vx t, cy + vy t).
-struct RigidCylinder {
+/// A rigid cylinder of infinite length, axis along z through (cx + vx t, cy + vy t); or, with
+/// `sphere`, a rigid sphere about (cx, cy, cz) + (vx, vy, vz) t (a fragment, example 7.2).
+struct RigidTool {
+  bool sphere = false;
   double radius = 0;
-  double center[2] = {0, 0};    ///< axis at t = 0 [m]
-  double velocity[2] = {0, 0};  ///< [m/s]
+  double center[3] = {0, 0, 0};    ///< axis (cylinder: x, y) or centre at t = 0 [m]
+  double velocity[3] = {0, 0, 0};  ///< [m/s] (cylinder: z component 0)
   double friction = 0;          ///< Coulomb coefficient mu
   /// Penalty stiffness per unit mass [1/s^2]: a node of density rho inside the cylinder by a
   /// depth p feels the normal force density rho * stiffness * p [N/m^3].
   double stiffness = 0;
 };
+
+using RigidCylinder = RigidTool;
 
 /// Friction force density on one node [N/m^3].
 struct NodeFriction {

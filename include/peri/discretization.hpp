@@ -2,6 +2,7 @@
 // "natural" order: bodies in scene order, then row-major (x fastest). The natural order is
 // independent of the number of ranks; everything rank-independent (bond order, output) uses it.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -24,6 +25,11 @@ struct BodyGeometry {
   /// path's arc step ds (one path unless the body is a network).
   std::vector<std::int64_t> path_first{0};
   std::vector<double> path_spacing;
+  /// Spheres: the geodesic triangles (natural ids, counter-clockwise seen from outside) that carry
+  /// the internal pressure; center and radius.
+  std::vector<std::array<std::int64_t, 3>> triangles;
+  std::array<double, 3> center{0, 0, 0};
+  double radius = 0.0;
   Quadrature quadrature = Quadrature::PartialArea;
   std::int64_t first = 0;    ///< first natural node id
   std::int64_t count = 0;    ///< number of nodes
@@ -43,6 +49,9 @@ struct SizeEstimate {
   double nodes = 0, bonds = 0, bytes = 0;
 };
 SizeEstimate estimate_size(const Scene& scene);
+
+/// Frequency of the geodesic sphere of a sphere body: 10 n^2 + 2 nodes, edges about `spacing`.
+std::int64_t sphere_frequency(double radius, double spacing);
 
 /// The polylines of a fiber body: its path, or the paths of its network (FiberNetwork).
 std::vector<std::vector<Vec3>> fiber_paths(const Body& b);

@@ -38,6 +38,7 @@ enum class BodyKind {
   Solid,     ///< box of simple-cubic points, measure = dx^3
   Lattice,   ///< triangular lattice of spacing Delta, nearest neighbours (Marder model)
   Fiber,     ///< nodes along a polyline, measure = cross-section area * arc length (eq. 31)
+  Shell,     ///< spherical membrane (scene kind "sphere"): geodesic nodes, measure = area * thickness
 };
 
 enum class Grid { Square, Hexagonal };
@@ -127,6 +128,12 @@ struct Body {
                                         ///< where they pass within the horizon)
   double diameter = 0.0;        ///< [m] (> 0)
   double segment_length = 0.0;  ///< [m] (>= 0)
+  // Spherical membranes (kind sphere, example 7.2): nodes on a geodesic sphere of `radius` about
+  // `center` (origin holds the center), thickness h; an internal follower pressure that rises
+  // linearly to `pressure` over `pressure_ramp_time`.
+  double radius = 0.0;              ///< [m] (> 0)
+  double pressure = 0.0;            ///< [Pa] (>= 0)
+  double pressure_ramp_time = 0.0;  ///< [s] (>= 0)
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
 };
 
@@ -168,9 +175,10 @@ struct Boundary {
 struct Tool {
   std::string name;
   SourceLoc where;
+  bool sphere = false;                 ///< kind sphere (a fragment) instead of cylinder
   double radius = 0.0;                 ///< [m] (> 0)
-  std::array<double, 2> center{0, 0};  ///< axis position (x, y) at t = 0 [m]
-  std::array<double, 2> velocity{0, 0};  ///< [m/s]
+  std::array<double, 3> center{0, 0, 0};  ///< axis position (x, y) or sphere centre at t = 0 [m]
+  std::array<double, 3> velocity{0, 0, 0};  ///< [m/s] (cylinder: in-plane, z = 0)
   double friction = 0.0;               ///< Coulomb coefficient mu (>= 0)
   /// Penalty stiffness relative to the stiffest node's bond stiffness (> 0); the stable step is
   /// divided by sqrt(1 + stiffness) when a scene has tools.

@@ -154,6 +154,22 @@ class Simulation : public EquilibriumModel {
   /// tools' work (trapezoidal in time) goes to external_work_. The contact's penalty energy is
   /// added to tally_.strain_energy. Friction is booked by step() after the second half kick.
   void add_tool_forces(double t, bool book);
+  /// Internal pressure of sphere bodies (example 7.2), a follower load: each geodesic triangle
+  /// carries p(t) times its current area vector, a third to each corner whose bonds to the
+  /// other two corners are intact (a torn triangle holds no gas). book: its work since the last
+  /// call (trapezoidal: the mean of the two forces times the displacement) goes to external_work_.
+  void add_pressure_forces(double t, bool book);
+  struct PressureLoad {
+    double pressure = 0, ramp = 0;
+    std::vector<std::int32_t> node;                 // owned loaded nodes (local)
+    std::vector<std::int64_t> begin{0};             // per loaded node, into the lists below
+    std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
+    std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to them (-1: none)
+    std::vector<double> force_prev, x_prev;         // per loaded node: last force [N], position
+    bool started = false;
+  };
+  std::vector<PressureLoad> pressure_;
+  void pressure_setup();
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
