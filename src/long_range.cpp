@@ -134,7 +134,18 @@ void build_list(const PairLaw& law, const LongRangeTable& table, const double* x
             list.kind.push_back(static_cast<std::int8_t>(kind));
           }
         }
-    list.begin.push_back(static_cast<std::int64_t>(list.partner.size()));
+    // Partners in ascending table order: the summation order then does not depend on where
+    // the nodes stood when the list was built (a run resumed from a checkpoint, whose first
+    // list is built later, sums the same pairs in the same order).
+    const std::int64_t b = list.begin.back(), e = static_cast<std::int64_t>(list.partner.size());
+    std::vector<std::pair<std::int64_t, std::int8_t>> sorted_pairs;
+    for (std::int64_t k = b; k < e; ++k) sorted_pairs.push_back({list.partner[k], list.kind[k]});
+    std::sort(sorted_pairs.begin(), sorted_pairs.end());
+    for (std::int64_t k = b; k < e; ++k) {
+      list.partner[k] = sorted_pairs[k - b].first;
+      list.kind[k] = sorted_pairs[k - b].second;
+    }
+    list.begin.push_back(e);
   }
   list.x_built.assign(x, x + 3 * n);
   ++list.builds;
