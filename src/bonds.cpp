@@ -81,15 +81,20 @@ LatticeStencil lattice_stencil(const Nodes& nodes, int body) {
 CellList::CellList(const Nodes& nodes, double reach_, bool stencils) {
   if (stencils)
     for (std::size_t b = 0; b < nodes.bodies.size(); ++b) stencils_.push_back(lattice_stencil(nodes, static_cast<int>(b)));
-  const std::int64_t n = nodes.size();
+  build(nodes.X.data(), nodes.size(), reach_);
+}
+
+CellList::CellList(const double* x, std::int64_t n, double reach_) { build(x, n, reach_); }
+
+void CellList::build(const double* X, std::int64_t n, double reach_) {
   std::array<double, 3> hi{};
   lo_ = {0, 0, 0};
   if (n > 0) {
-    for (int d = 0; d < 3; ++d) lo_[d] = hi[d] = nodes.X[d];
+    for (int d = 0; d < 3; ++d) lo_[d] = hi[d] = X[d];
     for (std::int64_t i = 0; i < n; ++i)
       for (int d = 0; d < 3; ++d) {
-        lo_[d] = std::min(lo_[d], nodes.X[3 * i + d]);
-        hi[d] = std::max(hi[d], nodes.X[3 * i + d]);
+        lo_[d] = std::min(lo_[d], X[3 * i + d]);
+        hi[d] = std::max(hi[d], X[3 * i + d]);
       }
   }
   size_ = reach_ * (1.0 + 1e-9);
@@ -107,7 +112,7 @@ CellList::CellList(const Nodes& nodes, double reach_, bool stencils) {
   start_.assign(ncells + 1, 0);
   std::vector<std::int64_t> cell(n);
   for (std::int64_t i = 0; i < n; ++i) {
-    const auto c = cell_of(&nodes.X[3 * i]);
+    const auto c = cell_of(&X[3 * i]);
     cell[i] = (c[2] * dims_[1] + c[1]) * dims_[0] + c[0];
     ++start_[cell[i] + 1];
   }

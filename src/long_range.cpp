@@ -1,5 +1,7 @@
 #include "peri/long_range.hpp"
 
+#include "peri/bonds.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -67,47 +69,13 @@ int pair_kind(const LongRangeTable& t, std::int64_t p, std::int64_t q) {
   return static_cast<int>(d == 1 ? PairKind::AdjacentSegments : PairKind::DistantSegments);
 }
 
-}  // namespace
-
-namespace {
-
-// Rebuilds the list: a cell list on the current positions (cells at least cutoff + skin wide, at
-// most ~4n of them), every partner of each node of `mine` within that reach.
+// Rebuilds the list: a cell list on the current positions (cells at least cutoff + skin wide),
+// every partner of each node of `mine` within that reach.
 void build_list(const PairLaw& law, const LongRangeTable& table, const double* x,
                 const std::vector<std::int64_t>& mine, LongRangeList& list) {
   const std::int64_t n = table.size();
   const double reach = law.cutoff + list.skin, reach2 = reach * reach;
-  std::array<double, 3> lo{}, hi{};
-  for (int c = 0; c < 3; ++c) lo[c] = hi[c] = x[c];
-  for (std::int64_t p = 0; p < n; ++p)
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = std::min(lo[c], x[3 * p + c]);
-      hi[c] = std::max(hi[c], x[3 * p + c]);
-    }
-  double size = reach;
-  std::array<std::int64_t, 3> dims{};
-  for (;;) {
-    double total = 1;
-    for (int c = 0; c < 3; ++c) {
-      dims[c] = static_cast<std::int64_t>(std::floor((hi[c] - lo[c]) / size)) + 1;
-      total *= static_cast<double>(dims[c]);
-    }
-    if (total <= 4.0 * static_cast<double>(n) + 64) break;
-    size *= 1.5;
-  }
-  auto cell_of = [&](const double* xp, int c) {
-    return std::clamp<std::int64_t>(static_cast<std::int64_t>((xp[c] - lo[c]) / size), 0, dims[c] - 1);
-  };
-  std::vector<std::int64_t> start(static_cast<std::size_t>(dims[0] * dims[1] * dims[2] + 1), 0), cell(n), sorted(n);
-  for (std::int64_t p = 0; p < n; ++p) {
-    const double* xp = &x[3 * p];
-    cell[p] = (cell_of(xp, 2) * dims[1] + cell_of(xp, 1)) * dims[0] + cell_of(xp, 0);
-    ++start[cell[p] + 1];
-  }
-  for (std::size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
-  std::vector<std::int64_t> fill(start.begin(), start.end() - 1);
-  for (std::int64_t p = 0; p < n; ++p) sorted[fill[cell[p]]++] = p;
-
+  const CellList cells(x, n, reach);
   const double excl2 = law.exclusion * law.exclusion;
   list.begin.assign(1, 0);
   list.partner.clear();
@@ -115,25 +83,18 @@ void build_list(const PairLaw& law, const LongRangeTable& table, const double* x
   for (const std::int64_t p : mine) {
     const double* xp = &x[3 * p];
     const double* Xp = &table.X[3 * p];
-    const std::int64_t ci[3] = {cell_of(xp, 0), cell_of(xp, 1), cell_of(xp, 2)};
-    for (std::int64_t k = std::max<std::int64_t>(ci[2] - 1, 0); k <= std::min(ci[2] + 1, dims[2] - 1); ++k)
-      for (std::int64_t j = std::max<std::int64_t>(ci[1] - 1, 0); j <= std::min(ci[1] + 1, dims[1] - 1); ++j)
-        for (std::int64_t i = std::max<std::int64_t>(ci[0] - 1, 0); i <= std::min(ci[0] + 1, dims[0] - 1); ++i) {
-          const std::int64_t c = (k * dims[1] + j) * dims[0] + i;
-          for (std::int64_t s = start[c]; s < start[c + 1]; ++s) {
-            const std::int64_t q = sorted[s];
-            if (q == p) continue;
-            const double* xq = &x[3 * q];
-            const double y2 = std::pow(xq[0] - xp[0], 2) + std::pow(xq[1] - xp[1], 2) + std::pow(xq[2] - xp[2], 2);
-            if (y2 > reach2) continue;
-            const int kind = pair_kind(table, p, q);
-            if (kind < 0 || !law.acts[kind]) continue;
-            const double* Xq = &table.X[3 * q];
-            if (std::pow(Xq[0] - Xp[0], 2) + std::pow(Xq[1] - Xp[1], 2) + std::pow(Xq[2] - Xp[2], 2) < excl2) continue;
-            list.partner.push_back(q);
-            list.kind.push_back(static_cast<std::int8_t>(kind));
-          }
-        }
+    cells.for_each_candidate(xp, [&](std::int64_t q) {
+      if (q == p) return;
+      const double* xq = &x[3 * q];
+      const double y2 = std::pow(xq[0] - xp[0], 2) + std::pow(xq[1] - xp[1], 2) + std::pow(xq[2] - xp[2], 2);
+      if (y2 > reach2) return;
+      const int kind = pair_kind(table, p, q);
+      if (kind < 0 || !law.acts[kind]) return;
+      const double* Xq = &table.X[3 * q];
+      if (std::pow(Xq[0] - Xp[0], 2) + std::pow(Xq[1] - Xp[1], 2) + std::pow(Xq[2] - Xp[2], 2) < excl2) return;
+      list.partner.push_back(q);
+      list.kind.push_back(static_cast<std::int8_t>(kind));
+    });
     // Partners in ascending table order: the summation order then does not depend on where
     // the nodes stood when the list was built (a run resumed from a checkpoint, whose first
     // list is built later, sums the same pairs in the same order).

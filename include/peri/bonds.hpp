@@ -39,6 +39,8 @@ class CellList {
   /// `stencils` false: every body is searched through the cells (the reference the stencils are
   /// tested against).
   CellList(const Nodes& nodes, double reach, bool stencils = true);
+  /// Cells alone over n points x (3 each; ids 0..n-1), e.g. current positions.
+  CellList(const double* x, std::int64_t n, double reach);
   /// The stencil of body b, or nullptr where its nodes are searched through the cells.
   const LatticeStencil* stencil(int body) const {
     return static_cast<std::size_t>(body) < stencils_.size() && !stencils_[body].by_parity[0].empty()
@@ -59,6 +61,7 @@ class CellList {
 
  private:
   std::array<std::int64_t, 3> cell_of(const double* x) const;
+  void build(const double* x, std::int64_t n, double reach);
   std::array<double, 3> lo_{};
   double size_ = 1.0;
   std::array<std::int64_t, 3> dims_{1, 1, 1};
