@@ -609,6 +609,21 @@ void Simulation::long_range_setup() {
   lr.recv.resize(3 * static_cast<std::size_t>(lr.table.size()));
   lr.x.resize(lr.recv.size());
   lr.force.resize(lr.send.size());
+  // The list at the reference positions: a cutoff that takes in most of the scene would hold
+  // O(N^2) pairs (12 bytes each); refuse it before anything is written.
+  long_range_forces(lr.law, lr.table, lr.table.X.data(), lr.mine, lr.force.data(), lr.list, false);
+  double pairs = static_cast<double>(lr.list.partner.size()), all_pairs = 0;
+  MPI_Allreduce(&pairs, &all_pairs, 1, MPI_DOUBLE, MPI_SUM, comm_);
+  const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
+  if (all_pairs > 2e8 || per_node > 5000) {
+    std::ostringstream msg;
+    msg << scene_.long_range->where.str() << ": long_range.cutoff: " << fmt(lr.law.cutoff) << " m takes in "
+        << all_pairs << " node pairs, " << fmt(per_node) << " per node (with the Verlet list's skin of a quarter "
+        << "cutoff) at the reference positions; expected a cutoff of a few a (length " << fmt(lr.law.length)
+        << " m): at most 5000 pairs per node and 2e8 in all";
+    throw InputError(msg.str());
+  }
+  std::fill(lr.force.begin(), lr.force.end(), 0.0);
   long_range_.emplace(std::move(lr));
 }
 
