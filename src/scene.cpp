@@ -767,30 +767,24 @@ void read_fiber(const Map& m, Body& b) {
   for (const char* key : {"origin", "size", "thickness", "grid", "quadrature", "breakable"})
     if (auto x = m.get(key))
       x->fail(std::string("not used by a fiber body (nodes along its path, full weights within the horizon)"));
+  double length = INFINITY;  // of the one path (a network's fibers cross its box)
   if (auto x = m.get("network")) {
     if (m.given("path")) x->fail("give either path (one fiber) or network (many), not both");
     b.network = read_network(*x);
-    if (!m.given("diameter")) m.missing("diameter", "fiber diameter, m");
-    b.diameter = m.at("diameter").positive("m");
-    if (!m.given("spacing")) m.missing("spacing", "node spacing along the paths, m");
-    b.spacing = m.at("spacing").positive("m");
-    if (auto x2 = m.get("segment_length")) b.segment_length = x2->non_negative("m");
-    read_horizon(m, b);
-    b.quadrature = Quadrature::Full;
-    return;
-  }
-  if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m (or network)");
-  const Value path = m.at("path");
-  const std::vector<Value> points = path.list("a list of at least 2 points [x, y, z], m");
-  if (points.size() < 2) path.fail("expected a list of at least 2 points [x, y, z], m, got " + path.got());
-  double length = 0;
-  for (std::size_t k = 0; k < points.size(); ++k) {
-    b.path.push_back(points[k].vec3("m"));
-    if (k == 0) continue;
-    double d2 = 0;
-    for (int c = 0; c < 3; ++c) d2 += std::pow(b.path[k][c] - b.path[k - 1][c], 2);
-    if (!(d2 > 0)) points[k].fail("expected a point different from the one before it, got " + points[k].got());
-    length += std::sqrt(d2);
+  } else {
+    if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m (or network)");
+    const Value path = m.at("path");
+    const std::vector<Value> points = path.list("a list of at least 2 points [x, y, z], m");
+    if (points.size() < 2) path.fail("expected a list of at least 2 points [x, y, z], m, got " + path.got());
+    length = 0;
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      b.path.push_back(points[k].vec3("m"));
+      if (k == 0) continue;
+      double d2 = 0;
+      for (int c = 0; c < 3; ++c) d2 += std::pow(b.path[k][c] - b.path[k - 1][c], 2);
+      if (!(d2 > 0)) points[k].fail("expected a point different from the one before it, got " + points[k].got());
+      length += std::sqrt(d2);
+    }
   }
   if (!m.given("diameter")) m.missing("diameter", "fiber diameter, m");
   b.diameter = m.at("diameter").positive("m");
@@ -856,13 +850,13 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
                       ? "a lattice body needs a material with model: marder, got '" + b.material + "'"
                       : "material '" + b.material + "' has model: marder, which needs a body with kind: lattice");
 
+  for (const char* key : {"center", "radius", "pressure", "pressure_ramp_time"})
+    if (b.kind != BodyKind::Shell && m.given(key))
+      m.get(key)->fail("only a sphere body (kind: sphere) takes " + std::string(key));
   if (b.kind == BodyKind::Fiber) {
     read_fiber(m, b);
     return b;
   }
-  for (const char* key : {"center", "radius", "pressure", "pressure_ramp_time"})
-    if (b.kind != BodyKind::Shell && m.given(key))
-      m.get(key)->fail("only a sphere body (kind: sphere) takes " + std::string(key));
   if (b.kind == BodyKind::Shell) {
     read_sphere(m, b);
     return b;

@@ -102,6 +102,7 @@ expect membrane_pressure "bodies.sheet.pressure: only a sphere body (kind: spher
 sed -e '/^tools:$/,+1d' -e 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$balloon" > "$work/balloon_qs.yaml"
 expect pressure_quasistatic "a quasistatic stage in a scene with a pressurized sphere" -- "$work/balloon_qs.yaml"
 expect long_range_cutoff "long_range.cutoff: 1 m takes in" -- "$src/drivers/scenes/fiber_network.yaml" --set long_range.cutoff=1
+expect fiber_pressure "bodies.fiber.pressure: only a sphere body (kind: sphere) takes pressure" -- "$fiber" --set bodies.fiber.pressure=1e5
 network=$src/drivers/scenes/fiber_network.yaml
 expect network_direction "bodies.net.network.families.0.direction: expected one of: x, y; got z" -- "$network" --set 'bodies.net.network.families=[{direction: z, count: 3}]'
 expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'
