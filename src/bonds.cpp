@@ -18,7 +18,7 @@ namespace {
 
 // The grid's unit along each axis: the spacing on square and cubic grids; dx/2 and dx sqrt(3)/2
 // along x and y on hexagonal ones (the units discretize() places nodes on, the same expressions).
-// Fibers have no grid: 0, no snapping.
+// Fibers and spheres have no grid: 0, no snapping.
 std::array<double, 3> lattice_units(const BodyGeometry& g) {
   if (g.kind == BodyKind::Fiber || g.kind == BodyKind::Shell) return {0.0, 0.0, 0.0};
   const double dx = g.spacing;
@@ -37,7 +37,9 @@ LatticeStencil lattice_stencil(const Nodes& nodes, int body) {
   const BodyGeometry& g = nodes.bodies[body];
   LatticeStencil st;
   const std::int64_t nx = g.cells[0], ny = g.cells[1], nz = g.cells[2];
-  if (g.kind == BodyKind::Fiber || g.kind == BodyKind::Shell || g.count <= 0 || nx * ny * nz != g.count || g.first + g.count > nodes.size() || !(g.spacing > 0)) return st;
+  if (g.kind == BodyKind::Fiber || g.kind == BodyKind::Shell || g.count <= 0 || nx * ny * nz != g.count ||
+      g.first + g.count > nodes.size() || !(g.spacing > 0))
+    return st;
   const std::array<double, 3> unit = lattice_units(g);
   const double* x0 = &nodes.X[3 * g.first];
   for (std::int64_t l = 0; l < g.count; ++l) {  // every node where the raster order puts it

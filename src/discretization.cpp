@@ -29,7 +29,8 @@ double neighbours_estimate(const Body& b) {
   return b.kind == BodyKind::Solid ? 4.18879 * m * m * m : 3.14159 * m * m;
 }
 
-// Splitmix64: a fully specified generator (the same numbers on every rank and platform).
+// Splitmix64: a fully specified generator (the same integers everywhere; the normal deviates also
+// go through libm's log and cos, the same on every rank of a run).
 struct SplitMix {
   std::uint64_t state;
   std::uint64_t next() {

@@ -87,7 +87,7 @@ struct Material {
 /// (and anywhere across the other two) and walk across the box in steps of `step`, each step's
 /// direction deviating from the family's by Gaussian angles of standard deviation `deviation`
 /// in the plane and out of it (mirrored back at the box's side faces), until they leave the far
-/// face. Deterministic for a seed (its own generator: the same paths on every rank and platform).
+/// face. Deterministic for a seed (its own generator: the same paths on every rank).
 struct FiberFamily {
   SourceLoc where;
   int axis = 0;    ///< 0: fibers along x, 1: along y
