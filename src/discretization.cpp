@@ -164,7 +164,8 @@ double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) {
 
 std::int64_t sphere_frequency(double radius, double spacing) {
   // The icosahedron's edge subtends 1.1071 rad; its n-fold subdivision, about 1.1071 R / n.
-  return std::max<std::int64_t>(1, std::llround(1.1071487177940904 * radius / spacing));
+  const double n = 1.1071487177940904 * radius / spacing;  // beyond 1e9: refused by the size check
+  return std::max<std::int64_t>(1, std::llround(std::min(n, 1e9)));
 }
 
 std::vector<std::vector<Vec3>> fiber_paths(const Body& b) {

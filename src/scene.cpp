@@ -755,7 +755,13 @@ FiberNetwork read_network(const Value& v) {
     n.families.push_back(fam);
   }
   if (auto x = m.get("deviation")) n.deviation = x->non_negative("rad");
-  n.step = m.at("step").positive("m");
+  const Value step = m.at("step");
+  n.step = step.positive("m");
+  for (const FiberFamily& f : n.families)
+    if ((n.max[f.axis] - n.min[f.axis]) / n.step > 1e6)
+      step.fail("a fiber would take more than 1e6 steps of " + step.got() + " m to cross the box (" +
+                format_number(n.max[f.axis] - n.min[f.axis]) + " m along " + (f.axis == 0 ? "x" : "y") +
+                "); expected a step of at least 1e-6 of the box's extent");
   n.start_band = 0.05 * std::min(n.max[0] - n.min[0], n.max[1] - n.min[1]);
   if (auto x = m.get("start_band")) n.start_band = x->non_negative("m");
   if (auto x = m.get("seed")) n.seed = x->integer(0);

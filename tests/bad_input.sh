@@ -106,6 +106,8 @@ expect fiber_pressure "bodies.fiber.pressure: only a sphere body (kind: sphere) 
 network=$src/drivers/scenes/fiber_network.yaml
 expect network_direction "bodies.net.network.families.0.direction: expected one of: x, y; got z" -- "$network" --set 'bodies.net.network.families=[{direction: z, count: 3}]'
 expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'
+expect network_step "bodies.net.network.step: a fiber would take more than 1e6 steps" -- "$network" --set bodies.net.network.step=1e-16
+expect sphere_absurd "the scene cannot fit in memory" -- "$balloon" --set bodies.balloon.spacing=1e-9
 expect network_and_path "bodies.net.network: give either path (one fiber) or network (many), not both" -- "$network" --set 'bodies.net.path=[[0,0,0],[1e-8,0,0]]'
 
 # A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,
