@@ -1485,7 +1485,8 @@ void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* r
   bond_forces(law, view, plan_rows(view, rows, nrows), force, with_energy, tally);
 }
 
-double bond_energy(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows) {
+double bond_energy(const BondLaw& law, const BondView& v, const std::int32_t* rows, std::size_t nrows,
+                   double* density) {
   double total = 0;
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
@@ -1502,6 +1503,7 @@ double bond_energy(const BondLaw& law, const BondView& v, const std::int32_t* ro
       w += law.energy(s2, std::max(y2, 1e-12 * s2)) * v.measure(i, b);
     }
     total += 0.5 * v.volume[i] * w;
+    if (density) density[i] = 0.5 * w;
   }
   return total;
 }

@@ -116,7 +116,7 @@ void build_list(const PairLaw& law, const LongRangeTable& table, const double* x
 
 double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
                          const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
-                         bool with_energy) {
+                         bool with_energy, double* energy_density) {
   const std::int64_t n = table.size();
   if (n == 0 || mine.empty()) return 0.0;
   if (!(list.skin > 0)) list.skin = 0.25 * law.cutoff;
@@ -156,6 +156,7 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
     }
     for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
     energy += 0.5 * e_p * table.volume[p];
+    if (energy_density) energy_density[m] += 0.5 * e_p;
   }
   return energy;
 }

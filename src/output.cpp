@@ -183,8 +183,10 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
   if (!exists) return false;
   hid_t old = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
   if (old < 0) return false;
-  std::vector<const char*> names = {"position", "displacement", "damage"};
-  if (write_velocity_) names.push_back("velocity");
+  // Each frame's datasets and their components per node.
+  std::vector<std::pair<const char*, int>> names = {
+      {"position", 3}, {"displacement", 3}, {"damage", 1}, {"strain_energy_density", 1}};
+  if (write_velocity_) names.push_back({"velocity", 3});
   const hsize_t begin = static_cast<hsize_t>(state_.natural_begin()), count = static_cast<hsize_t>(state_.natural_count());
   const std::string tmp = path + ".salvage";
   hid_t fresh = create(tmp, fapl, resolved_scene);
@@ -205,11 +207,11 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
       if (b >= 0) H5Aclose(b);
     }
     for (std::size_t d = 0; ok && d < names.size(); ++d) {
-      hid_t ds = H5Dopen2(g, names[d], H5P_DEFAULT);
+      hid_t ds = H5Dopen2(g, names[d].first, H5P_DEFAULT);
       hid_t space = ds >= 0 ? H5Dget_space(ds) : -1;
       hsize_t dims[2] = {0, 0};
       const int rank = space >= 0 ? H5Sget_simple_extent_dims(space, dims, nullptr) : -1;
-      const int bs = d == 2 ? 1 : 3;
+      const int bs = names[d].second;
       ok = rank == (bs == 1 ? 1 : 2) && dims[0] == static_cast<hsize_t>(domain_.global_nodes) &&
            (bs == 1 || dims[1] == 3);
       if (space >= 0) H5Sclose(space);
@@ -225,8 +227,8 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
     scalar_attribute<long long>(to, "step", H5T_NATIVE_LLONG, step);
     scalar_attribute<double>(to, "time", H5T_NATIVE_DOUBLE, time);
     for (std::size_t d = 0; d < names.size(); ++d) {
-      const int bs = d == 2 ? 1 : 3;
-      hid_t ds = check_id(H5Dopen2(g, names[d], H5P_DEFAULT), names[d]);
+      const int bs = names[d].second;
+      hid_t ds = check_id(H5Dopen2(g, names[d].first, H5P_DEFAULT), names[d].first);
       hid_t filespace = check_id(H5Dget_space(ds), "H5Dget_space");
       hsize_t start[2] = {begin, 0}, counts[2] = {count, static_cast<hsize_t>(bs)};
       check_h5(H5Sselect_hyperslab(filespace, H5S_SELECT_SET, start, nullptr, counts, nullptr), "hyperslab");
@@ -234,12 +236,12 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
       hid_t dxpl = check_id(H5Pcreate(H5P_DATASET_XFER), "dxpl");
       check_h5(H5Pset_dxpl_mpio(dxpl, H5FD_MPIO_COLLECTIVE), "H5Pset_dxpl_mpio");
       slice.resize(static_cast<std::size_t>(count) * bs);
-      check_h5(H5Dread(ds, H5T_NATIVE_DOUBLE, memspace, filespace, dxpl, slice.data()), names[d]);
+      check_h5(H5Dread(ds, H5T_NATIVE_DOUBLE, memspace, filespace, dxpl, slice.data()), names[d].first);
       H5Pclose(dxpl);
       H5Sclose(memspace);
       H5Sclose(filespace);
       H5Dclose(ds);
-      write_dataset(to, names[d], slice.data(), bs);
+      write_dataset(to, names[d].first, slice.data(), bs);
     }
     H5Gclose(to);
     H5Gclose(g);
@@ -290,7 +292,7 @@ void FrameWriter::write_dataset(hid_t group, const char* name, const double* sli
 }
 
 void FrameWriter::write(std::int64_t step, double time, const double* u, const double* v,
-                        const double* damage) {
+                        const double* damage, const double* energy_density) {
   const int k = frames();
   const std::string name = frame_name(k);
   hid_t g = check_id(H5Gcreate2(file_, name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), name.c_str());
@@ -303,6 +305,7 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
   write_dataset(g, "displacement", state_.to_natural(u, 3), 3);
   if (write_velocity_) write_dataset(g, "velocity", state_.to_natural(v, 3), 3);
   write_dataset(g, "damage", state_.to_natural(damage, 1), 1);
+  write_dataset(g, "strain_energy_density", state_.to_natural(energy_density, 1), 1);
   H5Gclose(g);
   check_h5(H5Fflush(file_, H5F_SCOPE_GLOBAL), "H5Fflush");
   times_.push_back(time);
@@ -334,6 +337,8 @@ void FrameWriter::write_xdmf() const {
     if (write_velocity_)
       x << "    <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">" << item(f + "/velocity", 3) << "</Attribute>\n";
     x << "    <Attribute Name=\"damage\" AttributeType=\"Scalar\" Center=\"Node\">" << item(f + "/damage", 1) << "</Attribute>\n"
+      << "    <Attribute Name=\"strain_energy_density\" AttributeType=\"Scalar\" Center=\"Node\">"
+      << item(f + "/strain_energy_density", 1) << "</Attribute>\n"
       << "    <Attribute Name=\"body\" AttributeType=\"Scalar\" Center=\"Node\">" << item("/mesh/body", 1) << "</Attribute>\n"
       << "   </Grid>\n";
   }

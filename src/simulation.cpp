@@ -627,7 +627,7 @@ void Simulation::long_range_setup() {
   long_range_.emplace(std::move(lr));
 }
 
-double Simulation::add_long_range_forces(const double* u, bool with_energy) {
+void Simulation::gather_fiber_positions(const double* u) {
   LongRangeState& lr = *long_range_;
   for (std::size_t k = 0; k < lr.mine.size(); ++k)
     for (int c = 0; c < 3; ++c) {
@@ -638,6 +638,11 @@ double Simulation::add_long_range_forces(const double* u, bool with_energy) {
                  lr.displs.data(), MPI_DOUBLE, comm_);
   for (std::size_t g = 0; g < lr.gathered.size(); ++g)
     for (int c = 0; c < 3; ++c) lr.x[3 * lr.gathered[g] + c] = lr.recv[3 * g + c];
+}
+
+double Simulation::add_long_range_forces(const double* u, bool with_energy) {
+  LongRangeState& lr = *long_range_;
+  gather_fiber_positions(u);
   std::fill(lr.force.begin(), lr.force.end(), 0.0);
   const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), lr.list, with_energy);
   for (std::size_t k = 0; k < lr.mine.size(); ++k)
@@ -1177,16 +1182,38 @@ void Simulation::summarize_crack_tips() {
   summary_.crack_tips_json = j.str();
 }
 
+void Simulation::update_energy_density() {
+  // Bonds (lattice bodies: 0, their energy is kept per bond direction, not per node), then the
+  // long-range pairs; the current ghost displacements are those of the last force evaluation.
+  energy_density_.assign(domain_.owned, 0.0);
+  BondView view = bond_view();
+  LocalArray u(state_->displacement());
+  view.u = u.data();
+  for (std::size_t b = 0; b < laws_.size(); ++b) {
+    if (marder_[b]) continue;
+    bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(), energy_density_.data());
+    bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(), energy_density_.data());
+  }
+  if (long_range_) {
+    LongRangeState& lr = *long_range_;
+    gather_fiber_positions(u.data());
+    std::vector<double> scratch(lr.force.size(), 0.0), share(lr.mine.size(), 0.0);
+    long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, scratch.data(), lr.list, true, share.data());
+    for (std::size_t k = 0; k < lr.mine.size(); ++k) energy_density_[lr.mine_local[k]] += share[k];
+  }
+}
+
 void Simulation::write_frame() {
   settle_kick();
   PetscLogEventBegin(events().output, 0, 0, 0, 0);
   const auto t0 = std::chrono::steady_clock::now();
   update_damage();
+  update_energy_density();
   const double* u;
   const double* v;
   PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
   PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  frames_->write(step_, time_, u, v, damage_.data());
+  frames_->write(step_, time_, u, v, damage_.data(), energy_density_.data());
   PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
   PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
   summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -2,7 +2,8 @@
 # Example 7.6 (drivers/scenes/fiber_network.yaml), its first 0.6 ns on 2 ranks: the generated
 # network has its 8 129 nodes; the moving clamp has carried the network's right end 6 nm
 # (10 m/s); the work it did is held as strain and kinetic energy (energy balance); no bond has
-# broken at 3% stretch; the picture is drawn.
+# broken at 3% stretch; the frames' strain energy density integrates to the series' strain energy;
+# the picture is drawn.
 # usage: fiber_network.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -eu
 peridrive=$1 src=$2 mpiexec=$3
@@ -33,6 +34,20 @@ check("energy balance", s["energy_balance_error"] < 1e-3,
       f'W = {f["external_work"]:.3e} J, strain {f["strain_energy"]:.3e}, kinetic {f["kinetic_energy"]:.3e}, error {s["energy_balance_error"]:.1e}')
 check("stretched network stores the work", f["strain_energy"] > 0.5 * f["external_work"] > 0, f'{f["strain_energy"] / f["external_work"]:.2f} of the work')
 check("no bond broken", s["broken_bonds"] == 0, s["broken_bonds"])
+# The frames' strain energy density (bonds and long-range pairs), times the nodes' measures, sums
+# to the series' strain energy at the same steps.
+import csv
+rows = {int(r["step"]): float(r["strain_energy"]) for r in csv.DictReader(open(f"{out}/series.csv"))}
+worst, compared = 0.0, 0
+with h5py.File(f"{out}/frames.h5", "r") as h:
+    V = h["mesh/volume"][()]
+    for k in keys:
+        step = int(h["frames"][k].attrs["step"])
+        if step in rows:
+            total = float((h["frames"][k]["strain_energy_density"][()] * V).sum())
+            worst = max(worst, abs(total - rows[step]) / abs(rows[step]))
+            compared += 1
+check("frames' energy density sums to the strain energy", compared >= 2 and worst < 1e-9, f"{compared} frames, largest difference {worst:.1e}")
 check("picture", os.path.getsize(f"{out}/network.png") > 10000, "network.png")
 print(f"{sum(checks)} passed, {len(checks) - sum(checks)} failed")
 sys.exit(0 if all(checks) else 1)

@@ -7,8 +7,8 @@ Writes into OUTDIR:
   fiber.png       one fiber (a path): the first, a middle and the last frame, each from the side
                   and from above, every segment of the fiber in its own colour (equal scales)
   network.png     a network (scene body with network:): the first, a middle and the last frame
-                  seen from above, coloured by the out-of-plane position z, broken-bond
-                  (damaged) nodes marked red
+                  seen from above, coloured by strain energy density (bonds and long-range
+                  pairs; the paper's Fig. 11 colours by elastic energy), damaged nodes marked red
   fiber_shape.csv per frame: time, end-to-end distance (first to last node) and the extent
                   along x, y, z [m]
 The segment length defaults to the one in OUTDIR/scene.resolved.yaml (the first fiber body).
@@ -45,13 +45,14 @@ def is_network(outdir):
         return False
 
 
-def plot_network(outdir, times, positions, damages):
+def plot_network(outdir, times, positions, damages, energies):
     picks = [0, len(positions) // 2, len(positions) - 1]
     fig, axs = plt.subplots(1, 3, figsize=(16, 5.6))
-    z = np.concatenate([p[:, 2] for p in positions]) * 1e9
+    e = np.concatenate([energies[k] for k in picks])
+    lo, hi = np.percentile(e, 1), np.percentile(e, 99)
     for ax, k in zip(axs, picks):
         p = positions[k] * 1e9
-        sc = ax.scatter(p[:, 0], p[:, 1], s=0.6, c=p[:, 2], cmap="viridis", vmin=z.min(), vmax=z.max())
+        sc = ax.scatter(p[:, 0], p[:, 1], s=0.6, c=energies[k], cmap="viridis", vmin=lo, vmax=hi)
         hit = damages[k] > 0
         if hit.any():
             ax.scatter(p[hit, 0], p[hit, 1], s=4, c="red", label="damaged")
@@ -60,7 +61,7 @@ def plot_network(outdir, times, positions, damages):
         ax.set_xlabel("x [nm]")
         ax.set_ylabel("y [nm]")
         ax.set_title(f"frame {k}, t = {times[k]:.3g} s", fontsize=10)
-    fig.colorbar(sc, ax=axs, label="z [nm]", shrink=0.8)
+    fig.colorbar(sc, ax=axs, label="strain energy density [J/m^3]", shrink=0.8)
     plt.savefig(os.path.join(outdir, "network.png"), dpi=90)
     print(f"wrote {outdir}/network.png and fiber_shape.csv")
 
@@ -80,6 +81,8 @@ def main():
         times = [float(frames[k].attrs.get("time", np.nan)) for k in keys]
         positions = [frames[k]["position"][()] for k in keys]
         damages = [frames[k]["damage"][()] for k in keys]
+        energies = [frames[k]["strain_energy_density"][()] if "strain_energy_density" in frames[k]
+                    else np.zeros(len(positions[0])) for k in keys]
     with open(os.path.join(args.outdir, "fiber_shape.csv"), "w", newline="") as out:
         w = csv.writer(out)
         w.writerow(["frame", "time", "end_to_end", "extent_x", "extent_y", "extent_z"])
@@ -87,7 +90,7 @@ def main():
             ext = p.max(0) - p.min(0)
             w.writerow([k, t, np.linalg.norm(p[-1] - p[0]), *ext])
     if is_network(args.outdir):
-        plot_network(args.outdir, times, positions, damages)
+        plot_network(args.outdir, times, positions, damages, energies)
         return
     p0 = positions[0]
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p0, axis=0), axis=1))])

@@ -228,9 +228,10 @@ void bond_forces(const BondLaw& law, const BondView& view, const RowBlocks& rows
 void bond_forces(const BondLaw& law, const BondView& view, const std::int32_t* rows,
                  std::size_t nrows, double* force, bool with_energy, BondTally& tally);
 
-/// Same loop that only sums the strain energy of intact bonds (no forces, no breaking).
+/// Same loop that only sums the strain energy of intact bonds (no forces, no breaking). With
+/// `density`, also writes each row's strain energy density 1/2 sum_j w_ij V_j [J/m^3] to density[i].
 double bond_energy(const BondLaw& law, const BondView& view, const std::int32_t* rows,
-                   std::size_t nrows);
+                   std::size_t nrows, double* density = nullptr);
 
 /// Damage of each row: broken fraction of its family, weighted by w_ij V_j (0 intact, 1 free).
 void node_damage(const BondView& view, const std::int32_t* rows, std::size_t nrows, double* damage);

@@ -70,8 +70,10 @@ struct LongRangeList {
 /// over the pairs of those nodes (each pair is counted once over all ranks) [J], else 0. The
 /// pairs come from `list` (rebuilt here when needed; its order fixes the summation order, the
 /// same on every rank).
+/// With `energy_density` (and with_energy), also adds each node's share 1/2 sum_j (w2 - w2(cutoff)) V_j
+/// [J/m^3] to energy_density[k] for mine[k].
 double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
                          const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
-                         bool with_energy = true);
+                         bool with_energy = true, double* energy_density = nullptr);
 
 }  // namespace peri

@@ -42,7 +42,9 @@ class FrameWriter {
   FrameWriter(const FrameWriter&) = delete;
   FrameWriter& operator=(const FrameWriter&) = delete;
   /// Write one frame (owned arrays in local order), flush, and rewrite the XDMF. Collective.
-  void write(std::int64_t step, double time, const double* u, const double* v, const double* damage);
+  /// energy_density: strain energy per unit volume of each node (bonds, and long-range pairs).
+  void write(std::int64_t step, double time, const double* u, const double* v, const double* damage,
+             const double* energy_density);
   int frames() const { return static_cast<int>(times_.size()); }
 
  private:

@@ -170,6 +170,8 @@ class Simulation : public EquilibriumModel {
   };
   std::vector<PressureLoad> pressure_;
   void pressure_setup();
+  std::vector<double> energy_density_;  // owned: strain energy per unit volume (frames)
+  void update_energy_density();
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
@@ -218,6 +220,7 @@ class Simulation : public EquilibriumModel {
   };
   std::optional<LongRangeState> long_range_;
   void long_range_setup();                          // before the global node arrays are freed
+  void gather_fiber_positions(const double* u);  // every rank: current positions of all fiber nodes (lr.x)
   double add_long_range_forces(const double* u, bool with_energy);  // returns this rank's energy share
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   bool has_kelvin_ = false;                 // some lattice body has bond dashpots (velocity halo)
