@@ -13,11 +13,13 @@ std::int64_t count_along(double length, double dx) {
   return std::max<std::int64_t>(1, std::llround(length / dx));
 }
 
+double distance(const Vec3& p, const Vec3& q) {
+  return std::sqrt(std::pow(q[0] - p[0], 2) + std::pow(q[1] - p[1], 2) + std::pow(q[2] - p[2], 2));
+}
+
 double path_length(const std::vector<Vec3>& path) {
   double length = 0;
-  for (std::size_t k = 1; k < path.size(); ++k)
-    length += std::sqrt(std::pow(path[k][0] - path[k - 1][0], 2) + std::pow(path[k][1] - path[k - 1][1], 2) +
-                        std::pow(path[k][2] - path[k - 1][2], 2));
+  for (std::size_t k = 1; k < path.size(); ++k) length += distance(path[k - 1], path[k]);
   return length;
 }
 
@@ -182,7 +184,7 @@ SizeEstimate estimate_size(const Scene& scene) {
     if (b.kind == BodyKind::Shell) n = 10.0 * std::pow(static_cast<double>(sphere_frequency(b.radius, b.spacing)), 2) + 2;
     if (b.kind == BodyKind::Fiber) {
       n = 0;
-      if (b.network)  // every fiber crosses the box, about sqrt(2) times its length
+      if (b.network)  // every fiber crosses the box once; its path is longer by its wiggles (bounded by 1.5)
         for (const FiberFamily& f : b.network->families)
           n += 1.5 * f.count * (b.network->max[f.axis] - b.network->min[f.axis]) / b.spacing;
       else
@@ -275,14 +277,13 @@ Nodes discretize(const Scene& scene) {
         g.path_spacing.push_back(ds);
         std::size_t leg = 1;
         double leg_start = 0;
-        auto leg_len = [&](std::size_t k) { return path_length({path[k - 1], path[k]}); };
-        double leg_length = leg_len(1);
+        double leg_length = distance(path[0], path[1]);
         for (std::int64_t k = 0; k < n; ++k) {
           const double s = (static_cast<double>(k) + 0.5) * ds;
           while (s > leg_start + leg_length && leg + 1 < path.size()) {
             leg_start += leg_length;
             ++leg;
-            leg_length = leg_len(leg);
+            leg_length = distance(path[leg - 1], path[leg]);
           }
           const double t = std::clamp((s - leg_start) / leg_length, 0.0, 1.0);
           const Vec3& p = path[leg - 1];

@@ -586,7 +586,7 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
 }
 
 void Simulation::long_range_setup() {
-  LongRangeState lr{PairLaw(*scene_.long_range), long_range_table(nodes_), {}, {}, {}, {}, {}, {}, {}, {}, {}, {}};
+  LongRangeState lr(PairLaw(*scene_.long_range), long_range_table(nodes_));
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const std::int64_t p = lr.table.index_of(domain_.natural[i]);
     if (p < 0) continue;

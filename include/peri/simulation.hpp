@@ -209,6 +209,7 @@ class Simulation : public EquilibriumModel {
   // Long-range forces (scene long_range): every rank holds the table of all fiber nodes and, each
   // force evaluation, their current positions (gathered); it evaluates the pairs of its own.
   struct LongRangeState {
+    LongRangeState(PairLaw l, LongRangeTable t) : law(l), table(std::move(t)) {}
     PairLaw law;
     LongRangeTable table;
     std::vector<std::int64_t> mine;         // table indices of this rank's owned fiber nodes
