@@ -480,9 +480,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
         *tips_csv_ << kept << std::setprecision(12);
       }
     }
-    for (const Tool& t : scene_.tools)
-      for (const char* c : {"_x", "_y", "_force_x", "_force_y", "_force_z"})
-        tip_columns += (tip_columns.empty() ? "" : ",") + t.name + c;
+    for (std::size_t k = 0; k < scene_.tools.size(); ++k)  // a sphere moves in z too
+      for (const char* c : {"_x", "_y", "_z", "_force_x", "_force_y", "_force_z"})
+        if (std::string(c) != "_z" || scene_.tools[k].sphere)
+          tip_columns += (tip_columns.empty() ? "" : ",") + scene_.tools[k].name + c;
     series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -1030,8 +1031,9 @@ void Simulation::write_series_row() {
     for (std::size_t k = 0; k < tools_.size(); ++k) {
       const RigidCylinder& t = tools_[k];
       values << (extra.empty() && k == 0 ? "" : ",") << t.center[0] + t.velocity[0] * time_ << ','
-             << t.center[1] + t.velocity[1] * time_ << ',' << total[3 * k] << ',' << total[3 * k + 1] << ','
-             << total[3 * k + 2];
+             << t.center[1] + t.velocity[1] * time_ << ',';
+      if (t.sphere) values << t.center[2] + t.velocity[2] * time_ << ',';
+      values << total[3 * k] << ',' << total[3 * k + 1] << ',' << total[3 * k + 2];
     }
     extra += values.str();
   }

@@ -5,7 +5,7 @@
 # 3 and 5 spacings (full weights): lambda - 1 within 6% and 2%, the error falling with the
 # horizon; 1 and 2 ranks give the same positions bit for bit (the follower load is evaluated per
 # owned node from local positions). Then the impact on 2 ranks: the fragment perforates the
-# balloon where it hits (+x), and the energy balance holds.
+# balloon where it hits (+x), the energy balance holds, and series.csv follows the fragment's centre.
 # usage: balloon.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -eu
 peridrive=$1 src=$2 mpiexec=$3
@@ -53,6 +53,12 @@ near = np.degrees(np.arccos(np.clip(X[:, 0] / R, -1, 1))) < 15
 check("perforated at the impact point", (dmg[near] > 0.3).sum() >= 5 and s["broken_bonds"] > 100,
       f'{(dmg[near] > 0.3).sum()} nodes within 15 degrees of +x over 30% damaged, {s["broken_bonds"]} bonds broken')
 check("energy balance", s["energy_balance_error"] < 1e-2, s["energy_balance_error"])
+import csv
+rows = list(csv.DictReader(open(f"{tmp}/impact/series.csv")))
+# The sphere's centre in the series: [1.0607, 0, 0] + (-500, 0, 0) t (the scene's fragment).
+moved = max(max(abs(float(r["fragment_x"]) - (1.0607 - 500.0 * float(r["time"]))), abs(float(r["fragment_y"])),
+                abs(float(r["fragment_z"]))) for r in rows)
+check("fragment centre in series.csv", moved < 1e-9, f"largest deviation from the prescribed path {moved:.1e} m over {len(rows)} rows")
 print(f"{sum(checks)} passed, {len(checks) - sum(checks)} failed")
 sys.exit(0 if all(checks) else 1)
 PY
