@@ -79,7 +79,10 @@ struct ScalarLoop {
     force[3 * i] = f0;
     force[3 * i + 1] = f1;
     force[3 * i + 2] = f2;
-    if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * w;
+    if constexpr (Energy) {
+      tally.strain_energy += 0.5 * v.volume[i] * w;
+      if (v.energy_density) v.energy_density[i] = 0.5 * w;
+    }
     if (newly) book_row(v, i, newly, diss, tally);
   }
   void operator()(const BondView& v, const RowBlocks& rows, double* force, BondTally& tally) const {
@@ -389,7 +392,10 @@ struct VecLaw {
       force[3 * i] = c_row * s0[l];
       force[3 * i + 1] = c_row * s1[l];
       force[3 * i + 2] = c_row * s2[l];
-      if constexpr (Energy) tally.strain_energy += 0.5 * v.volume[i] * se[l];
+      if constexpr (Energy) {
+        tally.strain_energy += 0.5 * v.volume[i] * se[l];
+        if (v.energy_density) v.energy_density[i] = 0.5 * se[l];
+      }
       // Every lane of a block that can break bonds: the rows' measures then load in order (a
       // row with a broken bond here and there missed the cache and held up the loop); a lane
       // with none adds 0 (the same sums).

@@ -547,6 +547,11 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
   const std::vector<BondLaw>& laws = intact ? intact_laws_ : laws_;
   BondView view = bond_view();
   BondTally t;
+  if (with_energy) {  // the bond loop writes each bond row's energy density (lattice rows: 0)
+    energy_density_.assign(domain_.owned, 0.0);
+    view.energy_density = energy_density_.data();
+  }
+  density_current_ = with_energy;
   if (has_kelvin_) {  // ghost velocities for the dashpots (not overlapped: the two ghosted Vecs
     state_->velocity_halo_begin();  // share one scatter, which holds one exchange at a time)
     state_->velocity_halo_end();
@@ -1187,14 +1192,16 @@ void Simulation::summarize_crack_tips() {
 void Simulation::update_energy_density() {
   // Bonds (lattice bodies: 0, their energy is kept per bond direction, not per node), then the
   // long-range pairs; the current ghost displacements are those of the last force evaluation.
-  energy_density_.assign(domain_.owned, 0.0);
   BondView view = bond_view();
   LocalArray u(state_->displacement());
   view.u = u.data();
-  for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (marder_[b]) continue;
-    bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(), energy_density_.data());
-    bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(), energy_density_.data());
+  if (!density_current_) {  // else the last force evaluation's (an energy call on this state)
+    energy_density_.assign(domain_.owned, 0.0);
+    for (std::size_t b = 0; b < laws_.size(); ++b) {
+      if (marder_[b]) continue;
+      bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(), energy_density_.data());
+      bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(), energy_density_.data());
+    }
   }
   if (long_range_) {
     LongRangeState& lr = *long_range_;
@@ -1203,6 +1210,7 @@ void Simulation::update_energy_density() {
     long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, scratch.data(), lr.list, true, share.data());
     for (std::size_t k = 0; k < lr.mine.size(); ++k) energy_density_[lr.mine_local[k]] += share[k];
   }
+  density_current_ = false;  // it holds the long-range shares now: a second call starts over
 }
 
 void Simulation::write_frame() {
@@ -1376,7 +1384,9 @@ std::int64_t Simulation::advance(std::int64_t n) {
     }
     if (taken >= n) break;
     const bool series = (step_ + 1) % scene_.output.series_every == 0 || step_ + 1 == total_steps_;
-    step(series, true);
+    // A frame's step is an energy call too: the bond loop then writes the energy density.
+    const bool frame_next = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_ + 1;
+    step(series || frame_next, true);
     ++stage_step_;
     ++taken;
     const bool frame = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_;
@@ -1513,6 +1523,7 @@ void Simulation::set_displacement(const double* u_owned) {
   PERI_PETSC(VecGetArray(state_->displacement(), &u));
   std::copy(u_owned, u_owned + 3 * static_cast<std::size_t>(domain_.owned), u);
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
+  density_current_ = false;
   state_->halo_begin();
   state_->halo_end();
 }

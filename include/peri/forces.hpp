@@ -23,6 +23,9 @@ struct BondView {
   const double* x = nullptr;        ///< current positions, three planes (bond_forces only)
   std::int64_t x_stride = 0;        ///< doubles from one plane of x to the next
   std::uint8_t* row_broken = nullptr;  ///< BondFamilies::row_broken, or nullptr: flags are read
+  /// Energy calls of bond_forces: where each row's strain energy density 1/2 sum_j w V_j
+  /// [J/m^3] is written (frames), or nullptr.
+  double* energy_density = nullptr;
 
   /// Reference |xi|^2 of bond b of row i.
   double xi2(std::int32_t i, std::int64_t b) const noexcept {

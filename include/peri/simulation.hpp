@@ -171,6 +171,9 @@ class Simulation : public EquilibriumModel {
   std::vector<PressureLoad> pressure_;
   void pressure_setup();
   std::vector<double> energy_density_;  // owned: strain energy per unit volume (frames)
+  // Whether energy_density_ holds the bond energies of the current state: written by the bond
+  // loop in energy calls (compute_forces), so a frame needs no separate pass over the bonds.
+  bool density_current_ = false;
   void update_energy_density();
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
