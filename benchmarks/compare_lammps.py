@@ -228,6 +228,18 @@ def main():
     print("\nperidrive peak memory (summed over ranks) after each setup phase, bytes per ordered bond; partitioner:")
     for r in rows:
         print(f"  N={r['N']} ranks={r['ranks']}: {r['pd_memory_phases']}; {r['pd_partition']}")
+    # Parallel efficiency t_1 / (P t_P) of the medians, for each size run on 1 rank and on more.
+    lines = []
+    for r in rows:
+        one = next((o for o in rows if o["N"] == r["N"] and o["ranks"] == 1), None)
+        if one is not None and r["ranks"] > 1:
+            eff = [f"peridrive {one['pd_s_per_step'] / (r['ranks'] * r['pd_s_per_step']):.2f}"]
+            if "lmp_s_per_step" in r and "lmp_s_per_step" in one:
+                eff.append(f"LAMMPS {one['lmp_s_per_step'] / (r['ranks'] * r['lmp_s_per_step']):.2f}")
+            lines.append(f"  N={r['N']} ({r['points']} points) on {r['ranks']} ranks: " + ", ".join(eff))
+    if lines:
+        print("\nParallel efficiency (1-rank median s/step over ranks x median s/step):")
+        print("\n".join(lines))
     if any("lmp_s_per_step" in r for r in rows):
         print("\nPhysical cross-check (kinetic energy relative to its initial value; broken ordered bonds at the end):")
         for r in rows:
