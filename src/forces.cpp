@@ -535,9 +535,9 @@ using SlotSegment = RowBlocks::Scratch::Segment;
 // slots running out). The same operations on the same values as slot by slot, in a different
 // order: fewer operations wait on one slot's long dependency chain at once, and the out-of-order
 // window, not the FMA ports, bounds this loop (the intact 64^3 block: 1.08 times as fast; the
-// 400^2 membrane's boxes, Produce slots included: 1.03-1.04). The
-// empty asm pins the next slot's front before this slot's finish; without it the compiler sinks
-// it back into the next iteration. Returns false if finish stopped the loop.
+// 400^2 membrane's boxes, Produce slots included: 1.03-1.04). The empty asm pins the next slot's
+// front before this slot's finish; without it the compiler sinks it back into the next
+// iteration. Returns false if finish stopped the loop.
 template <class Law, class Next, class Start, class Finish>
 __attribute__((always_inline)) inline bool pipelined_slots(Next next, Start start, Finish finish) {
   using Front = typename Law::Front;
