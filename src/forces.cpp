@@ -629,31 +629,30 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
   };
   // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
   auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
-    if constexpr (G == 1) return evaluate_pipelined(k0, k1, produce);
-    for (std::int64_t k = k0; k < k1; ++k) {
-      const std::int64_t j = nbr[k];
-      Bonds<S> b;
-      run.template broadcast<Law::kEnergy>(b, k);
-      b.dead = 0;
-      unsigned fresh = 0;
-      for (int g = 0; g < G; ++g) {
-        b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
-        b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
-        b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
-        unsigned lanes;
-        const V coef = law.coefficient(b, w[g], lanes);
-        fresh |= lanes;
-        if constexpr (decltype(produce)::value) S::storeu(at[k] + a + W * g, coef);
-        f0[g] = S::fmadd(coef, b.d0, f0[g]);
-        f1[g] = S::fmadd(coef, b.d1, f1[g]);
-        f2[g] = S::fmadd(coef, b.d2, f2[g]);
-      }
-      if (fresh) [[unlikely]] {
-        if (resume) {
-          resume->k = k;
-          if constexpr (G == 1) {
-            resume->fresh[0] = fresh;
-          } else {  // the lanes that broke, group by group (the same bits again)
+    if constexpr (G == 1) {
+      return evaluate_pipelined(k0, k1, produce);
+    } else {  // several blocks side by side (AVX2's two of four lanes)
+      for (std::int64_t k = k0; k < k1; ++k) {
+        const std::int64_t j = nbr[k];
+        Bonds<S> b;
+        run.template broadcast<Law::kEnergy>(b, k);
+        b.dead = 0;
+        unsigned fresh = 0;
+        for (int g = 0; g < G; ++g) {
+          b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
+          b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
+          b.d2 = S::sub(S::loadu(pz + j + W * g), x2[g]);
+          unsigned lanes;
+          const V coef = law.coefficient(b, w[g], lanes);
+          fresh |= lanes;
+          if constexpr (decltype(produce)::value) S::storeu(at[k] + a + W * g, coef);
+          f0[g] = S::fmadd(coef, b.d0, f0[g]);
+          f1[g] = S::fmadd(coef, b.d1, f1[g]);
+          f2[g] = S::fmadd(coef, b.d2, f2[g]);
+        }
+        if (fresh) [[unlikely]] {
+          if (resume) {  // the lanes that broke, group by group (the same bits again)
+            resume->k = k;
             for (int g = 0; g < G; ++g) {
               b.d0 = S::sub(S::loadu(px + j + W * g), x0[g]);
               b.d1 = S::sub(S::loadu(py + j + W * g), x1[g]);
@@ -662,11 +661,11 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
               law.coefficient(b, scratch, resume->fresh[g]);
             }
           }
+          return false;
         }
-        return false;
       }
+      return true;
     }
-    return true;
   };
   for (std::size_t s = 0; s < nsegments; ++s) {
     const SlotSegment seg = segments[s];

@@ -1555,6 +1555,14 @@ void emit_material(Writer& w, const Material& m) {
   }
 }
 
+// horizon and horizon_factor exclude each other: write the one in effect.
+void emit_horizon(Writer& w, const Body& b) {
+  if (b.horizon)
+    w.key(4, "horizon", *b.horizon);
+  else
+    w.key(4, "horizon_factor", b.horizon_factor);
+}
+
 void emit_body(Writer& w, const Body& b) {
   const bool membrane = b.kind != BodyKind::Solid;
   w.key(2, yaml_string(b.name), "");
@@ -1565,10 +1573,7 @@ void emit_body(Writer& w, const Body& b) {
     w.key(4, "radius", b.radius);
     w.key(4, "thickness", b.thickness);
     w.key(4, "spacing", b.spacing);
-    if (b.horizon)
-      w.key(4, "horizon", *b.horizon);
-    else
-      w.key(4, "horizon_factor", b.horizon_factor);
+    emit_horizon(w, b);
     w.key(4, "pressure", b.pressure);
     w.key(4, "pressure_ramp_time", b.pressure_ramp_time);
     return;
@@ -1594,10 +1599,7 @@ void emit_body(Writer& w, const Body& b) {
     w.key(4, "diameter", b.diameter);
     w.key(4, "spacing", b.spacing);
     w.key(4, "segment_length", b.segment_length);
-    if (b.horizon)
-      w.key(4, "horizon", *b.horizon);
-    else
-      w.key(4, "horizon_factor", b.horizon_factor);
+    emit_horizon(w, b);
     return;
   }
   w.key(4, "origin", flow(b.origin));
@@ -1608,11 +1610,7 @@ void emit_body(Writer& w, const Body& b) {
     w.key(4, "breakable", "{min: " + flow((*b.breakable)[0]) + ", max: " + flow((*b.breakable)[1]) + "}");
   if (b.kind == BodyKind::Lattice) return;
   w.key(4, "grid", to_text(b.grid));
-  // horizon and horizon_factor exclude each other: write the one in effect.
-  if (b.horizon)
-    w.key(4, "horizon", *b.horizon);
-  else
-    w.key(4, "horizon_factor", b.horizon_factor);
+  emit_horizon(w, b);
   w.key(4, "quadrature", to_text(b.quadrature));
 }
 

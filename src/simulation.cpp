@@ -480,10 +480,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
         *tips_csv_ << kept << std::setprecision(12);
       }
     }
-    for (std::size_t k = 0; k < scene_.tools.size(); ++k)  // a sphere moves in z too
-      for (const char* c : {"_x", "_y", "_z", "_force_x", "_force_y", "_force_z"})
-        if (std::string(c) != "_z" || scene_.tools[k].sphere)
-          tip_columns += (tip_columns.empty() ? "" : ",") + scene_.tools[k].name + c;
+    for (const Tool& t : scene_.tools)  // a sphere's centre moves in z too
+      for (const char* c : {"_x", "_y", t.sphere ? "_z" : nullptr, "_force_x", "_force_y", "_force_z"})
+        if (c) tip_columns += (tip_columns.empty() ? "" : ",") + t.name + c;
     series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
