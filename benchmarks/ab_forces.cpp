@@ -1,4 +1,4 @@
-// Two versions of the bond loop (src/forces.cpp) in one process, called alternately on the same
+// Two versions of the bond loop (src/kernels/forces.cpp) in one process, called alternately on the same
 // domain: A B B A A B ... Built by benchmarks/ab_forces.sh, which compiles each version into its
 // own namespace (periA, periB); both must compile against the current headers. Prints figures
 // (medians over the pairs, the median and quartiles of the per-pair ratio A time / B time, the
@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "peri/forces.hpp"
-#include "peri/simulation.hpp"
+#include "peri/kernels/forces.hpp"
+#include "peri/stages/simulation.hpp"
 
 // The two versions' entry points; their argument types are layout-identical to peri's (so is the
 // plan each version makes, declared here as peri's: a return type is not part of the symbol).

@@ -14,7 +14,7 @@
 #endif
 #include <random>
 
-#include "peri/simulation.hpp"
+#include "peri/stages/simulation.hpp"
 
 namespace peri {
 namespace {

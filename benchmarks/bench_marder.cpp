@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <random>
 
-#include "peri/simulation.hpp"
+#include "peri/stages/simulation.hpp"
 
 namespace peri {
 namespace {

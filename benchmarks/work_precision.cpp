@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "peri/fracture_energy.hpp"
-#include "peri/simulation.hpp"
+#include "peri/models/fracture_energy.hpp"
+#include "peri/stages/simulation.hpp"
 
 namespace peri {
 namespace {

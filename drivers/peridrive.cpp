@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
-#include "peri/build_info.hpp"
-#include "peri/checkpoint.hpp"
-#include "peri/forces.hpp"
-#include "peri/output.hpp"
-#include "peri/restart.hpp"
-#include "peri/simulation.hpp"
+#include "peri/core/build_info.hpp"
+#include "peri/io/checkpoint.hpp"
+#include "peri/kernels/forces.hpp"
+#include "peri/io/output.hpp"
+#include "peri/io/restart.hpp"
+#include "peri/stages/simulation.hpp"
 
 namespace {
 

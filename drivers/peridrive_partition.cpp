@@ -23,8 +23,8 @@
 #include <string>
 #include <vector>
 
-#include "peri/partition.hpp"
-#include "peri/resources.hpp"
+#include "peri/partition/partition.hpp"
+#include "peri/core/resources.hpp"
 
 namespace {
 

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <vector>
 
-#include "peri/contact.hpp"
+#include "peri/loads/contact.hpp"
 
 namespace peri {
 namespace {

@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <random>
 
-#include "peri/crack_tips.hpp"
+#include "peri/diagnostics/crack_tips.hpp"
 
 namespace peri {
 namespace {

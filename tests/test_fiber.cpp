@@ -8,11 +8,11 @@
 #include <random>
 #include <string>
 
-#include "peri/bonds.hpp"
-#include "peri/discretization.hpp"
-#include "peri/long_range.hpp"
-#include "peri/model.hpp"
-#include "peri/scene.hpp"
+#include "peri/bonds/bonds.hpp"
+#include "peri/geometry/discretization.hpp"
+#include "peri/models/long_range.hpp"
+#include "peri/models/model.hpp"
+#include "peri/scene/scene.hpp"
 
 namespace peri {
 namespace {

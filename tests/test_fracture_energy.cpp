@@ -5,7 +5,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "peri/fracture_energy.hpp"
+#include "peri/models/fracture_energy.hpp"
 
 namespace peri {
 namespace {

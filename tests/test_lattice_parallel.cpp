@@ -10,7 +10,7 @@
 #include <cstdio>
 #include <string>
 
-#include "peri/simulation.hpp"
+#include "peri/stages/simulation.hpp"
 #include "mpi_test.hpp"
 
 namespace peri {

@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "peri/marder.hpp"
+#include "peri/models/marder.hpp"
 
 namespace peri {
 namespace {

@@ -6,11 +6,11 @@
 #include <random>
 #include <string>
 
-#include "peri/bonds.hpp"
-#include "peri/domain.hpp"
-#include "peri/forces.hpp"
-#include "peri/model.hpp"
-#include "peri/scene.hpp"
+#include "peri/bonds/bonds.hpp"
+#include "peri/partition/domain.hpp"
+#include "peri/kernels/forces.hpp"
+#include "peri/models/model.hpp"
+#include "peri/scene/scene.hpp"
 
 namespace peri {
 namespace {

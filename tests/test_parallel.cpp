@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <map>
 
-#include "peri/partition.hpp"
-#include "peri/simulation.hpp"
+#include "peri/partition/partition.hpp"
+#include "peri/stages/simulation.hpp"
 #include "mpi_test.hpp"
 
 namespace peri {

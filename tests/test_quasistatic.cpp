@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "peri/bonds.hpp"
-#include "peri/model.hpp"
-#include "peri/simulation.hpp"
+#include "peri/bonds/bonds.hpp"
+#include "peri/models/model.hpp"
+#include "peri/stages/simulation.hpp"
 #include "mpi_test.hpp"
 
 namespace peri {

@@ -14,11 +14,11 @@
 
 #include <unistd.h>
 
-#include "peri/checkpoint.hpp"
-#include "peri/error.hpp"
-#include "peri/resources.hpp"
-#include "peri/restart.hpp"
-#include "peri/simulation.hpp"
+#include "peri/io/checkpoint.hpp"
+#include "peri/core/error.hpp"
+#include "peri/core/resources.hpp"
+#include "peri/io/restart.hpp"
+#include "peri/stages/simulation.hpp"
 #include "mpi_test.hpp"
 
 namespace peri {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "peri/scene.hpp"
+#include "peri/scene/scene.hpp"
 
 #ifndef PERI_SOURCE_DIR
 #error "PERI_SOURCE_DIR must name the source tree"

@@ -12,8 +12,8 @@ hdf5_lib=$(pkg-config --libs hdf5-openmpi 2> /dev/null || echo "-L/usr/lib/x86_6
 mpi_inc=$(mpicxx --showme:compile 2> /dev/null || true)
 flags=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
        -I"$src/include" $hdf5_inc $mpi_inc)
-"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_scene.cpp" "$src/src/scene.cpp" "$src/src/error.cpp" \
-  "$src/src/discretization.cpp" "$src/src/model.cpp" -lyaml-cpp -o "$out/fuzz_scene"
-"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_checkpoint.cpp" "$src/src/checkpoint.cpp" "$src/src/error.cpp" \
+"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_scene.cpp" "$src/src/scene/scene.cpp" "$src/src/core/error.cpp" \
+  "$src/src/geometry/discretization.cpp" "$src/src/models/model.cpp" -lyaml-cpp -o "$out/fuzz_scene"
+"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_checkpoint.cpp" "$src/src/io/checkpoint.cpp" "$src/src/core/error.cpp" \
   $hdf5_lib -o "$out/fuzz_checkpoint"
 echo "built $out/fuzz_scene $out/fuzz_checkpoint"

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "peri/checkpoint.hpp"
-#include "peri/error.hpp"
+#include "peri/io/checkpoint.hpp"
+#include "peri/core/error.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const std::string path = "/tmp/peri-fuzz-checkpoint-" + std::to_string(::getpid()) + ".h5";

@@ -8,10 +8,10 @@
 #include <cstdlib>
 #include <string>
 
-#include "peri/discretization.hpp"
-#include "peri/error.hpp"
-#include "peri/model.hpp"
-#include "peri/scene.hpp"
+#include "peri/geometry/discretization.hpp"
+#include "peri/core/error.hpp"
+#include "peri/models/model.hpp"
+#include "peri/scene/scene.hpp"
 
 namespace {
 

@@ -1,0 +1,89 @@
+// Output: one parallel HDF5 file per run (collective writes, natural node order, one group per
+// frame), an XDMF sidecar rewritten after every complete frame so ParaView/VisIt open the
+// series directly, a CSV energy series and a JSON summary (rank 0). summary.json is written
+// last: its presence marks a complete run.
+#pragma once
+#include <hdf5.h>
+#include <mpi.h>
+
+#include <cstdint>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "peri/state/state.hpp"
+
+namespace peri {
+
+/// Create `dir` (and parents) on rank 0; InputError naming it if that fails. Collective.
+void make_output_dir(const std::string& dir, MPI_Comm comm);
+
+/// Write a small text file atomically (temporary name, then rename). Rank 0 only.
+void write_text_file(const std::string& path, const std::string& text);
+
+/// Series row: what the CSV holds at one step.
+struct EnergyRow {
+  std::int64_t step = 0;
+  double time = 0;
+  double kinetic = 0, strain = 0, external_work = 0, dissipated = 0;
+  std::int64_t broken_bonds = 0;  ///< bonds (not ordered pairs) broken so far
+  double total() const { return kinetic + strain + dissipated - external_work; }
+};
+
+class FrameWriter {
+ public:
+  /// Opens <dir>/<stem>.h5 collectively and writes the mesh (reference positions, body, volume).
+  /// With resume_step >= 0 the existing file is continued instead: frames after that step are
+  /// deleted and the XDMF rewritten; a file holding a partly written frame is rebuilt from its
+  /// whole frames up to that step, and one that cannot be opened is replaced (each with a note).
+  FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain, State& state,
+              const std::string& resolved_scene, bool write_velocity, std::int64_t resume_step = -1);
+  ~FrameWriter();
+  FrameWriter(const FrameWriter&) = delete;
+  FrameWriter& operator=(const FrameWriter&) = delete;
+  /// Write one frame (owned arrays in local order), flush, and rewrite the XDMF. Collective.
+  /// energy_density: strain energy per unit volume of each node (bonds, and long-range pairs).
+  void write(std::int64_t step, double time, const double* u, const double* v, const double* damage,
+             const double* energy_density);
+  int frames() const { return static_cast<int>(times_.size()); }
+
+ private:
+  void write_dataset(hid_t group, const char* name, const double* natural_slice, int bs);
+  void write_xdmf() const;
+  bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
+  /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
+  /// that replaces it (false if it cannot be opened at all). Collective.
+  bool salvage(const std::string& path, hid_t fapl, std::int64_t resume_step, const std::string& resolved_scene);
+  hid_t create(const std::string& path, hid_t fapl, const std::string& resolved_scene);  // with the mesh
+
+  std::string dir_, stem_;
+  const Domain& domain_;
+  State& state_;
+  bool write_velocity_;
+  hid_t file_ = -1;
+  std::vector<double> work_;
+  std::vector<double> times_;
+  std::vector<std::int64_t> steps_;
+};
+
+/// CSV energy series, written by rank 0 (other ranks hold an inert writer).
+/// Text of a CSV file whose rows start with a step number: `header`, then the complete rows with
+/// step <= `step` (a partial last line is dropped). Used to continue outputs on restart.
+std::string rows_up_to(const std::string& path, const std::string& header, std::int64_t step);
+
+class SeriesWriter {
+ public:
+  /// `extra_columns`: further comma-separated column names appended to the header (none if empty).
+  /// With resume_step >= 0 the existing file keeps its header and the complete rows of steps
+  /// <= resume_step, and new rows are appended.
+  SeriesWriter(const std::string& path, bool active, const std::string& extra_columns = "",
+               std::int64_t resume_step = -1);
+  /// `extra`: the values of the extra columns, comma-separated, in header order.
+  void write(const EnergyRow& row, const std::string& extra = "");
+
+ private:
+  std::ofstream out_;
+  bool active_;
+};
+
+}  // namespace peri

@@ -1,0 +1,55 @@
+// Restart: the collective side of checkpoints. Gathers a distributed run's state onto rank 0 in
+// rank-independent (natural) order, reads a checkpoint on every rank with one verdict, sets the
+// broken-bond flags of any partition from the stored pairs, and turns SIGTERM/SIGINT into a stop
+// request that the step loop polls collectively.
+#pragma once
+#include <mpi.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "peri/io/checkpoint.hpp"
+#include "peri/state/state.hpp"
+
+namespace peri {
+
+/// Exit status of a run stopped by SIGTERM/SIGINT after writing its final checkpoint.
+inline constexpr int kExitStopped = 5;
+
+/// Install SIGTERM and SIGINT handlers that record a stop request; a second signal ends the
+/// process at once (default action). Call after PetscInitialize, which installs its own.
+void install_stop_handlers();
+/// The signal that requested a stop on this rank, or 0.
+int stop_signal();
+
+/// Owned values (bs per node, local order) in natural order, complete on rank 0 and empty on the
+/// other ranks. Collective.
+std::vector<double> gather_natural_to_root(State& state, const Domain& d, const double* owned, int bs,
+                                           MPI_Comm comm);
+
+/// Broken bonds as sorted natural pairs (i < j), flattened, on rank 0; empty elsewhere. Collective.
+std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm);
+
+/// Set this rank's broken flags to exactly `pairs` (sorted natural (i < j) pairs, flattened).
+/// Returns how many of this rank's ordered bonds are in `pairs` (over all ranks: 2 per pair).
+std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pairs);
+
+/// fnv1a64 of this rank's owned natural ids: equal on restart means equal ownership.
+std::uint64_t ownership_hash(const Domain& d);
+
+/// Read a checkpoint on every rank. A failure on any rank raises InputError on all of them
+/// (rank 0's message when it failed itself). Collective.
+std::shared_ptr<const Checkpoint> load_checkpoint(const std::string& path, MPI_Comm comm);
+
+/// Rank 0 writes `c` (complete on rank 0) with write_checkpoint; a failure raises RuntimeFailure on
+/// every rank. Collective.
+void store_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm comm);
+
+/// The checkpoint that `--resume PATH` continues from: PATH itself if it is a file; else
+/// PATH/checkpoint.h5, or PATH/checkpoint.prev.h5 when the former does not exist (a run killed
+/// between the two renames of write_checkpoint).
+std::string resolve_resume_path(const std::string& path);
+
+}  // namespace peri

@@ -1,0 +1,79 @@
+// Long-range forces between fiber nodes (Silling & Bobaru eqs. 32-36): a 6-12 pair potential
+//   w2(y) = alpha (a/y)^12 - beta (a/y)^6       [J/m^6, energy per volume squared]
+// on the *current* distance y of two nodes, never damaged, with its own horizon (the cutoff).
+// The coefficients depend on the pair (eq. 34), symmetrically: scene rules tell apart adjacent
+// and distant segments of one fiber and nodes of different fibers; nodes of one segment, and
+// pairs closer than the exclusion distance in the reference configuration (neighbours in one
+// continuous body, where the singular force makes no sense), do not interact.
+//
+// The force density on node i is sum_j w2'(y_ij) (x_j - x_i)/y_ij V_j (eq. 35's second term with
+// eq. 31's quadrature), w2'(y) = -12 alpha/a (a/y)^13 + 6 beta/a (a/y)^7. The energy booked is
+// that of the potential shifted to zero at the cutoff (w2(y) - w2(cutoff)), so that pairs crossing
+// the cutoff do not make the energy balance jump; the forces are those of eq. 35.
+//
+// The table of participating nodes is replicated on every rank (natural id order); each step
+// every rank receives the current positions of all of them (simulation.cpp gathers them), and
+// this kernel, free of MPI, evaluates the pairs of the rank's own nodes through a cell list on
+// the current positions. Memory and exchange grow with the number of fiber nodes, not with the
+// rank count's share of it: meant for fiber scenes of up to some 1e5 nodes.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "peri/geometry/discretization.hpp"
+#include "peri/scene/scene.hpp"
+
+namespace peri {
+
+/// Every fiber node of a scene with long_range, in natural order, with what the rules read.
+struct LongRangeTable {
+  std::vector<std::int64_t> natural;  ///< node -> natural id (ascending)
+  std::vector<int> fiber;             ///< fiber (a path of a fiber body), numbered over the scene
+  std::vector<std::int32_t> segment;  ///< segment along its fiber (0 when segment_length is 0)
+  std::vector<double> X;              ///< 3 per node: reference position [m]
+  std::vector<double> volume;         ///< measure A ds [m^3]
+  std::int64_t size() const { return static_cast<std::int64_t>(natural.size()); }
+  /// Table index of a natural id, or -1 when that node takes no part.
+  std::int64_t index_of(std::int64_t natural_id) const;
+};
+
+/// The table of a scene's fiber nodes (empty when the scene has no fiber body).
+LongRangeTable long_range_table(const Nodes& nodes);
+
+/// The pair law of a scene's long_range section: the first rule for each pair kind.
+struct PairLaw {
+  double length = 0, cutoff = 0, exclusion = 0;
+  bool acts[3] = {false, false, false};  ///< by PairKind: some rule matches
+  double alpha[3] = {0, 0, 0}, beta[3] = {0, 0, 0};  ///< beta < 0: a repulsive 1/y^6 tail
+  explicit PairLaw(const LongRange& spec);
+  /// w2(y) (eq. 33), unshifted.
+  double energy(PairKind k, double y) const noexcept;
+  /// dw2/dy: the scalar force, positive when the pair attracts.
+  double force(PairKind k, double y) const noexcept;
+};
+
+/// Verlet list of the long-range pairs of some nodes: every partner within cutoff + skin (and
+/// not excluded by the rules) when it was built; rebuilt once any node has moved more than
+/// skin / 2 since (then no pair within the cutoff can be missing from it).
+struct LongRangeList {
+  double skin = 0;                     ///< [m]; 0: 1/4 of the cutoff
+  std::vector<std::int64_t> begin;     ///< per node of `mine`, into partner (mine.size() + 1)
+  std::vector<std::int64_t> partner;   ///< table index
+  std::vector<std::int8_t> kind;       ///< PairKind of each pair
+  std::vector<double> x_built;         ///< positions of all table nodes at the build
+  long builds = 0;
+};
+
+/// Forces and energy of the long-range pairs of the nodes `mine` (table indices), given the
+/// current positions `x` (3 per table node). Adds the force densities of mine[k] to
+/// force[3 * k ..] [N/m^3]; with_energy: returns half the shifted pair energies w2 V_i V_j summed
+/// over the pairs of those nodes (each pair is counted once over all ranks) [J], else 0. The
+/// pairs come from `list` (rebuilt here when needed; its order fixes the summation order, the
+/// same on every rank).
+/// With `energy_density` (and with_energy), also adds each node's share 1/2 sum_j (w2 - w2(cutoff)) V_j
+/// [J/m^3] to energy_density[k] for mine[k].
+double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
+                         const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
+                         bool with_energy = true, double* energy_density = nullptr);
+
+}  // namespace peri

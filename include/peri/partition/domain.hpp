@@ -1,0 +1,34 @@
+// Domain: one rank's share of the discretized bodies. Local numbering puts owned nodes first
+// (in global order) and ghosts after (sorted by global index). Bond families are stored for owned
+// rows only, in natural-id order of the neighbours, so a node's force is summed in the same order
+// on any number of ranks (results independent of the rank count bit for bit).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "peri/partition/partition.hpp"
+
+namespace peri {
+
+struct Domain {
+  int rank = 0, ranks = 1;
+  std::int64_t global_nodes = 0;   ///< nodes over all ranks
+  std::int64_t global_begin = 0;   ///< first owned global index
+  std::int32_t owned = 0, ghosts = 0;
+  std::vector<std::int64_t> natural;  ///< local -> natural id (owned, then ghosts)
+  std::vector<std::int64_t> global;   ///< local -> global index
+  std::vector<double> X;              ///< 3 * local reference positions [m]
+  std::vector<double> volume;         ///< local measures [m^3]
+  std::vector<int> body;              ///< local body index
+  BondFamilies bonds;                 ///< families of owned rows
+  std::vector<std::int32_t> interior_rows;  ///< owned rows whose neighbours are all owned
+  std::vector<std::int32_t> boundary_rows;  ///< owned rows with at least one ghost neighbour
+  std::int64_t initially_broken = 0;  ///< owned ordered bonds broken by pre-cracks
+  std::int32_t local() const { return owned + ghosts; }
+};
+
+/// Build this rank's domain from the global node set and the partition.
+Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cells,
+                    const Partition& partition, int rank);
+
+}  // namespace peri

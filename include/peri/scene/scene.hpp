@@ -1,0 +1,336 @@
+// Scene: the validated, SI-unit description of one run (bodies, materials, pre-cracks,
+// boundary regions, initial conditions, stages, output). Read from YAML; every key is checked.
+// Nothing downstream reads YAML: the rest of the program sees only these structs.
+#pragma once
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "peri/core/error.hpp"
+
+namespace peri {
+
+using Vec3 = std::array<double, 3>;
+
+/// Force law of a material's bonds.
+enum class ModelKind {
+  Membrane,  ///< rubbery membrane micropotential, eqs. (13), (15); optional hardening (16)
+  PMB,       ///< prototype microelastic brittle bond: force c*s*g, s = lambda - 1
+  Marder,    ///< Marder's two- and three-body lattice law, eqs. (28)-(33) (lattice bodies only)
+};
+
+/// Influence function g(|xi|) of eq. (13).
+enum class Influence {
+  Constant,  ///< g = 1
+  Conical,   ///< g = 1 - |xi|/delta
+};
+
+/// How a neighbour's measure is weighted inside the horizon (the quadrature of eq. (12)).
+enum class Quadrature {
+  Full,         ///< weight 1 for |xi| <= delta, 0 beyond
+  PartialArea,  ///< exact fraction of the neighbour's cell (square of side dx) inside the disc
+  Taper,        ///< 1 inside, falling linearly to 1/2 at |xi| = delta over the last dx/2 (Parks et al.)
+};
+
+enum class BodyKind {
+  Membrane,  ///< flat rectangle of nodes, measure = cell area * thickness
+  Solid,     ///< box of simple-cubic points, measure = dx^3
+  Lattice,   ///< triangular lattice of spacing Delta, nearest neighbours (Marder model)
+  Fiber,     ///< nodes along a polyline, measure = cross-section area * arc length (eq. 31)
+  Shell,     ///< spherical membrane (scene kind "sphere"): geodesic nodes, measure = area * thickness
+};
+
+enum class Grid { Square, Hexagonal };
+
+/// Power-law hardening of eq. (16): the bond energy gains c' (lambda^n - n lambda + n - 1) g, i.e.
+/// (16) with the affine terms that keep the reference state stress-free.
+struct Hardening {
+  double coefficient = 0.0;  ///< c' [same unit as the micromodulus c]
+  double exponent = 2.0;     ///< n > 1
+};
+
+/// Constants of Marder's lattice law (Marder paper eqs. 6, 27, 31-33).
+struct MarderParams {
+  double a = 0;                    ///< Mooney-Rivlin a of W/rho = a [J1 + b J2] [J/kg]
+  double b = 0;                    ///< Mooney-Rivlin b [-]
+  double cutoff = 0;               ///< u_s, short-distance cutoff [m]
+  double fracture_separation = 0;  ///< u_c, separation at which a bond fails [m]
+  bool reversible = false;         ///< bonds heal below u_c (default: irreversible)
+  double kelvin_viscosity = 0;     ///< nu of the bond dashpots [m^2/s], >= 0 (0: none)
+};
+
+struct Material {
+  std::string name;
+  SourceLoc where;
+  ModelKind model = ModelKind::Membrane;
+  double density = 0.0;  ///< rho [kg/m^3], > 0
+  // Stiffness: exactly one of the four is given in the scene; the others stay empty.
+  std::optional<double> wave_speed;      ///< small-strain longitudinal wave speed c_l [m/s]
+  std::optional<double> bulk_modulus;    ///< K [Pa]: in-plane K = lambda+mu for membranes, 3D for solids
+  std::optional<double> youngs_modulus;  ///< E [Pa]
+  std::optional<double> micromodulus;    ///< c itself [SI unit of the model's c]
+  Influence influence = Influence::Constant;
+  /// Critical stretch for bond failure. Membrane model: lambda_0 > 1 (eq. 22).
+  /// PMB: critical bond strain s_0 > 0 (the papers' "critical stretch" 0.1, 0.03, 0.3).
+  /// Empty: bonds never break.
+  std::optional<double> critical_stretch;
+  /// Optional Lambda_delta of eq. (29): the critical value at |xi| = delta (then critical_stretch
+  /// is Lambda_0, the value at |xi| = 0). Same meaning (stretch or strain) as critical_stretch.
+  std::optional<double> critical_stretch_at_horizon;
+  std::optional<Hardening> hardening;  ///< membrane model only
+  std::optional<MarderParams> marder;  ///< model marder only
+};
+
+/// A network of fibers (example 7.6) generated in a box: per family, `count` fibers start at
+/// uniformly random points within `start_band` of the box face normal to the family's direction
+/// (and anywhere across the other two) and walk across the box in steps of `step`, each step's
+/// direction deviating from the family's by Gaussian angles of standard deviation `deviation`
+/// in the plane and out of it (mirrored back at the box's side faces), until they leave the far
+/// face. Deterministic for a seed (its own generator: the same paths on every rank).
+struct FiberFamily {
+  SourceLoc where;
+  int axis = 0;    ///< 0: fibers along x, 1: along y
+  long count = 0;  ///< >= 1
+};
+struct FiberNetwork {
+  SourceLoc where;
+  Vec3 min{0, 0, 0}, max{0, 0, 0};  ///< the box [m]
+  std::vector<FiberFamily> families;
+  double deviation = 0.15;   ///< sigma of the direction noise [rad], >= 0
+  double step = 0.0;         ///< path length between direction draws [m] (> 0)
+  double start_band = 0.0;   ///< [m] (>= 0)
+  long seed = 1;
+};
+
+struct Body {
+  std::string name;
+  SourceLoc where;
+  BodyKind kind = BodyKind::Membrane;
+  std::string material;       ///< name of an entry of Scene::materials
+  Vec3 origin{0, 0, 0};       ///< lower corner [m]
+  Vec3 size{0, 0, 0};         ///< extent [m]; membranes use x, y (z must be 0)
+  double thickness = 0.0;     ///< h [m], membranes only (> 0)
+  double spacing = 0.0;       ///< dx [m] (> 0)
+  Grid grid = Grid::Square;
+  double horizon_factor = 3.0;          ///< m in delta = m*dx (>= 1); ignored when horizon set
+  std::optional<double> horizon;        ///< delta [m] (>= spacing)
+  Quadrature quadrature = Quadrature::PartialArea;
+  /// Lattice bodies: only bonds with both ends inside this box [min, max] (reference positions)
+  /// may break; empty = every bond (Marder's simulations often let bonds break only along the
+  /// crack line, so that the crack neither branches nor tears the clamped edges).
+  std::optional<std::array<Vec3, 2>> breakable;
+  // Fibers (eq. 31): nodes at equal arc-length steps along the polyline `path`, cross-section
+  // A = pi diameter^2 / 4; `segment_length` > 0 numbers the stretches of that length along the
+  // fiber (segments) that long-range rules tell apart (0: the whole fiber is one segment).
+  std::vector<Vec3> path;
+  std::optional<FiberNetwork> network;  ///< instead of path: many fibers in one body (cross-linked
+                                        ///< where they pass within the horizon)
+  double diameter = 0.0;        ///< [m] (> 0)
+  double segment_length = 0.0;  ///< [m] (>= 0)
+  // Spherical membranes (kind sphere, example 7.2): nodes on a geodesic sphere of `radius` about
+  // `center` (origin holds the center), thickness h; an internal follower pressure that rises
+  // linearly to `pressure` over `pressure_ramp_time`.
+  double radius = 0.0;              ///< [m] (> 0)
+  double pressure = 0.0;            ///< [Pa] (>= 0)
+  double pressure_ramp_time = 0.0;  ///< [s] (>= 0)
+  double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
+};
+
+/// Axis-aligned box [min, max] (inclusive) selecting nodes by reference position.
+struct Region {
+  SourceLoc where;
+  Vec3 min{0, 0, 0};
+  Vec3 max{0, 0, 0};
+  std::string body;  ///< restrict to one body; empty = all bodies
+  bool contains(const Vec3& x) const {
+    for (int d = 0; d < 3; ++d)
+      if (x[d] < min[d] || x[d] > max[d]) return false;
+    return true;
+  }
+};
+
+/// Pre-crack: every bond whose reference segment crosses the segment [from, to] is broken at
+/// the start (Silling & Bobaru 7.1: "breaking all the peridynamic bonds that intersect the slit").
+struct Crack {
+  std::string name;
+  SourceLoc where;
+  Vec3 from{0, 0, 0};
+  Vec3 to{0, 0, 0};
+};
+
+/// Prescribed-velocity (or clamped: velocity 0) region.
+struct Boundary {
+  std::string name;
+  SourceLoc where;
+  Region region;
+  Vec3 velocity{0, 0, 0};                       ///< [m/s]
+  std::array<bool, 3> components{true, true, true};  ///< which components are prescribed
+  double ramp_time = 0.0;  ///< [s] velocity rises linearly from 0 over this time (0: at once)
+};
+
+/// Rigid tool: a cylinder of infinite length with its axis along z (normal to membranes), moving
+/// at a constant in-plane velocity; nodes inside it are pushed out by a penalty force, with
+/// Coulomb friction (Silling & Bobaru 7.4, the blunt tool). Acts in dynamic stages.
+struct Tool {
+  std::string name;
+  SourceLoc where;
+  bool sphere = false;                 ///< kind sphere (a fragment) instead of cylinder
+  double radius = 0.0;                 ///< [m] (> 0)
+  std::array<double, 3> center{0, 0, 0};  ///< axis position (x, y) or sphere centre at t = 0 [m]
+  std::array<double, 3> velocity{0, 0, 0};  ///< [m/s] (cylinder: in-plane, z = 0)
+  double friction = 0.0;               ///< Coulomb coefficient mu (>= 0)
+  /// Penalty stiffness relative to the stiffest node's bond stiffness (> 0); the stable step is
+  /// divided by sqrt(1 + stiffness) when a scene has tools.
+  double stiffness = 0.5;
+};
+
+/// Initial conditions, applied before the first stage.
+struct Initial {
+  /// u = displacement_gradient * (X - center): e.g. a homogeneous preload. 3x3 row-major.
+  std::array<double, 9> displacement_gradient{};
+  /// v = velocity_gradient * (X - center). 3x3 row-major [1/s].
+  std::array<double, 9> velocity_gradient{};
+  Vec3 center{0, 0, 0};  ///< [m]
+  /// Out-of-plane seed of example 7.1: u_z += A sin(2 pi x/Lx) sin(2 pi y/Ly) (a wavelength of 0
+  /// drops its factor). amplitude 0 = no seed.
+  double seed_amplitude = 0.0;  ///< A [m]
+  double seed_wavelength_x = 0.0;  ///< Lx [m]
+  double seed_wavelength_y = 0.0;  ///< Ly [m]
+};
+
+enum class StageKind {
+  Dynamic,      ///< explicit velocity Verlet over a duration
+  QuasiStatic,  ///< static equilibrium by PETSc SNES with load stepping (no time passes)
+  Release,      ///< break the bonds crossing named cracks, velocities set to zero (no time passes)
+};
+
+/// A velocity or displacement given to a named boundary by one stage.
+struct BoundaryValue {
+  std::string boundary;  ///< name of an entry of Scene::boundaries
+  Vec3 value{0, 0, 0};
+};
+
+struct Stage {
+  std::string name;
+  SourceLoc where;
+  StageKind kind = StageKind::Dynamic;
+  // Dynamic stages.
+  double duration = 0.0;               ///< simulated time [s] (> 0); 0 when only steps is given
+  std::optional<long> steps;           ///< number of steps; overrides duration
+  std::optional<double> dt;            ///< time step [s]; default safety_factor * stable bound
+  double safety_factor = 0.7;          ///< (0, 1]
+  bool allow_unstable_dt = false;      ///< accept a dt above the stable bound
+  double damping = 0.0;                ///< mass-proportional viscous damping alpha [1/s] (>= 0)
+  /// Constant velocity of named boundaries during this stage (replaces their scene velocity and
+  /// ramp for the stage) [m/s].
+  std::vector<BoundaryValue> boundary_velocity;
+  // Quasi-static stages.
+  /// Displacement of named boundaries reached at the end of the stage, added to where they are
+  /// at its start (prescribed components only) [m]. Boundaries not named keep their position.
+  std::vector<BoundaryValue> displacements;
+  /// Affine part of the same: constrained components also move by H (X - initial.center) over the
+  /// stage (3x3 row-major, dimensionless; e.g. a homogeneous stretch of boundary bands).
+  std::array<double, 9> displacement_gradient{};
+  long load_steps = 10;         ///< initial number of load increments (adaptive afterwards)
+  long max_load_steps = 1000;   ///< increments, cut-backs included, before giving up
+  bool in_plane = true;         ///< membranes: out-of-plane components held where they are
+  bool matrix_free = false;     ///< Newton-Krylov without the assembled tangent (-snes_mf)
+  double jacobian_shift = 1e-8; ///< regularization of the tangent's diagonal (relative; not of the residual)
+  long max_break_passes = 100;  ///< re-equilibrations per increment while bonds keep breaking
+  // Release stages.
+  std::vector<std::string> cracks;  ///< names of entries of Scene::cracks broken by this stage
+};
+
+/// Instability detectors of explicit stages (checked whenever energies or frames are written,
+/// and every 20 steps).
+struct Stability {
+  /// Stop when |E(t) - E(0)| exceeds this fraction of the energy scale (E: kinetic + strain +
+  /// dissipated - external work). 0 disables.
+  double energy_error = 0.05;
+  /// Stop when a node moves more than this fraction of its body's grid spacing in one step (a stable
+  /// step moves a node by at most about safety_factor * (material speed / wave speed) spacings).
+  double motion_per_step = 1.0;
+};
+
+struct Output {
+  int frames = 20;             ///< HDF5 frames over the whole run (>= 1; first and last included)
+  int series_every = 10;       ///< CSV energy row every N steps (>= 1)
+  bool write_velocity = true;  ///< velocity field in HDF5 frames
+  double progress_seconds = 2.0;  ///< wall seconds between progress lines (0: every check)
+  long checkpoint_every_steps = 0;         ///< checkpoint every N steps (0: not by step count)
+  double checkpoint_every_seconds = 900.0; ///< checkpoint every T wall seconds (0: not by time)
+};
+
+/// Which pairs of fiber nodes a long-range rule applies to (Silling & Bobaru eq. 34: the
+/// coefficients may depend on the pair, symmetrically). Nodes of one segment never interact.
+enum class PairKind {
+  AdjacentSegments,  ///< one fiber, segments k and k +- 1
+  DistantSegments,   ///< one fiber, segments two or more apart
+  OtherFibers,       ///< nodes of different fiber bodies
+};
+
+struct PairRule {
+  SourceLoc where;
+  PairKind between = PairKind::AdjacentSegments;
+  double alpha = 0.0;  ///< repulsive coefficient of (a/y)^12 [J/m^6] (>= 0)
+  double beta = 0.0;   ///< attractive coefficient of (a/y)^6 [J/m^6] (< 0: a repulsive tail)
+};
+
+/// Long-range forces between fiber nodes, w2(y) = alpha (a/y)^12 - beta (a/y)^6 on the current
+/// distance y (eqs. 32-36), never damaged, with their own horizon (cutoff). Pairs closer than
+/// `exclusion` in the reference configuration (neighbours in one continuous body) do not interact.
+struct LongRange {
+  SourceLoc where;
+  double length = 0.0;     ///< a [m] (> 0)
+  double cutoff = 0.0;     ///< largest current distance of an interacting pair [m] (> 0)
+  double exclusion = 0.0;  ///< [m] (>= 0)
+  std::vector<PairRule> pairs;  ///< first matching rule wins; a pair no rule matches does not interact
+};
+
+struct Scene {
+  std::string file;         ///< path it was read from ("<default scene>" for the embedded one)
+  std::string name;         ///< short identifier
+  std::string description;  ///< free text
+  std::vector<Material> materials;
+  std::vector<Body> bodies;
+  std::vector<Crack> cracks;
+  std::vector<Boundary> boundaries;
+  std::vector<Tool> tools;
+  std::optional<LongRange> long_range;
+  Initial initial;
+  std::vector<Stage> stages;
+  Stability stability;
+  Output output;
+
+  const Material& material(const std::string& name) const;  ///< InputError if unknown
+  int material_index(const std::string& name) const;        ///< -1 if unknown
+  /// True when a release stage names the crack (it is then not broken at the start).
+  bool released_later(const std::string& crack) const;
+};
+
+/// Command-line override "path.to.key=value"; value is parsed as YAML (scalars, [a, b], {k: v}).
+/// Map entries by key (bodies.sheet.spacing); list entries by index (stages.0.duration) or by
+/// their name (boundaries.top.velocity).
+struct Override {
+  std::string path;
+  std::string value;
+};
+
+/// Read, override and validate a scene. `text` is the YAML document, `file` its name for
+/// messages. Throws InputError with "file:line: a.b.c: expected ..., got ..." on the first
+/// problem found ("--set: a.b.c: ..." for overridden values). Identical on every rank.
+Scene parse_scene(const std::string& text, const std::string& file,
+                  const std::vector<Override>& overrides = {});
+
+/// Read a scene file (InputError if it cannot be read).
+Scene load_scene(const std::string& path, const std::vector<Override>& overrides = {});
+
+/// The embedded default scene (example 7.1 at demo resolution), as YAML text.
+const std::string& default_scene_text();
+
+/// Fully resolved scene as YAML (every key, defaults filled in). parse_scene(emit_scene(s))
+/// emits the same text again (round trip). `derived` lines are appended as YAML comments.
+std::string emit_scene(const Scene& s, const std::vector<std::string>& derived = {});
+
+}  // namespace peri

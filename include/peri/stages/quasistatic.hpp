@@ -1,0 +1,109 @@
+// Quasi-static loader: static equilibrium (internal bond forces + support reactions = 0) of the
+// owned degrees of freedom by PETSc SNES (Newton with line search), with load stepping on the
+// prescribed boundary displacements. Owns its PETSc objects (SNES, tangent Mat, work Vecs).
+//
+// Unknowns: all 3 components of every owned node, in the global order of the ghosted State.
+// Constrained components (prescribed boundary components; out-of-plane components of membranes
+// when the stage is in_plane) are kept at their prescribed values: their residual rows are
+// s (u - u_prescribed) and their tangent rows s e_k (s: a stiffness scale), so every Newton step
+// and line search leaves them in place, with or without an assembled matrix.
+//
+// Bonds never break inside a Newton iteration: residuals and tangents use the intact laws. After
+// each converged increment the model's breaking pass runs; if bonds broke, the same load is
+// re-equilibrated (and checked again) before the next increment.
+//
+// Options: prefix "qs_": -qs_snes_*, -qs_ksp_*, -qs_pc_* (e.g. -qs_snes_monitor,
+// -qs_snes_test_jacobian, -qs_ksp_type cg, -qs_pc_type gamg) pass straight to PETSc.
+#pragma once
+#include <mpi.h>
+#include <petscmat.h>
+#include <petscsnes.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "peri/scene/scene.hpp"
+
+namespace peri {
+
+/// What the loader needs from the model of the run (implemented by Simulation).
+class EquilibriumModel {
+ public:
+  virtual ~EquilibriumModel() = default;
+  /// Make `u_owned` (3 per owned node) the current displacement and exchange halos. Collective.
+  virtual void set_displacement(const double* u_owned) = 0;
+  /// Current owned displacement.
+  virtual void get_displacement(double* u_owned) = 0;
+  /// Internal force (N, i.e. force density * measure) on each owned component at the current
+  /// displacement, with intact laws (no breaking).
+  virtual void internal_force(double* f_owned) = 0;
+  /// Add K = -d(F V)/du at the current displacement to `J` (global block indices; ADD_VALUES).
+  virtual void add_tangent(Mat J) = 0;
+  /// Break the bonds that fail at the current displacement; returns the number broken on all
+  /// ranks (bonds, not ordered bonds). Collective.
+  virtual std::int64_t break_bonds() = 0;
+};
+
+/// One load increment, as printed and summarised.
+struct LoadIncrement {
+  double load_factor = 0;       ///< fraction of the stage's displacements reached
+  int newton_iterations = 0;    ///< over all solves of the increment (re-equilibrations too)
+  int linear_iterations = 0;
+  int break_passes = 0;         ///< re-equilibrations after bonds broke
+  std::int64_t broken = 0;      ///< bonds broken in this increment
+  double residual = 0;          ///< final residual norm [N]
+};
+
+struct QuasiStaticStats {
+  std::vector<LoadIncrement> increments;  ///< converged increments
+  int cutbacks = 0;                       ///< diverged attempts (step halved)
+  long newton_iterations = 0, linear_iterations = 0;
+  std::int64_t broken = 0;
+  double external_work = 0;  ///< this rank's share of the support reactions' work [J] (trapezoidal)
+  double seconds = 0;
+};
+
+class QuasiStaticLoader {
+ public:
+  /// `d_nnz`/`o_nnz`: per owned node, the number of block columns owned by this rank / by others
+  /// (the row itself included in d_nnz). `stiffness_scale` [N/m]: typical diagonal of the tangent.
+  QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const std::vector<PetscInt>& d_nnz,
+                    const std::vector<PetscInt>& o_nnz, double stiffness_scale, double length_scale,
+                    const Stage& stage);
+  ~QuasiStaticLoader();
+  QuasiStaticLoader(const QuasiStaticLoader&) = delete;
+  QuasiStaticLoader& operator=(const QuasiStaticLoader&) = delete;
+
+  /// Load from the model's current displacement to it plus `increment` on the constrained
+  /// components (`constrained[k] != 0`); free components follow. Throws RuntimeFailure when an
+  /// increment cannot converge within the stage's limits.
+  QuasiStaticStats run(EquilibriumModel& model, const std::vector<std::uint8_t>& constrained,
+                       const std::vector<double>& increment, bool verbose);
+
+  /// Residual and Jacobian at the model's current state (tests: finite-difference checks).
+  void residual(EquilibriumModel& model, const std::vector<double>& u, std::vector<double>& r);
+  Mat jacobian(EquilibriumModel& model, const std::vector<double>& u);
+
+ private:
+  static PetscErrorCode form_function(SNES, Vec x, Vec f, void* ctx);
+  static PetscErrorCode form_jacobian(SNES, Vec x, Mat J, Mat P, void* ctx);
+  void eval_residual(const double* x, double* f);
+  void eval_jacobian(const double* x, Mat J);
+  int solve(Vec x);  // SNESConvergedReason
+
+  MPI_Comm comm_;
+  int rank_ = 0;
+  std::int32_t owned_ = 0;
+  Stage stage_;
+  double stiffness_ = 1, length_ = 1;
+  SNES snes_ = nullptr;
+  Mat J_ = nullptr;
+  Vec x_ = nullptr, r_ = nullptr;
+  EquilibriumModel* model_ = nullptr;
+  const std::vector<std::uint8_t>* constrained_ = nullptr;
+  std::vector<double> target_, force_;  // prescribed values; internal force work array
+  std::vector<PetscInt> constrained_rows_;  // global point indices of constrained components
+};
+
+}  // namespace peri

@@ -1,0 +1,179 @@
+#include "peri/io/restart.hpp"
+
+#include <algorithm>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+
+#include "peri/core/error.hpp"
+
+namespace peri {
+namespace {
+
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void on_stop_signal(int sig) {
+  if (g_stop_signal != 0) {  // second signal: the user insists, end now
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+    return;
+  }
+  g_stop_signal = sig;
+}
+
+/// One verdict for all ranks: empty when no rank has a message, else the message of the lowest
+/// failing rank (naming that rank when it is not rank 0). Collective.
+std::string agree_on_message(const std::string& mine, MPI_Comm comm) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  int failed = mine.empty() ? 0 : 1, any = 0;
+  MPI_Allreduce(&failed, &any, 1, MPI_INT, MPI_MAX, comm);
+  if (!any) return "";
+  // Rank 0's message if it has one, else the first failing rank's.
+  int first = failed ? rank : 1 << 30, lowest = 0;
+  MPI_Allreduce(&first, &lowest, 1, MPI_INT, MPI_MIN, comm);
+  long len = rank == lowest ? static_cast<long>(mine.size()) : 0;
+  MPI_Bcast(&len, 1, MPI_LONG, lowest, comm);
+  std::string msg = rank == lowest ? mine : std::string(static_cast<std::size_t>(len), ' ');
+  MPI_Bcast(msg.data(), static_cast<int>(len), MPI_CHAR, lowest, comm);
+  if (lowest != 0) msg += " (on rank " + std::to_string(lowest) + ")";
+  return msg;
+}
+
+}  // namespace
+
+void install_stop_handlers() {
+  struct sigaction sa;
+  std::memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESTART;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+}
+
+int stop_signal() { return g_stop_signal; }
+
+std::vector<double> gather_natural_to_root(State& state, const Domain& d, const double* owned, int bs,
+                                           MPI_Comm comm) {
+  const double* slice = state.to_natural(owned, bs);
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  const int n = static_cast<int>(bs * state.natural_count());
+  std::vector<int> counts(ranks), displs(ranks, 0);
+  MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
+  for (int r = 1; r < ranks; ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<double> all(rank == 0 ? static_cast<std::size_t>(bs) * d.global_nodes : 0);
+  MPI_Gatherv(slice, n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm);
+  return all;
+}
+
+std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm) {
+  // Each broken bond is seen from both ends; the end with the lower natural id reports it.
+  std::vector<std::int64_t> mine;
+  for (std::int32_t r = 0; r < d.owned; ++r)
+    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b)
+      if (d.bonds.broken[b] && d.natural[r] < d.natural[d.bonds.neighbor[b]])
+        mine.insert(mine.end(), {d.natural[r], d.natural[d.bonds.neighbor[b]]});
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  const long long n = static_cast<long long>(mine.size());
+  std::vector<long long> counts(ranks);
+  MPI_Gather(&n, 1, MPI_LONG_LONG, counts.data(), 1, MPI_LONG_LONG, 0, comm);
+  std::vector<int> c32(ranks), displs(ranks, 0);
+  long long total = 0;
+  for (int r = 0; r < ranks; ++r) {
+    if (rank == 0 && total + counts[r] > (1ll << 31) - 1)
+      throw Error("too many broken bonds for one checkpoint gather");
+    c32[r] = static_cast<int>(counts[r]);
+    displs[r] = static_cast<int>(total);
+    total += counts[r];
+  }
+  std::vector<std::int64_t> all(rank == 0 ? total : 0);
+  MPI_Gatherv(mine.data(), static_cast<int>(n), MPI_INT64_T, all.data(), c32.data(), displs.data(),
+              MPI_INT64_T, 0, comm);
+  if (rank == 0) {
+    std::vector<std::pair<std::int64_t, std::int64_t>> pairs(all.size() / 2);
+    for (std::size_t k = 0; k < pairs.size(); ++k) pairs[k] = {all[2 * k], all[2 * k + 1]};
+    std::sort(pairs.begin(), pairs.end());
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      all[2 * k] = pairs[k].first;
+      all[2 * k + 1] = pairs[k].second;
+    }
+  }
+  return all;
+}
+
+std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pairs) {
+  const std::size_t np = pairs.size() / 2;
+  const auto less = [&](std::size_t k, std::pair<std::int64_t, std::int64_t> key) {
+    return pairs[2 * k] < key.first || (pairs[2 * k] == key.first && pairs[2 * k + 1] < key.second);
+  };
+  std::int64_t found = 0;
+  for (std::int32_t r = 0; r < d.owned; ++r) {
+    const std::int64_t i = d.natural[r];
+    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
+      const std::int64_t j = d.natural[d.bonds.neighbor[b]];
+      const std::pair<std::int64_t, std::int64_t> key{std::min(i, j), std::max(i, j)};
+      std::size_t lo = 0, hi = np;  // first pair not less than key
+      while (lo < hi) {
+        const std::size_t mid = lo + (hi - lo) / 2;
+        if (less(mid, key)) lo = mid + 1;
+        else hi = mid;
+      }
+      const bool hit = lo < np && pairs[2 * lo] == key.first && pairs[2 * lo + 1] == key.second;
+      d.bonds.broken[b] = hit ? 1 : 0;
+      found += hit;
+    }
+  }
+  d.bonds.summarize_rows();
+  return found;
+}
+
+std::uint64_t ownership_hash(const Domain& d) {
+  return fnv1a64(d.natural.data(), sizeof(std::int64_t) * static_cast<std::size_t>(d.owned));
+}
+
+std::shared_ptr<const Checkpoint> load_checkpoint(const std::string& path, MPI_Comm comm) {
+  std::shared_ptr<Checkpoint> c;
+  std::string error;
+  try {
+    c = std::make_shared<Checkpoint>(read_checkpoint(path));
+  } catch (const Error& e) {
+    error = e.what();
+  } catch (const std::exception& e) {  // e.g. std::bad_alloc
+    error = "checkpoint '" + path + "': cannot be read: " + e.what();
+  }
+  const std::string verdict = agree_on_message(error, comm);
+  if (!verdict.empty()) throw InputError(verdict);
+  return c;
+}
+
+void store_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm comm) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  std::string error;
+  if (rank == 0) {
+    try {
+      write_checkpoint(path, c);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  const std::string verdict = agree_on_message(error, comm);
+  if (!verdict.empty()) throw RuntimeFailure(verdict);
+}
+
+std::string resolve_resume_path(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(path, ec)) return path;
+  const std::string current = path + "/checkpoint.h5";
+  if (std::filesystem::exists(current, ec)) return current;
+  const std::string prev = previous_checkpoint_path(current);
+  if (std::filesystem::exists(prev, ec)) return prev;
+  return current;  // read_checkpoint reports that it does not exist
+}
+
+}  // namespace peri

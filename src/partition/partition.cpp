@@ -1,0 +1,651 @@
+#include "peri/partition/partition.hpp"
+
+#include <metis.h>
+#include <petscmat.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <tuple>
+
+#include "peri/core/error.hpp"
+
+namespace peri {
+
+PartitionMethod partition_method(const std::string& name) {
+  if (name == "auto") return PartitionMethod::Auto;
+  if (name == "rcb") return PartitionMethod::Rcb;
+  if (name == "cells") return PartitionMethod::Cells;
+  if (name == "bonds") return PartitionMethod::Bonds;
+  if (name == "petsc") return PartitionMethod::Petsc;
+  throw InputError("-partition_method " + name + ": expected auto (the default: rcb for one body filling its box, "
+                   "else cells), rcb (recursive coordinate bisection), cells (coarse cell graph, METIS), "
+                   "bonds (full bond graph, METIS) or petsc (MatPartitioning on the cell graph)");
+}
+
+const char* to_string(PartitionMethod m) {
+  switch (m) {
+    case PartitionMethod::Auto: return "auto";
+    case PartitionMethod::Rcb: return "rcb";
+    case PartitionMethod::Cells: return "cells";
+    case PartitionMethod::Bonds: return "bonds";
+    case PartitionMethod::Petsc: return "petsc";
+  }
+  return "?";
+}
+
+PartitionSettings partition_settings_from_options() {
+  PartitionSettings s;
+  char name[64] = "";
+  PetscBool set = PETSC_FALSE;
+  PERI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-partition_method", name, sizeof name, &set));
+  if (set) s.method = partition_method(name);
+  PetscInt per_part = s.cells_per_part;
+  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-partition_cells_per_part", &per_part, &set));
+  if (set && (per_part < 1 || per_part > 1000000))
+    throw InputError("-partition_cells_per_part " + std::to_string(per_part) + ": expected an integer in [1, 1000000]");
+  s.cells_per_part = static_cast<int>(per_part);
+  PetscInt line_weight = s.line_weight;
+  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-partition_line_weight", &line_weight, &set));
+  if (set && (line_weight < 1 || line_weight > 64))
+    throw InputError("-partition_line_weight " + std::to_string(line_weight) + ": expected an integer in [1, 64]");
+  s.line_weight = static_cast<int>(line_weight);
+  return s;
+}
+
+void Partition::release_maps() {
+  std::vector<int>().swap(part);
+  std::vector<std::int64_t>().swap(natural_to_global);
+  std::vector<std::int64_t>().swap(global_to_natural);
+}
+
+namespace {
+
+struct Box {
+  std::array<double, 3> lo{}, hi{};
+};
+
+Box bounding_box(const Nodes& nodes) {
+  Box b;
+  const std::int64_t n = nodes.size();
+  if (n == 0) return b;
+  for (int d = 0; d < 3; ++d) b.lo[d] = b.hi[d] = nodes.X[d];
+  for (std::int64_t i = 0; i < n; ++i)
+    for (int d = 0; d < 3; ++d) {
+      b.lo[d] = std::min(b.lo[d], nodes.X[3 * i + d]);
+      b.hi[d] = std::max(b.hi[d], nodes.X[3 * i + d]);
+    }
+  return b;
+}
+
+// Linear cell index of every node for cubic cells of size h; dims returned. Empty when the box
+// would need more than `limit` cells.
+std::vector<std::int64_t> linear_cells(const Nodes& nodes, const Box& box, double h, double limit,
+                                       std::array<std::int64_t, 3>& dims) {
+  double total = 1;
+  for (int d = 0; d < 3; ++d) {
+    dims[d] = static_cast<std::int64_t>(std::floor((box.hi[d] - box.lo[d]) / h)) + 1;
+    total *= static_cast<double>(dims[d]);
+  }
+  if (total > limit) return {};
+  const std::int64_t n = nodes.size();
+  std::vector<std::int64_t> lin(n);
+  for (std::int64_t i = 0; i < n; ++i) {
+    std::int64_t c[3];
+    for (int d = 0; d < 3; ++d)
+      c[d] = std::clamp<std::int64_t>(static_cast<std::int64_t>((nodes.X[3 * i + d] - box.lo[d]) / h), 0, dims[d] - 1);
+    lin[i] = (c[2] * dims[1] + c[1]) * dims[0] + c[0];
+  }
+  return lin;
+}
+
+std::int64_t occupied(const std::vector<std::int64_t>& lin, const std::array<std::int64_t, 3>& dims) {
+  std::vector<std::uint8_t> used(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]), 0);
+  std::int64_t count = 0;
+  for (std::int64_t c : lin)
+    if (!used[c]) {
+      used[c] = 1;
+      ++count;
+    }
+  return count;
+}
+
+// Scale factor that keeps a sum of weights within 32-bit METIS/PETSc indices.
+std::int64_t weight_divisor(std::int64_t total) {
+  const std::int64_t limit = std::int64_t(1) << 29;
+  return total > limit ? (total + limit - 1) / limit : 1;
+}
+
+}  // namespace
+
+double cell_size_for(const Nodes& nodes, int parts, int cells_per_part) {
+  double h = 0, spacing = 0;
+  for (const BodyGeometry& g : nodes.bodies) {
+    h = std::max(h, g.horizon);
+    spacing = std::max(spacing, g.spacing);
+  }
+  if (!(h > 0)) h = spacing > 0 ? spacing : 1.0;
+  // Not below half the horizon (nor the spacing): smaller cells have (2 delta / h + 1)^3 cell
+  // neighbours each and the cell graph would outgrow the bond graph it replaces.
+  const double floor = std::max(spacing, 0.5 * h);
+  const Box box = bounding_box(nodes);
+  const double want = static_cast<double>(cells_per_part) * parts;
+  const double limit = 4.0 * static_cast<double>(nodes.size()) + 64;
+  for (;;) {
+    std::array<std::int64_t, 3> dims{};
+    const std::vector<std::int64_t> lin = linear_cells(nodes, box, h, limit, dims);
+    if (lin.empty()) return h / 0.8;  // the previous size: a sparse box has enough cells
+    if (static_cast<double>(occupied(lin, dims)) >= want || h <= floor) return h;
+    h = std::max(0.8 * h, floor);
+  }
+}
+
+CellGraph cell_graph(const Nodes& nodes, const CellList& cells, double size, int share, int shares) {
+  CellGraph g;
+  g.cell_size = size;
+  const std::int64_t n = nodes.size();
+  const Box box = bounding_box(nodes);
+  std::array<std::int64_t, 3> dims{};
+  std::vector<std::int64_t> lin = linear_cells(nodes, box, size, HUGE_VAL, dims);
+  // Occupied cells, numbered in linear (z, y, x) order: neighbouring ids are neighbouring cells.
+  {
+    std::vector<std::int64_t> sorted(lin);
+    std::sort(sorted.begin(), sorted.end());
+    sorted.erase(std::unique(sorted.begin(), sorted.end()), sorted.end());
+    g.cells = static_cast<std::int64_t>(sorted.size());
+    if (g.cells > std::numeric_limits<std::int32_t>::max()) throw Error("too many partition cells");
+    g.cell_line.resize(sorted.size());
+    for (std::size_t c = 0; c < sorted.size(); ++c) g.cell_line[c] = sorted[c] / dims[0];
+    g.cell_of.resize(n);
+    for (std::int64_t i = 0; i < n; ++i)
+      g.cell_of[i] = static_cast<std::int32_t>(std::lower_bound(sorted.begin(), sorted.end(), lin[i]) - sorted.begin());
+  }
+  std::vector<std::int64_t>().swap(lin);
+  const std::int64_t row_begin = g.cells * share / shares, row_end = g.cells * (share + 1) / shares;
+  g.row_begin = row_begin;
+  // Nodes of the rows built, grouped by cell (natural order inside a cell).
+  std::vector<std::int64_t> start(row_end - row_begin + 1, 0);
+  for (std::int64_t i = 0; i < n; ++i)
+    if (g.cell_of[i] >= row_begin && g.cell_of[i] < row_end) ++start[g.cell_of[i] - row_begin + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<std::int32_t> members(static_cast<std::size_t>(start.back()));
+  {
+    std::vector<std::int64_t> fill(start.begin(), start.end() - 1);
+    for (std::int64_t i = 0; i < n; ++i)
+      if (g.cell_of[i] >= row_begin && g.cell_of[i] < row_end)
+        members[fill[g.cell_of[i] - row_begin]++] = static_cast<std::int32_t>(i);
+  }
+  std::vector<std::int64_t> acc(g.cells, 0);
+  std::vector<std::int32_t> touched;
+  std::vector<std::int64_t> ids;
+  std::vector<double> w;
+  g.vertex_weight.assign(row_end - row_begin, 0);
+  g.offsets.assign(1, 0);
+  for (std::int64_t c = row_begin; c < row_end; ++c) {
+    for (std::int64_t m = start[c - row_begin]; m < start[c - row_begin + 1]; ++m) {
+      neighbours_of(nodes, cells, members[m], ids, w);
+      g.vertex_weight[c - row_begin] += static_cast<std::int64_t>(ids.size());
+      for (std::int64_t j : ids) {
+        const std::int32_t d = g.cell_of[j];
+        if (d == c) continue;
+        if (acc[d]++ == 0) touched.push_back(d);
+      }
+    }
+    std::sort(touched.begin(), touched.end());
+    for (std::int32_t d : touched) {
+      g.adjacency.push_back(d);
+      g.edge_weight.push_back(acc[d]);
+      acc[d] = 0;
+    }
+    touched.clear();
+    g.offsets.push_back(static_cast<std::int64_t>(g.adjacency.size()));
+  }
+  return g;
+}
+
+namespace {
+
+// The partitioner's weight of edge k of cell c (kLineWeight).
+std::int64_t partition_edge_weight(const CellGraph& g, std::int64_t c, std::int64_t k, int line_weight) {
+  return g.cell_line[c] == g.cell_line[g.adjacency[k]] ? g.edge_weight[k] * line_weight : g.edge_weight[k];
+}
+
+}  // namespace
+
+std::vector<int> metis_kway(const CellGraph& graph, int parts, int line_weight) {
+  static_assert(sizeof(idx_t) == sizeof(std::int32_t), "METIS built with 32-bit idx_t expected");
+  const std::int64_t n = graph.cells;
+  if (graph.row_begin != 0 || static_cast<std::int64_t>(graph.vertex_weight.size()) != n)
+    throw Error("metis_kway: the cell graph must hold all rows");
+  if (graph.offsets[n] > std::numeric_limits<idx_t>::max()) throw Error("the cell graph is too large for 32-bit METIS");
+  std::int64_t vsum = 0, esum = 0;
+  for (std::int64_t v : graph.vertex_weight) vsum += v + 1;
+  for (std::int64_t c = 0; c < n; ++c)
+    for (std::int64_t k = graph.offsets[c]; k < graph.offsets[c + 1]; ++k) esum += partition_edge_weight(graph, c, k, line_weight);
+  const std::int64_t vdiv = weight_divisor(vsum), ediv = weight_divisor(esum);
+  std::vector<idx_t> xadj(n + 1), adjncy(graph.adjacency.begin(), graph.adjacency.end()), vwgt(n),
+      adjwgt(graph.edge_weight.size());
+  for (std::int64_t i = 0; i <= n; ++i) xadj[i] = static_cast<idx_t>(graph.offsets[i]);
+  for (std::int64_t i = 0; i < n; ++i) vwgt[i] = static_cast<idx_t>(std::max<std::int64_t>(1, (graph.vertex_weight[i] + 1) / vdiv));
+  for (std::int64_t c = 0; c < n; ++c)
+    for (std::int64_t k = graph.offsets[c]; k < graph.offsets[c + 1]; ++k)
+      adjwgt[k] = static_cast<idx_t>(std::max<std::int64_t>(1, partition_edge_weight(graph, c, k, line_weight) / ediv));
+  idx_t nv = static_cast<idx_t>(n), ncon = 1, np = parts, objval = 0;
+  idx_t options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(options);
+  options[METIS_OPTION_SEED] = 1;
+  options[METIS_OPTION_UFACTOR] = 5;  // 0.5% imbalance allowed (default 3%): cells are coarse, bonds the work
+  std::vector<idx_t> mpart(n);
+  const int status = METIS_PartGraphKway(&nv, &ncon, xadj.data(), adjncy.data(), vwgt.data(), nullptr,
+                                         adjwgt.data(), &np, nullptr, nullptr, options, &objval, mpart.data());
+  if (status != METIS_OK) throw Error("METIS_PartGraphKway failed with status " + std::to_string(status));
+  return {mpart.begin(), mpart.end()};
+}
+
+PartitionQuality quality(const CellGraph& graph, const std::vector<int>& cell_part, int parts) {
+  PartitionQuality q;
+  std::vector<std::int64_t> load(parts, 0);
+  std::int64_t cut2 = 0, total = 0;
+  for (std::int64_t c = 0; c < static_cast<std::int64_t>(graph.vertex_weight.size()); ++c) {
+    const std::int64_t gc = graph.row_begin + c;
+    load[cell_part[gc]] += graph.vertex_weight[c];
+    total += graph.vertex_weight[c];
+    for (std::int64_t k = graph.offsets[c]; k < graph.offsets[c + 1]; ++k)
+      if (cell_part[graph.adjacency[k]] != cell_part[gc]) cut2 += graph.edge_weight[k];
+  }
+  q.edge_cut = cut2 / 2;
+  q.balance = total > 0 ? static_cast<double>(*std::max_element(load.begin(), load.end())) * parts / static_cast<double>(total) : 1.0;
+  return q;
+}
+
+PartitionQuality quality(const BondGraph& graph, const std::vector<int>& part, int parts) {
+  PartitionQuality q;
+  std::vector<std::int64_t> load(parts, 0);
+  std::int64_t cut2 = 0;
+  const std::int64_t n = static_cast<std::int64_t>(graph.offsets.size()) - 1;
+  for (std::int64_t i = 0; i < n; ++i) {
+    load[part[i]] += graph.offsets[i + 1] - graph.offsets[i];
+    for (std::int64_t b = graph.offsets[i]; b < graph.offsets[i + 1]; ++b) cut2 += part[graph.adjacency[b]] != part[i];
+  }
+  q.edge_cut = cut2 / 2;
+  const std::int64_t total = graph.offsets[n];
+  q.balance = total > 0 ? static_cast<double>(*std::max_element(load.begin(), load.end())) * parts / static_cast<double>(total) : 1.0;
+  return q;
+}
+
+Partition partition_from_parts(std::vector<int> part, int parts) {
+  Partition p;
+  p.parts = parts;
+  p.part = std::move(part);
+  const std::int64_t n = static_cast<std::int64_t>(p.part.size());
+  p.part_begin.assign(parts + 1, 0);
+  for (std::int64_t i = 0; i < n; ++i) ++p.part_begin[p.part[i] + 1];
+  std::partial_sum(p.part_begin.begin(), p.part_begin.end(), p.part_begin.begin());
+  std::vector<std::int64_t> fill(p.part_begin.begin(), p.part_begin.end() - 1);
+  p.natural_to_global.resize(n);
+  p.global_to_natural.resize(n);
+  for (std::int64_t i = 0; i < n; ++i) {  // stable: natural order inside a part
+    const std::int64_t g = fill[p.part[i]]++;
+    p.natural_to_global[i] = g;
+    p.global_to_natural[g] = i;
+  }
+  return p;
+}
+
+BondGraph bond_graph(const Nodes& nodes, const CellList& cells) {
+  // Count first, then fill: the graph is allocated once at its exact size.
+  const std::int64_t n = nodes.size();
+  BondGraph g;
+  g.offsets.assign(n + 1, 0);
+  std::vector<std::int64_t> ids;
+  std::vector<double> w;
+  for (std::int64_t i = 0; i < n; ++i) {
+    neighbours_of(nodes, cells, i, ids, w);
+    g.offsets[i + 1] = g.offsets[i] + static_cast<std::int64_t>(ids.size());
+  }
+  g.adjacency.resize(static_cast<std::size_t>(g.offsets[n]));
+  for (std::int64_t i = 0; i < n; ++i) {
+    neighbours_of(nodes, cells, i, ids, w);
+    for (std::size_t k = 0; k < ids.size(); ++k) g.adjacency[g.offsets[i] + k] = static_cast<std::int32_t>(ids[k]);
+  }
+  return g;
+}
+
+std::vector<int> metis_kway(const BondGraph& graph, int parts, std::int64_t& edge_cut) {
+  static_assert(sizeof(idx_t) == sizeof(std::int32_t), "METIS built with 32-bit idx_t expected");
+  const std::int64_t n = static_cast<std::int64_t>(graph.offsets.size()) - 1;
+  if (graph.offsets[n] > std::numeric_limits<idx_t>::max())
+    throw Error("the bond graph has " + std::to_string(graph.offsets[n]) +
+                " ordered bonds, more than 32-bit METIS can index; use a coarser spacing");
+  std::vector<idx_t> xadj(n + 1), vwgt(n);
+  for (std::int64_t i = 0; i <= n; ++i) xadj[i] = static_cast<idx_t>(graph.offsets[i]);
+  for (std::int64_t i = 0; i < n; ++i) vwgt[i] = xadj[i + 1] - xadj[i] + 1;
+  idx_t nv = static_cast<idx_t>(n), ncon = 1, np = parts, objval = 0;
+  idx_t options[METIS_NOPTIONS];
+  METIS_SetDefaultOptions(options);
+  options[METIS_OPTION_SEED] = 1;
+  std::vector<idx_t> mpart(n);
+  const int status = METIS_PartGraphKway(&nv, &ncon, xadj.data(), const_cast<idx_t*>(graph.adjacency.data()),
+                                         vwgt.data(), nullptr, nullptr, &np, nullptr, nullptr, options,
+                                         &objval, mpart.data());
+  if (status != METIS_OK) throw Error("METIS_PartGraphKway failed with status " + std::to_string(status));
+  edge_cut = objval;
+  return {mpart.begin(), mpart.end()};
+}
+
+namespace {
+
+// Rows [rank's share) of the cell graph on every rank; the whole graph gathered on rank 0 (the
+// per-node neighbour search, the costly part, is split over the ranks).
+CellGraph cell_graph_on_root(const Nodes& nodes, const CellList& cells, double size, MPI_Comm comm) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  CellGraph g = cell_graph(nodes, cells, size, rank, ranks);
+  const std::int64_t total = g.cells;
+  if (ranks == 1) return g;
+  const int rows = static_cast<int>(g.vertex_weight.size()), edges = static_cast<int>(g.adjacency.size());
+  std::vector<int> row_counts(ranks), edge_counts(ranks), row_displs(ranks, 0), edge_displs(ranks, 0);
+  MPI_Gather(&rows, 1, MPI_INT, row_counts.data(), 1, MPI_INT, 0, comm);
+  MPI_Gather(&edges, 1, MPI_INT, edge_counts.data(), 1, MPI_INT, 0, comm);
+  std::int64_t all_edges = 0;
+  for (int r = 1; r < ranks; ++r) {
+    row_displs[r] = row_displs[r - 1] + row_counts[r - 1];
+    edge_displs[r] = edge_displs[r - 1] + edge_counts[r - 1];
+  }
+  if (rank == 0) all_edges = static_cast<std::int64_t>(edge_displs[ranks - 1]) + edge_counts[ranks - 1];
+  if (all_edges > std::numeric_limits<int>::max()) throw Error("the cell graph is too large to gather");
+  std::vector<std::int64_t> degree(rows), all_degree(rank == 0 ? total : 0), vw(rank == 0 ? total : 0),
+      ew(rank == 0 ? all_edges : 0);
+  std::vector<std::int32_t> adj(rank == 0 ? all_edges : 0);
+  for (int r = 0; r < rows; ++r) degree[r] = g.offsets[r + 1] - g.offsets[r];
+  MPI_Gatherv(degree.data(), rows, MPI_INT64_T, all_degree.data(), row_counts.data(), row_displs.data(), MPI_INT64_T, 0, comm);
+  MPI_Gatherv(g.vertex_weight.data(), rows, MPI_INT64_T, vw.data(), row_counts.data(), row_displs.data(), MPI_INT64_T, 0, comm);
+  MPI_Gatherv(g.adjacency.data(), edges, MPI_INT32_T, adj.data(), edge_counts.data(), edge_displs.data(), MPI_INT32_T, 0, comm);
+  MPI_Gatherv(g.edge_weight.data(), edges, MPI_INT64_T, ew.data(), edge_counts.data(), edge_displs.data(), MPI_INT64_T, 0, comm);
+  if (rank != 0) return g;
+  g.row_begin = 0;
+  g.offsets.assign(total + 1, 0);
+  for (std::int64_t c = 0; c < total; ++c) g.offsets[c + 1] = g.offsets[c] + all_degree[c];
+  g.vertex_weight = std::move(vw);
+  g.adjacency = std::move(adj);
+  g.edge_weight = std::move(ew);
+  return g;
+}
+
+// MatPartitioning on the cell graph, rows spread evenly over the ranks of comm; every rank gets
+// the part of every cell.
+std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, double size, int parts, int line_weight,
+                                  MPI_Comm comm, CellGraph& local, std::string& type_used) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  local = cell_graph(nodes, cells, size, rank, ranks);  // this rank's rows
+  const PetscInt m = static_cast<PetscInt>(local.vertex_weight.size());
+  long long sums[2] = {0, 0}, global_sums[2];
+  for (std::int64_t v : local.vertex_weight) sums[0] += v + 1;
+  for (PetscInt r = 0; r < m; ++r)
+    for (std::int64_t k = local.offsets[r]; k < local.offsets[r + 1]; ++k)
+      sums[1] += partition_edge_weight(local, local.row_begin + r, k, line_weight);
+  MPI_Allreduce(sums, global_sums, 2, MPI_LONG_LONG, MPI_SUM, comm);
+  const std::int64_t vdiv = weight_divisor(global_sums[0]), ediv = weight_divisor(global_sums[1]);
+  PetscInt *ia, *ja, *values, *vwgt;
+  PERI_PETSC(PetscMalloc1(m + 1, &ia));
+  PERI_PETSC(PetscMalloc1(local.adjacency.size(), &ja));
+  PERI_PETSC(PetscMalloc1(local.adjacency.size(), &values));
+  PERI_PETSC(PetscMalloc1(m, &vwgt));
+  for (PetscInt r = 0; r <= m; ++r) ia[r] = static_cast<PetscInt>(local.offsets[r]);
+  for (PetscInt r = 0; r < m; ++r)
+    for (std::int64_t k = local.offsets[r]; k < local.offsets[r + 1]; ++k) {
+      ja[k] = local.adjacency[k];
+      values[k] = static_cast<PetscInt>(
+          std::max<std::int64_t>(1, partition_edge_weight(local, local.row_begin + r, k, line_weight) / ediv));
+    }
+  for (PetscInt r = 0; r < m; ++r)
+    vwgt[r] = static_cast<PetscInt>(std::max<std::int64_t>(1, (local.vertex_weight[r] + 1) / vdiv));
+  Mat adj;
+  PERI_PETSC(MatCreateMPIAdj(comm, m, static_cast<PetscInt>(local.cells), ia, ja, values, &adj));  // owns ia, ja, values
+  MatPartitioning mp;
+  PERI_PETSC(MatPartitioningCreate(comm, &mp));
+  PERI_PETSC(PetscObjectSetOptionsPrefix(reinterpret_cast<PetscObject>(mp), "partition_"));
+  PERI_PETSC(MatPartitioningSetAdjacency(mp, adj));
+  PERI_PETSC(MatPartitioningSetNParts(mp, parts));
+  PERI_PETSC(MatPartitioningSetVertexWeights(mp, vwgt));  // owns vwgt
+  PERI_PETSC(MatPartitioningSetUseEdgeWeights(mp, PETSC_TRUE));
+#if defined(PETSC_HAVE_PTSCOTCH)
+  PERI_PETSC(MatPartitioningSetType(mp, MATPARTITIONINGPTSCOTCH));
+#elif defined(PETSC_HAVE_PARMETIS)
+  PERI_PETSC(MatPartitioningSetType(mp, MATPARTITIONINGPARMETIS));
+#endif
+  PERI_PETSC(MatPartitioningSetFromOptions(mp));
+  MatPartitioningType type;
+  PERI_PETSC(MatPartitioningGetType(mp, &type));
+  type_used = type;
+  IS is, all;
+  PERI_PETSC(MatPartitioningApply(mp, &is));
+  PERI_PETSC(ISAllGather(is, &all));
+  const PetscInt* p;
+  PERI_PETSC(ISGetIndices(all, &p));
+  std::vector<int> cell_part(p, p + local.cells);
+  PERI_PETSC(ISRestoreIndices(all, &p));
+  ISDestroy(&all);
+  ISDestroy(&is);
+  MatPartitioningDestroy(&mp);
+  MatDestroy(&adj);
+  return cell_part;
+}
+
+}  // namespace
+
+bool fills_its_box(const Nodes& nodes) {
+  if (nodes.bodies.size() != 1) return false;
+  const BodyGeometry& g = nodes.bodies[0];
+  return g.grid == Grid::Square && g.count == nodes.size() && g.count == g.cells[0] * g.cells[1] * g.cells[2];
+}
+
+// Every grid offset o with a quadrature weight counts at the nodes n with n + o in the box, a box
+// of nodes, added by a 3D difference array and prefix sums (O(N + offsets), no neighbour search).
+std::vector<std::int32_t> grid_bond_counts(const Nodes& nodes) {
+  const BodyGeometry& g = nodes.bodies[0];
+  const std::int64_t nx = g.cells[0], ny = g.cells[1], nz = g.cells[2];
+  std::int64_t m[3];
+  for (int d = 0; d < 3; ++d)
+    m[d] = std::min<std::int64_t>(g.cells[d] - 1, static_cast<std::int64_t>(std::ceil(reach(g) / g.spacing)));
+  const std::int64_t sx = nx + 1, sy = ny + 1;
+  std::vector<std::int32_t> diff(static_cast<std::size_t>(sx * sy * (nz + 1)), 0);
+  for (std::int64_t k = -m[2]; k <= m[2]; ++k)
+    for (std::int64_t j = -m[1]; j <= m[1]; ++j)
+      for (std::int64_t i = -m[0]; i <= m[0]; ++i) {
+        const double d[3] = {static_cast<double>(i) * g.spacing, static_cast<double>(j) * g.spacing,
+                             static_cast<double>(k) * g.spacing};
+        if ((i == 0 && j == 0 && k == 0) || !(quadrature_weight(g, d) > 0)) continue;
+        // Nodes [a, b) along each axis keep n + o inside.
+        const std::int64_t a[3] = {std::max<std::int64_t>(0, -i), std::max<std::int64_t>(0, -j), std::max<std::int64_t>(0, -k)};
+        const std::int64_t b[3] = {std::min(nx, nx - i), std::min(ny, ny - j), std::min(nz, nz - k)};
+        for (int c = 0; c < 8; ++c) {
+          const std::int64_t x = c & 1 ? b[0] : a[0], y = c & 2 ? b[1] : a[1], z = c & 4 ? b[2] : a[2];
+          diff[static_cast<std::size_t>(x + sx * (y + sy * z))] += __builtin_popcount(c) % 2 ? -1 : 1;
+        }
+      }
+  for (std::int64_t z = 0; z <= nz; ++z)  // prefix sums along x, then y, then z
+    for (std::int64_t y = 0; y <= ny; ++y)
+      for (std::int64_t x = 1; x <= nx; ++x) diff[x + sx * (y + sy * z)] += diff[x - 1 + sx * (y + sy * z)];
+  for (std::int64_t z = 0; z <= nz; ++z)
+    for (std::int64_t y = 1; y <= ny; ++y)
+      for (std::int64_t x = 0; x <= nx; ++x) diff[x + sx * (y + sy * z)] += diff[x + sx * (y - 1 + sy * z)];
+  for (std::int64_t z = 1; z <= nz; ++z)
+    for (std::int64_t y = 0; y <= ny; ++y)
+      for (std::int64_t x = 0; x <= nx; ++x) diff[x + sx * (y + sy * z)] += diff[x + sx * (y + sy * (z - 1))];
+  std::vector<std::int32_t> count(static_cast<std::size_t>(nodes.size()));
+  for (std::int64_t z = 0; z < nz; ++z)
+    for (std::int64_t y = 0; y < ny; ++y)
+      for (std::int64_t x = 0; x < nx; ++x) count[x + nx * (y + ny * z)] = diff[x + sx * (y + sy * z)];
+  return count;
+}
+
+PartitionMethod resolve_partition_method(PartitionMethod method, const Nodes& nodes) {
+  if (method != PartitionMethod::Auto) return method;
+  return fills_its_box(nodes) ? PartitionMethod::Rcb : PartitionMethod::Cells;
+}
+
+std::vector<int> rcb_parts(const Nodes& nodes, int parts, int line_weight) {
+  const std::int64_t n = nodes.size();
+  std::vector<int> part(static_cast<std::size_t>(n), 0);
+  if (parts <= 1 || n == 0) return part;
+  const double* X = nodes.X.data();
+  // The work of a node: its bond count where the grid gives it for free, else 1.
+  const std::vector<std::int32_t> bonds = fills_its_box(nodes) ? grid_bond_counts(nodes) : std::vector<std::int32_t>{};
+  auto weight = [&](std::int32_t i) { return bonds.empty() ? 1.0 : 1.0 + bonds[i]; };
+  std::vector<std::int32_t> order(static_cast<std::size_t>(n));
+  std::iota(order.begin(), order.end(), 0);
+  struct Range {
+    std::int64_t begin, end;
+    int first_part, parts;
+  };
+  std::vector<Range> todo{{0, n, 0, parts}};
+  while (!todo.empty()) {
+    const Range r = todo.back();
+    todo.pop_back();
+    if (r.parts == 1 || r.end - r.begin <= 1) {
+      for (std::int64_t k = r.begin; k < r.end; ++k) part[order[k]] = r.first_part;
+      continue;
+    }
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    for (std::int64_t k = r.begin; k < r.end; ++k)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], X[3 * order[k] + d]);
+        hi[d] = std::max(hi[d], X[3 * order[k] + d]);
+      }
+    // The axis to cut: the longest extent, x's divided by the line weight (a cut across x splits
+    // the grid lines); ties go to z, then y (a part then stays a range of the natural order).
+    const double extent[3] = {(hi[0] - lo[0]) / line_weight, hi[1] - lo[1], hi[2] - lo[2]};
+    const int axis = extent[2] >= extent[1] && extent[2] >= extent[0] ? 2 : extent[1] >= extent[0] ? 1 : 0;
+    // Sorted by (axis, the other cross axis, the line's axis, natural id): a grid line along x
+    // (along y if x is cut) is a consecutive range.
+    const int other = axis == 2 ? 1 : 2, along = axis == 0 ? 1 : 0;
+    auto key = [&](std::int32_t i) { return std::make_tuple(X[3 * i + axis], X[3 * i + other], X[3 * i + along], i); };
+    std::sort(order.begin() + r.begin, order.begin() + r.end,
+              [&](std::int32_t a, std::int32_t b) { return key(a) < key(b); });
+    const int left_parts = r.parts / 2;
+    double total = 0;
+    for (std::int64_t k = r.begin; k < r.end; ++k) total += weight(order[k]);
+    // The first node past the left parts' share of the weight.
+    const double share = total * left_parts / r.parts;
+    std::int64_t split = r.begin;
+    for (double sum = 0; split < r.end - 1 && sum + 0.5 * weight(order[split]) < share; ++split) sum += weight(order[split]);
+    auto same_line = [&](std::int64_t a, std::int64_t b) {
+      return X[3 * order[a] + axis] == X[3 * order[b] + axis] && X[3 * order[a] + other] == X[3 * order[b] + other];
+    };
+    if (split > r.begin && same_line(split - 1, split)) {
+      // The nearer end (by weight) of the line it falls in, if that moves at most 0.5% of the
+      // left parts' weight (a small part splits its lines rather than its balance).
+      std::int64_t a = split, b = split;
+      double back = 0, ahead = 0;
+      while (a > r.begin && same_line(a - 1, split)) back += weight(order[--a]);
+      while (b < r.end && same_line(b, split)) ahead += weight(order[b++]);
+      const bool to_a = a > r.begin && (back <= ahead || b == r.end);
+      const bool to_b = !to_a && b < r.end;
+      if (to_a && back <= 0.005 * share) split = a;
+      else if (to_b && ahead <= 0.005 * share) split = b;
+    }
+    // At least a node per part on either side (a part without nodes would leave a rank idle).
+    split = std::clamp(split, r.begin + left_parts, r.end - (r.parts - left_parts));
+    todo.push_back({r.begin, split, r.first_part, left_parts});
+    todo.push_back({split, r.end, r.first_part + left_parts, r.parts - left_parts});
+  }
+  return part;
+}
+
+Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, MPI_Comm comm,
+                          PartitionSettings settings) {
+  const std::int64_t n = nodes.size();
+  std::vector<int> part(n, 0);
+  if (parts <= 1) return partition_from_parts(std::move(part), 1);
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  if (n < parts) throw InputError("the scene has " + std::to_string(n) + " nodes, fewer than the " +
+                                  std::to_string(parts) + " ranks; use fewer ranks");
+  const auto t0 = std::chrono::steady_clock::now();
+  settings.method = resolve_partition_method(settings.method, nodes);
+  if (settings.method == PartitionMethod::Rcb) {
+    Partition p = partition_from_parts(rcb_parts(nodes, parts, settings.line_weight), parts);
+    p.edge_cut = -1;  // not known here: the domains count it (bonds to ghost nodes)
+    p.graph_vertices = n;
+    p.method = "rcb-node-coordinates";
+    p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return p;
+  }
+  long long figures[2] = {0, 0};  // edge cut, graph vertices
+  double balance = 1;
+  std::string method;
+  const CellGraph graph = settings.method == PartitionMethod::Cells
+                              ? cell_graph_on_root(nodes, cells, cell_size_for(nodes, parts, settings.cells_per_part), comm)
+                              : CellGraph{};
+  if (settings.method == PartitionMethod::Petsc) {
+    const double size = cell_size_for(nodes, parts, settings.cells_per_part);
+    CellGraph local;
+    std::string type;
+    const std::vector<int> cell_part = petsc_cell_parts(nodes, cells, size, parts, settings.line_weight, comm, local, type);
+    for (std::int64_t i = 0; i < n; ++i) part[i] = cell_part[local.cell_of[i]];
+    // Quality from the rows each rank built.
+    std::vector<long long> load(parts + 1, 0), sum(parts + 1);
+    for (std::size_t c = 0; c < local.vertex_weight.size(); ++c) {
+      const std::int64_t gc = local.row_begin + static_cast<std::int64_t>(c);
+      load[cell_part[gc]] += local.vertex_weight[c];
+      for (std::int64_t k = local.offsets[c]; k < local.offsets[c + 1]; ++k)
+        if (cell_part[local.adjacency[k]] != cell_part[gc]) load[parts] += local.edge_weight[k];
+    }
+    MPI_Allreduce(load.data(), sum.data(), parts + 1, MPI_LONG_LONG, MPI_SUM, comm);
+    long long total = 0;
+    for (int k = 0; k < parts; ++k) total += sum[k];
+    balance = total > 0 ? double(*std::max_element(sum.begin(), sum.end() - 1)) * parts / double(total) : 1.0;
+    figures[0] = sum[parts] / 2;
+    figures[1] = local.cells;
+    method = "petsc-" + type + "-cell-graph";
+  } else {
+    int status = METIS_OK;
+    std::string failure;
+    if (rank == 0) {
+      try {
+        if (settings.method == PartitionMethod::Cells) {
+          const CellGraph& g = graph;
+          const std::vector<int> cell_part = metis_kway(g, parts, settings.line_weight);
+          for (std::int64_t i = 0; i < n; ++i) part[i] = cell_part[g.cell_of[i]];
+          const PartitionQuality q = quality(g, cell_part, parts);
+          figures[0] = q.edge_cut;
+          figures[1] = g.cells;
+          balance = q.balance;
+        } else {
+          const BondGraph g = bond_graph(nodes, cells);
+          std::int64_t cut = 0;
+          part = metis_kway(g, parts, cut);
+          const PartitionQuality q = quality(g, part, parts);
+          figures[0] = q.edge_cut;
+          figures[1] = n;
+          balance = q.balance;
+        }
+      } catch (const Error& e) {
+        status = METIS_ERROR;
+        failure = e.what();
+      }
+    }
+    MPI_Bcast(&status, 1, MPI_INT, 0, comm);
+    if (status != METIS_OK) throw Error(rank == 0 ? failure : "METIS_PartGraphKway failed on rank 0");
+    MPI_Bcast(part.data(), static_cast<int>(n), MPI_INT, 0, comm);
+    MPI_Bcast(figures, 2, MPI_LONG_LONG, 0, comm);
+    MPI_Bcast(&balance, 1, MPI_DOUBLE, 0, comm);
+    method = settings.method == PartitionMethod::Cells ? "metis-kway-cell-graph" : "metis-kway-bond-graph";
+  }
+  Partition p = partition_from_parts(std::move(part), parts);
+  p.edge_cut = figures[0];
+  p.graph_vertices = figures[1];
+  p.balance = balance;
+  p.method = method;
+  p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return p;
+}
+
+}  // namespace peri
