@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "peri/kernels/forces.hpp"
+#include "peri/models/model.hpp"
 #include "peri/stages/simulation.hpp"
 
 // The two versions' entry points; their argument types are layout-identical to peri's (so is the

@@ -14,6 +14,7 @@
 #endif
 #include <random>
 
+#include "peri/models/model.hpp"
 #include "peri/stages/simulation.hpp"
 
 namespace peri {

@@ -96,7 +96,7 @@ Result homogeneous_energy(const std::string& ladder, double delta, double m) {
     W = sum / count;
     r.nodes = count;
     r.bonds = bonds;
-    r.exact = kPi * scene.bodies[0].thickness * law.c * (delta * delta / 2) / 2 * (l1 * l1 + l2 * l2 + 2 / (l1 * l2) - 4);
+    r.exact = kPi * scene.bodies[0].thickness * law.derived("micromodulus") * (delta * delta / 2) / 2 * (l1 * l1 + l2 * l2 + 2 / (l1 * l2) - 4);
   });
   r.value = W;
   return r;

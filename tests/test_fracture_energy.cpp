@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "peri/models/fracture_energy.hpp"
+#include "peri/models/laws/membrane.hpp"
 
 namespace peri {
 namespace {
@@ -42,12 +43,12 @@ stages:
 }
 
 TEST(ReleaseRate, Eq30ClosedFormForConstantInfluence) {
-  BondLaw law;
-  law.c = 3.0;
-  law.horizon = 2e-3;
-  law.breaks = true;
-  law.critical0 = law.critical_delta = 2.0;
-  const double w0 = law.c * (4 + 0.25 - 2);  // eq. (26)
+  MembraneLaw m;
+  m.c = 3.0;
+  m.horizon = 2e-3;
+  m.failure = {true, 2.0, 2.0};
+  const BondLaw law = make_bond_law("membrane", m);
+  const double w0 = m.c * (4 + 0.25 - 2);  // eq. (26)
   EXPECT_NEAR(eq30_release_rate(law, 0.5e-3) / (2 * 0.5e-3 * w0 * std::pow(2e-3, 3) / 3), 1.0, 1e-12);
 }
 

@@ -9,6 +9,9 @@
 #include "peri/bonds/bonds.hpp"
 #include "peri/partition/domain.hpp"
 #include "peri/kernels/forces.hpp"
+#include "peri/models/laws/membrane.hpp"
+#include "peri/models/laws/membrane_hardening.hpp"
+#include "peri/models/laws/pmb.hpp"
 #include "peri/models/model.hpp"
 #include "peri/scene/scene.hpp"
 
@@ -16,6 +19,43 @@ namespace peri {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+
+// Registered laws from their constants.
+BondLaw membrane(double c, double delta, double critical0 = INFINITY, double critical_delta = NAN,
+                 bool conical = false) {
+  MembraneLaw m;
+  m.c = c;
+  m.horizon = delta;
+  m.conical = conical;
+  if (std::isfinite(critical0)) m.failure = {true, critical0, std::isnan(critical_delta) ? critical0 : critical_delta};
+  return make_bond_law("membrane", m);
+}
+BondLaw pmb(double c, double delta, double critical0 = INFINITY, double critical_delta = NAN, bool conical = false) {
+  PmbLaw m;
+  m.c = c;
+  m.horizon = delta;
+  m.conical = conical;
+  if (std::isfinite(critical0)) m.failure = {true, critical0, std::isnan(critical_delta) ? critical0 : critical_delta};
+  return make_bond_law("pmb", m);
+}
+BondLaw hardening(const BondLaw& membrane_law, double hard_c, double hard_n) {
+  return make_bond_law("membrane_hardening", MembraneHardeningLaw{membrane_law.as<MembraneLaw>(), hard_c, hard_n});
+}
+// The calibrated law's micromodulus (its derived constant).
+double micromodulus(const BondLaw& law) { return law.derived("micromodulus"); }
+// The stretch failure of a membrane or PMB law.
+StretchFailure failure_of(const BondLaw& law) {
+  return law.name() == "pmb" ? law.as<PmbLaw>().failure : law.as<MembraneLaw>().failure;
+}
+// The same law (membrane or PMB) with another shape: conical g, eq. (29)'s lambda_0 at delta.
+BondLaw reshaped(const BondLaw& base, bool conical, double critical_delta) {
+  auto edit = [&](auto law) {
+    law.conical = conical;
+    law.failure.critical_delta = critical_delta;
+    return BondLaw(&base.entry(), law);
+  };
+  return base.name() == "pmb" ? edit(base.as<PmbLaw>()) : edit(base.as<MembraneLaw>());
+}
 
 BodyGeometry membrane_geometry(double delta, int m, Quadrature q) {
   BodyGeometry g;
@@ -49,8 +89,7 @@ double discrete_energy_density(const BondLaw& law, const BodyGeometry& g, double
         const double y2 = l1 * l1 * xi[0] * xi[0] + l2 * l2 * xi[1] * xi[1] + l3 * l3 * xi[2] * xi[2];
         double e;
         if (law.broken_at(s2, y2)) {
-          const double lc = law.critical_stretch(std::sqrt(s2));
-          e = law.energy(s2, lc * lc * s2);
+          e = law.critical_energy(s2);
         } else {
           e = law.energy(s2, y2);
         }
@@ -165,10 +204,7 @@ TEST(Quadrature, TaperWeightsNearTheHorizon) {
 // Eq. (19): the discrete energy density converges to the closed form as dx -> 0 at fixed delta.
 TEST(MembraneLaw, HomogeneousEnergyConvergesToEq19) {
   const double delta = 1.0, c = 1.0, h = 1.0, R = delta * delta / 2.0;
-  BondLaw law;
-  law.kind = ModelKind::Membrane;
-  law.c = c;
-  law.horizon = delta;
+  const BondLaw law = membrane(c, delta);
   const double stretches[][2] = {{1.1, 1.0}, {1.5, 1.2}, {2.0, 0.8}, {3.0, 1.0}, {2.9, 3.1}};
   const int ms[] = {3, 6, 12, 24, 48};
   for (Quadrature q : {Quadrature::PartialArea, Quadrature::Full}) {
@@ -194,12 +230,7 @@ TEST(MembraneLaw, HomogeneousEnergyConvergesToEq19) {
 // Eqs. (27)-(28): damaged homogeneous energy past lambda_0.
 TEST(MembraneLaw, DamagedEnergyConvergesToEq28) {
   const double delta = 1.0, c = 1.0, h = 1.0, R = delta * delta / 2.0;
-  BondLaw law;
-  law.kind = ModelKind::Membrane;
-  law.c = c;
-  law.horizon = delta;
-  law.breaks = true;
-  law.critical0 = law.critical_delta = 2.0;
+  const BondLaw law = membrane(c, delta, 2.0);
   const double cases[][2] = {{2.5, 1.2}, {3.0, 1.5}, {2.2, 1.0}, {2.05, 1.9}};
   for (const auto& s : cases) {
     const double exact = eq28(c, h, R, 2.0, s[0], s[1]);
@@ -231,25 +262,26 @@ TEST(Calibration, ClosedFormsOfEachLaw) {
   BodyGeometry g = membrane_geometry(7.5e-4, 3, Quadrature::PartialArea);
   g.thickness = 5e-4;
   BondLaw law = calibrate(m, g, "test");
-  EXPECT_NEAR(law.c, 1200 * 1e6 / 3 / (kPi * 5e-4 * 7.5e-4 * 7.5e-4 / 2), law.c * 1e-14);
+  const double c = micromodulus(law);
+  EXPECT_NEAR(c, 1200 * 1e6 / 3 / (kPi * 5e-4 * 7.5e-4 * 7.5e-4 / 2), c * 1e-14);
   ElasticConstants e = elastic_constants(law, g, 1200);
   EXPECT_NEAR(e.c_longitudinal, 1000, 1e-9);
   EXPECT_NEAR(e.c_shear, 1000 / std::sqrt(3.0), 1e-9);
   EXPECT_NEAR(e.c_rayleigh / e.c_shear, 0.919402, 1e-5);  // lambda = mu
   // Conical g: R = delta^2 / 6.
   m.influence = Influence::Conical;
-  EXPECT_NEAR(calibrate(m, g, "test").c, 3 * law.c, law.c * 1e-12);
+  EXPECT_NEAR(micromodulus(calibrate(m, g, "test")), 3 * c, c * 1e-12);
   // PMB membrane from in-plane bulk modulus: c = 12 K / (pi h delta^3).
   Material p = make_material(ModelKind::PMB);
   p.bulk_modulus = 300e6;
-  EXPECT_NEAR(calibrate(p, g, "test").c, 12 * 300e6 / (kPi * 5e-4 * std::pow(7.5e-4, 3)), 1e-6 * 12 * 300e6 / (kPi * 5e-4 * std::pow(7.5e-4, 3)));
+  EXPECT_NEAR(micromodulus(calibrate(p, g, "test")), 12 * 300e6 / (kPi * 5e-4 * std::pow(7.5e-4, 3)), 1e-6 * 12 * 300e6 / (kPi * 5e-4 * std::pow(7.5e-4, 3)));
   // PMB solid: c = 18 K / (pi delta^4).
   BodyGeometry s;
   s.kind = BodyKind::Solid;
   s.horizon = 3.015e-3;
   s.spacing = 1e-3;
   p.bulk_modulus = 14.9e9;
-  EXPECT_NEAR(calibrate(p, s, "test").c, 18 * 14.9e9 / (kPi * std::pow(3.015e-3, 4)), 1e-3);
+  EXPECT_NEAR(micromodulus(calibrate(p, s, "test")), 18 * 14.9e9 / (kPi * std::pow(3.015e-3, 4)), 1e-3);
   // The membrane law is refused for solids.
   EXPECT_THROW(calibrate(m, s, "test"), InputError);
 }
@@ -315,16 +347,8 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   builder.add_row(xi2, measure, 1.3);
   const FamilyPatterns patterns = builder.finish();
   std::vector<double> x(3 * n);
-  std::vector<BondLaw> laws(4);
-  for (auto& l : laws) {
-    l.c = 2.0;
-    l.horizon = 1.3;
-  }
-  laws[1].conical = true;
-  laws[2].hardening = true;
-  laws[2].hard_c = 0.7;
-  laws[2].hard_n = 3.5;
-  laws[3].kind = ModelKind::PMB;
+  const std::vector<BondLaw> laws{membrane(2.0, 1.3), membrane(2.0, 1.3, INFINITY, NAN, true),
+                                  hardening(membrane(2.0, 1.3), 0.7, 3.5), pmb(2.0, 1.3)};
   const std::int32_t row = 0;
   for (const BondLaw& law : laws) {
     BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), &patterns, x.data(), n};
@@ -335,10 +359,13 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
     for (int c = 0; c < 3; ++c) {
       const double h = 1e-6, u0 = u[c];
       u[c] = u0 + h;
+      current_positions(X.data(), u.data(), 0, n, n, x.data());
       const double ep = bond_energy(law, v, &row, 1);
       u[c] = u0 - h;
+      current_positions(X.data(), u.data(), 0, n, n, x.data());
       const double em = bond_energy(law, v, &row, 1);
       u[c] = u0;
+      current_positions(X.data(), u.data(), 0, n, n, x.data());
       // bond_energy = V_0/2 sum_j w V_j; the force density is -d/du_0 of sum_j w V_j.
       const double grad = (ep - em) / (2 * h) * 2.0 / V[0];
       EXPECT_NEAR(F[c], -grad, 1e-6 * (1 + std::fabs(grad))) << "component " << c;
@@ -352,19 +379,12 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
 // linear lambda_0; PMB).
 TEST(BondLaw, CriticalEnergyIsTheMicropotentialAtLambda0) {
   for (int shape = 0; shape < 8; ++shape) {
-    BondLaw law;
-    law.kind = shape & 1 ? ModelKind::PMB : ModelKind::Membrane;
-    law.c = 3.7e9;
-    law.horizon = 3e-3;
-    law.conical = shape & 2;
-    law.linear_critical = shape & 4;
-    law.critical0 = law.kind == ModelKind::PMB ? 1.0005 : 1.8;
-    law.critical_delta = law.linear_critical ? (law.kind == ModelKind::PMB ? 1.0002 : 1.3) : law.critical0;
-    law.hardening = law.kind == ModelKind::Membrane && (shape & 2);
-    law.hard_c = 1.1e8;
-    law.hard_n = 3;
+    const bool is_pmb = shape & 1, conical = shape & 2, linear = shape & 4;
+    const double c0 = is_pmb ? 1.0005 : 1.8, cd = linear ? (is_pmb ? 1.0002 : 1.3) : c0;
+    BondLaw law = is_pmb ? pmb(3.7e9, 3e-3, c0, cd, conical) : membrane(3.7e9, 3e-3, c0, cd, conical);
+    if (!is_pmb && conical) law = hardening(law, 1.1e8, 3);
     for (double xi : {1e-3, 2.2e-3, 2.9e-3}) {
-      const double xi2 = xi * xi, lc = law.critical_stretch(xi);
+      const double xi2 = xi * xi, lc = c0 + (cd - c0) * xi / 3e-3;
       const double w = law.energy(xi2, lc * lc * xi2);
       EXPECT_GT(w, 0) << "shape " << shape;
       // energy() recovers the stretch as y/|xi| - 1, losing lc / (lc - 1) times the round-off
@@ -379,11 +399,7 @@ TEST(Forces, BreakingIsIrreversibleAndBooksEnergy) {
   std::vector<std::int64_t> offsets{0, 1};
   std::vector<std::int32_t> nbr{1};
   std::vector<std::uint8_t> broken{0};
-  BondLaw law;
-  law.c = 1;
-  law.horizon = 2;
-  law.breaks = true;
-  law.critical0 = law.critical_delta = 2.0;
+  const BondLaw law = membrane(1, 2, 2.0);
   std::vector<double> x(6);
   BondView v{X.data(), u.data(), V.data(), offsets.data(), nbr.data(), broken.data(), nullptr, x.data(), 2};
   std::vector<double> F(6);
@@ -450,12 +466,8 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
     const Nodes& nodes = body.nodes;
     Domain& d = body.d;
     const BondLaw& base = body.law;
-    std::vector<BondLaw> laws(4, base);
-    laws[1].conical = true;
-    laws[2].linear_critical = true;
-    laws[2].critical_delta = 1.0 + 0.5 * (base.critical0 - 1.0);
-    laws[3].conical = laws[3].linear_critical = true;
-    laws[3].critical_delta = laws[2].critical_delta;
+    const double c0 = failure_of(base).critical0, cd = 1.0 + 0.5 * (c0 - 1.0);
+    const std::vector<BondLaw> laws{base, reshaped(base, true, c0), reshaped(base, false, cd), reshaped(base, true, cd)};
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
     std::vector<double> u(3 * static_cast<std::size_t>(d.local())), x(3 * static_cast<std::size_t>(d.local()));
@@ -503,15 +515,14 @@ TEST(Forces, KernelMatchesDirectEvaluationOfTheLaw) {
             y2 += r[c] * r[c];
           }
           // The stored |xi|^2 is rounded to 2^-46 horizon^2 (bonds.hpp); the law is evaluated at it.
-          const double xi2 = rounded_xi2(raw_xi2, law.horizon);
-          rounding = std::max(rounding, std::fabs(xi2 - raw_xi2) / (law.horizon * law.horizon));
+          const double xi2 = rounded_xi2(raw_xi2, law.horizon());
+          rounding = std::max(rounding, std::fabs(xi2 - raw_xi2) / (law.horizon() * law.horizon()));
           const bool breaks = law.broken_at(xi2, y2);
           broken_direct += breaks;
           mismatched += breaks != static_cast<bool>(broken[b] & 1);
           const double m = static_cast<float>(quadrature_weight(nodes.bodies[0], xi)) * d.volume[j];
           if (breaks) {  // booked at its breaking stretch lambda_0 (eqs. 26-27), half per end
-            const double lc = law.critical_stretch(std::sqrt(xi2));
-            dissipated += 0.5 * d.volume[i] * law.energy(xi2, lc * lc * xi2) * m;
+            dissipated += 0.5 * d.volume[i] * law.critical_energy(xi2) * m;
             continue;
           }
           const double k = law.coefficient(xi2, y2) * m;

@@ -100,8 +100,8 @@ TEST(QuasiStatic, HomogeneousPreloadToStretchThreeMatchesEq19) {
     P11 += 0.5 * k * r[0] * xi[0] * w * nodes.volume[j];
     P22 += 0.5 * k * r[1] * xi[1] * w * nodes.volume[j];
   }
-  const double h = mat.density > 0 ? scene.bodies[0].thickness : 0, R = law.horizon * law.horizon / 2;
-  const double pre = kPi * h * law.c * R / 2;  // eq. (19): energy per unit volume
+  const double h = mat.density > 0 ? scene.bodies[0].thickness : 0, R = law.horizon() * law.horizon() / 2;
+  const double pre = kPi * h * law.derived("micromodulus") * R / 2;  // eq. (19): energy per unit volume
   const double P11_exact = pre * (2 * l1 - 2 / (l1 * l1 * l2)), P22_exact = pre * (2 * l2 - 2 / (l1 * l2 * l2));
   if (world_rank() == 0) {
     std::printf("preload to lambda = (%.1f, %.1f): %zu increments, %d cut-backs, %ld Newton, %ld linear iterations, "

@@ -12,7 +12,7 @@ CrackAdvanceEnergy crack_advance_energy(const Nodes& nodes, const CellList& cell
                                         const Crack& advance) {
   const BodyGeometry& g = nodes.bodies.at(body);
   if (g.kind != BodyKind::Membrane) throw InputError("crack_advance_energy: membrane bodies only");
-  if (!law.breaks) throw InputError("crack_advance_energy: the material has no critical stretch");
+  if (!law.breaks()) throw InputError("crack_advance_energy: the material has no critical stretch");
   const double* a = advance.from.data();
   const double* b = advance.to.data();
   const double len = std::hypot(b[0] - a[0], b[1] - a[1]);
@@ -38,8 +38,7 @@ CrackAdvanceEnergy crack_advance_energy(const Nodes& nodes, const CellList& cell
       if (!(i < j ? crosses(xi, xj, advance) : crosses(xj, xi, advance))) continue;
       double s2 = 0;
       for (int c = 0; c < 3; ++c) s2 += (xj[c] - xi[c]) * (xj[c] - xi[c]);
-      const double l0 = law.critical_stretch(std::sqrt(s2));
-      out.energy += law.energy(s2, l0 * l0 * s2) * weights[k] * nodes.volume[i] * nodes.volume[j];  // eq. (26)
+      out.energy += law.critical_energy(s2) * weights[k] * nodes.volume[i] * nodes.volume[j];  // eq. (26)
       ++out.bonds;
     }
   }
@@ -50,13 +49,12 @@ CrackAdvanceEnergy crack_advance_energy(const Nodes& nodes, const CellList& cell
 double eq30_release_rate(const BondLaw& law, double thickness) {
   // Composite Simpson on [0, delta] of w_0(xi) xi^2 (smooth: g and lambda_0 are linear in xi).
   const int n = 2000;
-  const double d = law.horizon, step = d / n;
+  const double d = law.horizon(), step = d / n;
   double sum = 0;
   for (int k = 0; k <= n; ++k) {
     const double xi = k * step;
     if (xi == 0) continue;
-    const double l0 = law.critical_stretch(xi);
-    const double f = law.energy(xi * xi, l0 * l0 * xi * xi) * xi * xi;
+    const double f = law.critical_energy(xi * xi) * xi * xi;
     sum += f * (k == 0 || k == n ? 1 : (k % 2 ? 4 : 2));
   }
   return 2.0 * thickness * sum * step / 3.0;  // eq. (30)

@@ -18,6 +18,7 @@
 #include "peri/core/resources.hpp"
 #include "peri/io/restart.hpp"
 #include "peri/kernels/tangent.hpp"
+#include "peri/models/model.hpp"
 
 namespace peri {
 namespace {
@@ -180,11 +181,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
                         ? BondLaw{}
                         : calibrate(m, nodes_.bodies[b], scene_.bodies[b].where.str() + ": bodies." + scene_.bodies[b].name));
     density_.push_back(m.density);
-    BondLaw intact = laws_.back();
-    intact.breaks = false;
-    intact.linear_critical = false;
-    intact.critical0 = intact.critical_delta = INFINITY;
-    intact_laws_.push_back(intact);
+    intact_laws_.push_back(laws_.back().empty() ? BondLaw{} : laws_.back().intact());
     const double limit = scene_.stability.motion_per_step * scene_.bodies[b].spacing;
     motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
   }
@@ -424,8 +421,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     }
     const std::string p = scene_.bodies[b].name + ".";
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
-    summary_.derived.push_back({p + "micromodulus", laws_[b].c});
-    summary_.derived.push_back({p + "horizon", laws_[b].horizon});
+    for (const auto& [key, value] : laws_[b].derived()) summary_.derived.push_back({p + key, value});
+    summary_.derived.push_back({p + "horizon", laws_[b].horizon()});
     if (nodes_.bodies[b].kind == BodyKind::Fiber) {  // a bar: E and its wave speed only
       summary_.derived.push_back({p + "youngs_modulus", e.youngs});
       summary_.derived.push_back({p + "longitudinal_wave_speed", e.c_longitudinal});
@@ -973,6 +970,7 @@ EnergyRow Simulation::energies() {
   {
     LocalArray u(state_->displacement());
     view.u = u.data();
+    current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
     if (has_lattice_) strain += lattice_energy(view);
     for (std::size_t b = 0; b < laws_.size(); ++b) {
       if (marder_[b]) continue;
@@ -1069,11 +1067,11 @@ void Simulation::setup_crack_tips() {
   double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
   tip_bodies_.assign(laws_.size(), false);
   for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (!laws_[b].breaks || nodes_.bodies[b].kind != BodyKind::Membrane) continue;  // flat sheets only
+    if (!laws_[b].breaks() || nodes_.bodies[b].kind != BodyKind::Membrane) continue;  // flat sheets only
     tip_bodies_[b] = true;
     const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
     dx = std::max(dx, nodes_.bodies[b].spacing);
-    delta = std::max(delta, laws_[b].horizon);
+    delta = std::max(delta, laws_[b].horizon());
     c_l = std::min(c_l, e.c_longitudinal);
     c_r = std::min(c_r, e.c_rayleigh);
   }
@@ -1195,6 +1193,7 @@ void Simulation::update_energy_density() {
   LocalArray u(state_->displacement());
   view.u = u.data();
   if (!density_current_) {  // else the last force evaluation's (an energy call on this state)
+    current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
     energy_density_.assign(domain_.owned, 0.0);
     for (std::size_t b = 0; b < laws_.size(); ++b) {
       if (marder_[b]) continue;
@@ -1544,6 +1543,7 @@ void Simulation::add_tangent(Mat J) {
   BondView view = bond_view();
   LocalArray u(state_->displacement());  // ghosts current: set_displacement exchanged them
   view.u = u.data();
+  current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
   std::vector<std::int32_t> cols;
   std::vector<PetscInt> global_cols;
   std::vector<double> blocks;

@@ -14,6 +14,9 @@
 
 namespace peri {
 
+/// Bit 0 of a bond's flag byte: broken (irreversibly; lattice bodies keep other bits beside it).
+inline constexpr std::uint8_t kBrokenFlag = 1;
+
 /// The neighbour offsets of a body whose nodes fill its grid (as discretize() places them):
 /// every (grid step, quadrature weight) with a non-zero weight, in ascending natural-id order, so
 /// a node's family is read off its grid index without a search. Hexagonal grids have one list per

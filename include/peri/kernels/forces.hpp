@@ -2,12 +2,13 @@
 // body, writes force densities into a flat array, and updates the broken flags. No MPI, no PETSc:
 // the caller passes local arrays (owned nodes first, ghosts after).
 #pragma once
+#include <array>
 #include <cstdint>
 #include <vector>
 
 #include "peri/bonds/bonds.hpp"
 #include "peri/partition/domain.hpp"
-#include "peri/models/model.hpp"
+#include "peri/models/law.hpp"
 
 namespace peri {
 
@@ -144,7 +145,7 @@ struct RowBlocks {
   /// stage, a restart, flags cleared in place) need forget_broken(); a call with another flag
   /// array than the last forgets by itself.
   std::int64_t dead_cache_entries = 0;
-  /// The bond law's limits of each slot of the runs' family patterns (Scratch::y2_floor ...),
+  /// The bond law's constants of each slot of the runs' family patterns (Scratch::slot_values),
   /// computed once per pattern and law: pattern p of the runs (RowRun::limits) at limits_at[p]
   /// .. limits_at[p + 1] of those arrays.
   std::vector<std::int64_t> limits_at;
@@ -154,8 +155,10 @@ struct RowBlocks {
   /// line's slot kinds as segments of consecutive slots (for blocks away from the line's ends,
   /// and near them) and ring addresses; for blocks of runs with broken bonds, the broken flags
   /// of the block's rows as one byte of lane bits per slot, and the slots not broken on every
-  /// lane; for each family pattern of the runs, the bond law's limits on y^2 and weights of each
+  /// lane; for each family pattern of the runs, the bond law's constants of each
   /// slot (and which patterns hold them); the mirror (three planes, mirror_stride apart).
+  /// Most per-slot constants a vectorized law may keep (models/laws/: PMB keeps six).
+  static constexpr int kLawSlots = 6;
   struct Scratch {
     struct Segment {
       BoxSlot::Kind kind;
@@ -167,16 +170,16 @@ struct RowBlocks {
     std::vector<double*> at;
     std::vector<std::uint8_t> dead_lanes;
     std::vector<std::uint32_t> live;
-    std::vector<double> y2_floor, y2_break, weight, weight_per_xi, xi_len, energy_weight;
+    /// The law's constants of each slot of the runs' patterns (law slot_values), kLawSlots arrays
+    /// of limits_at.back() each, and which patterns hold them.
+    std::vector<double> slot_values;
     std::vector<std::uint8_t> limits_known;  ///< per run pattern (RowBlocks::limits_at)
-    /// The law the limits were computed for: failure stretch, energy constant and horizon (a
-    /// call with another law forgets them all).
+    /// The law the slot constants were computed for: its shape and the constants they depend on
+    /// (a call with another law forgets them all).
     struct LimitsKey {
-      double critical0 = 0, critical_slope = 0, energy_constant = 0, inv_horizon = 0;
-      bool operator==(const LimitsKey& o) const {
-        return critical0 == o.critical0 && critical_slope == o.critical_slope &&
-               energy_constant == o.energy_constant && inv_horizon == o.inv_horizon;
-      }
+      const void* law = nullptr;
+      std::array<double, 4> key{};
+      bool operator==(const LimitsKey& o) const { return law == o.law && key == o.key; }
     };
     LimitsKey limits_of;
     std::vector<double> mirror;

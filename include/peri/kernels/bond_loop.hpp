@@ -1,0 +1,186 @@
+// The one walk over bonds: a row's family in CSR order (`family(view, i)`), and the passes built
+// on it for any bond law of models/laws/ (forces with breaking, energy, the SNES tangent's block
+// rows). These are the portable loop: every law runs here one bond at a time (Scalar pack), and
+// laws with a vector form also run in the SIMD accelerator (fast_loop.hpp), whose rows are the
+// same bits (the same operations in the same order, bond by bond and row by row).
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "peri/core/simd.hpp"
+#include "peri/kernels/forces.hpp"
+
+namespace peri {
+
+/// One bond of a row's family: its CSR position, neighbour and reference slot.
+class FamilyBond {
+ public:
+  FamilyBond(const BondView& v, std::int32_t i, std::int64_t b, std::int64_t slot) : v_(&v), i_(i), b_(b), slot_(slot) {}
+  std::int64_t at() const { return b_; }  ///< CSR position
+  std::int32_t j() const { return v_->neighbor[b_]; }
+  bool broken() const { return v_->broken[b_] & kBrokenFlag; }
+  std::uint8_t& flag() const { return v_->broken[b_]; }
+  /// |xi|^2 (the family pattern's, or from the reference positions without patterns).
+  double xi2() const { return slot_ >= 0 ? v_->patterns->xi2[slot_] : v_->xi2(i_, b_); }
+  /// w_ij V_j [m^3].
+  double measure() const { return slot_ >= 0 ? v_->patterns->measure[slot_] : v_->volume[j()]; }
+  double inv_xi() const { return slot_ >= 0 ? v_->patterns->inv_xi[slot_] : 1.0 / std::sqrt(xi2()); }
+  double measure_per_xi2() const { return slot_ >= 0 ? v_->patterns->measure_per_xi2[slot_] : measure() / xi2(); }
+
+ private:
+  const BondView* v_;
+  std::int32_t i_;
+  std::int64_t b_, slot_;
+};
+
+/// The bonds of row i in CSR order: `for (const FamilyBond& bond : family(view, i))`.
+class Family {
+ public:
+  Family(const BondView& v, std::int32_t i)
+      : v_(&v), i_(i), begin_(v.offsets[i]), end_(v.offsets[i + 1]),
+        slot0_(v.patterns ? v.patterns->begin[v.patterns->of_row[i]] : -1) {}
+  struct iterator {
+    const Family* f;
+    std::int64_t b;
+    FamilyBond operator*() const { return {*f->v_, f->i_, b, f->slot0_ < 0 ? -1 : f->slot0_ + (b - f->begin_)}; }
+    iterator& operator++() {
+      ++b;
+      return *this;
+    }
+    bool operator!=(const iterator& o) const { return b != o.b; }
+  };
+  iterator begin() const { return {this, begin_}; }
+  iterator end() const { return {this, end_}; }
+  std::int64_t size() const { return end_ - begin_; }
+
+ private:
+  const BondView* v_;
+  std::int32_t i_;
+  std::int64_t begin_, end_, slot0_;
+};
+inline Family family(const BondView& v, std::int32_t i) { return Family(v, i); }
+
+namespace law_loop {
+
+/// Bond `bond` of row i as one lane of law E (E::Bonds on the Scalar pack): y = x_j - x_i from
+/// the view's position planes, the reference slot, and the law's slot constants.
+template <class E>
+typename E::Bonds scalar_bond(const E& law, const BondView& v, std::int32_t i, const FamilyBond& bond) {
+  typename E::Bonds b;
+  const std::int32_t j = bond.j();
+  b.d0 = v.x[j] - v.x[i];
+  b.d1 = v.x[v.x_stride + j] - v.x[v.x_stride + i];
+  b.d2 = v.x[2 * v.x_stride + j] - v.x[2 * v.x_stride + i];
+  b.xi2 = bond.xi2();
+  b.inv_xi = bond.inv_xi();
+  b.measure = bond.measure();
+  b.measure_per_xi2 = bond.measure_per_xi2();
+  if constexpr (E::kSlotValues)
+    law.template slot_values<simd::Scalar>(b.xi2, b.inv_xi, b.measure, b.measure_per_xi2, b.slot);
+  b.dead = bond.broken() ? 1u : 0u;
+  return b;
+}
+
+/// y^2 = (y_z^2 + y_x^2) + y_y^2: two independent products (the vector loop's order).
+template <class P, class B>
+inline typename P::V squared_length(const B& b) {
+  return P::add(P::fmadd(b.d2, b.d2, P::mul(b.d0, b.d0)), P::mul(b.d1, b.d1));
+}
+
+/// Force densities of rows (law E on the Scalar pack): each row's bonds in CSR order, a bond
+/// reaching the failure test flagged and its energy at failure (critical_energy) booked.
+template <class E, class Law>
+void forces(const E& law, const Law& constants, const BondView& v, const std::int32_t* rows, std::size_t n,
+            double* force, BondTally& tally) {
+  const double c_row = law.row_factor();
+  for (std::size_t r = 0; r < n; ++r) {
+    const std::int32_t i = rows[r];
+    double f0 = 0, f1 = 0, f2 = 0, w = 0, diss = 0;
+    int newly = 0;
+    for (const FamilyBond& bond : family(v, i)) {
+      const typename E::Bonds b = scalar_bond(law, v, i, bond);
+      const auto p = law.front(b, squared_length<simd::Scalar>(b));
+      unsigned fresh = 0;
+      const double coef = law.coefficient(b, p, w, fresh);
+      if (fresh) {
+        bond.flag() = kBrokenFlag;
+        ++newly;
+        diss += constants.critical_energy(b.xi2) * b.measure;
+      }
+      f0 = simd::Scalar::fmadd(coef, b.d0, f0);
+      f1 = simd::Scalar::fmadd(coef, b.d1, f1);
+      f2 = simd::Scalar::fmadd(coef, b.d2, f2);
+    }
+    force[3 * i] = c_row * f0;
+    force[3 * i + 1] = c_row * f1;
+    force[3 * i + 2] = c_row * f2;
+    if constexpr (E::kEnergy) {
+      tally.strain_energy += 0.5 * v.volume[i] * w;
+      if (v.energy_density) v.energy_density[i] = 0.5 * w;
+    }
+    if (newly) {
+      tally.dissipated += 0.5 * v.volume[i] * diss;
+      tally.newly_broken += newly;
+      if (v.row_broken) v.row_broken[i] = 1;
+    }
+  }
+}
+
+/// Strain energy of rows (law E on the Scalar pack, its failure switched off by the caller: every
+/// bond not flagged counts); with `density`, each row's 1/2 sum_j w_ij V_j w [J/m^3].
+template <class E>
+double energy(const E& law, const BondView& v, const std::int32_t* rows, std::size_t n, double* density) {
+  double total = 0;
+  for (std::size_t r = 0; r < n; ++r) {
+    const std::int32_t i = rows[r];
+    double w = 0;
+    for (const FamilyBond& bond : family(v, i)) {
+      const typename E::Bonds b = scalar_bond(law, v, i, bond);
+      unsigned fresh = 0;
+      law.coefficient(b, law.front(b, squared_length<simd::Scalar>(b)), w, fresh);
+    }
+    total += 0.5 * v.volume[i] * w;
+    if (density) density[i] = 0.5 * w;
+  }
+  return total;
+}
+
+/// Block row of the tangent K = -d(F V)/du of owned row `row` over its intact bonds:
+///   A_ij = V_i k_row [k I + 2 k' y y^T],  k the coefficient, k' = dk/d(y^2)
+///   K_ii = sum_j A_ij,  K_ij = -A_ij.
+/// `cols` gets the local columns (the row first, then one per intact bond), `blocks` the
+/// 3 x 3 cols.size() row-major values (MatSetValuesBlocked's layout for one block row).
+template <class E>
+void row_tangent(const E& law, const BondView& v, std::int32_t row, std::vector<std::int32_t>& cols,
+                 std::vector<double>& blocks) {
+  cols.clear();
+  cols.push_back(row);
+  for (const FamilyBond& bond : family(v, row))
+    if (!bond.broken()) cols.push_back(bond.j());
+  const std::size_t stride = 3 * cols.size();
+  blocks.assign(3 * stride, 0.0);
+  const double scale = v.volume[row] * law.row_factor();
+  std::size_t col = 1;
+  for (const FamilyBond& bond : family(v, row)) {
+    if (bond.broken()) continue;
+    const typename E::Bonds b = scalar_bond(law, v, row, bond);
+    const auto p = law.front(b, squared_length<simd::Scalar>(b));
+    double w = 0;
+    unsigned fresh = 0;
+    typename E::Bonds intact = b;
+    intact.dead = 0;
+    const double k = law.coefficient(intact, p, w, fresh), k2 = 2.0 * law.slope(intact, p);
+    const double y[3] = {b.d0, b.d1, b.d2};
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 3; ++c) {
+        const double A = scale * ((a == c ? k : 0.0) + k2 * y[a] * y[c]);
+        blocks[a * stride + c] += A;            // K_ii
+        blocks[a * stride + 3 * col + c] = -A;  // K_ij
+      }
+    ++col;
+  }
+}
+
+}  // namespace law_loop
+}  // namespace peri

@@ -1,0 +1,51 @@
+// What a bond law sees of W bonds at once (one per lane of a pack, core/simd.hpp): the current
+// bond vectors y = x_j - x_i, the reference slot of the family pattern (|xi|^2, 1/|xi|, the
+// quadrature measure w_ij V_j and w_ij V_j / |xi|^2), the law's own per-slot constants (computed
+// once per pattern by the law's slot_values), and which lanes are dead (bond broken already, or
+// the lane idle). A law adds nothing for a dead lane.
+//
+// Conventions of every bond law (models/laws/*.hpp). The force density on node i from bond
+// (i, j) is  row_factor * coefficient * (x_j - x_i)  [N/m^3], i.e. coefficient = f_hat w V_j / y
+// over the law's row factor (eq. 7: the force is parallel to the current bond); the strain energy
+// density of row i is 1/2 sum_j w_ij V_j w(y) (eq. 5), a law giving w w_ij V_j per bond. The
+// bond loop sums a row's coefficients times y in CSR order (fused multiply-adds) and multiplies
+// the sums by the row factor at the end.
+#pragma once
+#include <array>
+#include <cmath>
+
+namespace peri {
+
+template <class P, int Slots>
+struct BondLanes {
+  using Pack = P;
+  using V = typename P::V;
+  static constexpr int kSlots = Slots;
+  V d0, d1, d2;                         ///< y = x_j - x_i
+  V xi2, inv_xi, measure, measure_per_xi2;  ///< the pattern's slot
+  V slot[Slots > 0 ? Slots : 1];        ///< the law's per-slot constants
+  unsigned dead = 0;                    ///< bit l: lane l adds nothing
+};
+
+/// Linear critical stretch of eq. (29) and the influence function g(|xi|) of eq. (13), shared by
+/// the stretch-based laws: a bond fails when y >= lambda_0(|xi|) |xi| (eqs. 11, 22), lambda_0
+/// linear from critical0 at |xi| = 0 to critical_delta at |xi| = delta (constant if equal).
+struct StretchFailure {
+  bool breaks = false;
+  double critical0 = INFINITY;       ///< lambda_0 at |xi| = 0 (PMB: 1 + s_0)
+  double critical_delta = INFINITY;  ///< lambda_0 at |xi| = delta
+  bool linear() const { return critical_delta != critical0; }
+};
+
+/// The compile-time shape of a stretch-based law's evaluation.
+template <bool Conical, bool Linear>
+struct StretchShape {
+  static constexpr bool conical = Conical, linear = Linear;
+};
+template <class F>
+decltype(auto) visit_stretch_shape(bool conical, bool linear, F&& f) {
+  if (conical) return linear ? f(StretchShape<true, true>{}) : f(StretchShape<true, false>{});
+  return linear ? f(StretchShape<false, true>{}) : f(StretchShape<false, false>{});
+}
+
+}  // namespace peri
