@@ -1,5 +1,6 @@
 #include "peri/bonds/crossing.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -97,13 +98,14 @@ int orient2d(const double* a, const double* b, const double* c) {
 }
 
 bool segments_cross(const double* a, const double* b, const double* c, const double* d) {
+  // Disjoint bounding boxes: no common point (exact comparisons; most bonds end here). With a NaN
+  // the test may go either way, and both ways end in false.
+  if (std::max(a[0], b[0]) < std::min(c[0], d[0]) || std::max(c[0], d[0]) < std::min(a[0], b[0]) ||
+      std::max(a[1], b[1]) < std::min(c[1], d[1]) || std::max(c[1], d[1]) < std::min(a[1], b[1]))
+    return false;
   for (const double* p : {a, b, c, d})
     if (!std::isfinite(p[0]) || !std::isfinite(p[1])) return false;
   if ((a[0] == b[0] && a[1] == b[1]) || (c[0] == d[0] && c[1] == d[1])) return false;  // a point cuts nothing
-  // Disjoint bounding boxes: no common point (exact comparisons; most bonds end here).
-  if (std::fmax(a[0], b[0]) < std::fmin(c[0], d[0]) || std::fmax(c[0], d[0]) < std::fmin(a[0], b[0]) ||
-      std::fmax(a[1], b[1]) < std::fmin(c[1], d[1]) || std::fmax(c[1], d[1]) < std::fmin(a[1], b[1]))
-    return false;
   const int o1 = orient2d(a, b, c), o2 = orient2d(a, b, d);
   // All four points on one line: along it the segments are intervals, which overlap (or touch)
   // exactly when the bounding boxes do, as they do here.
