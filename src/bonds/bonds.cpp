@@ -7,6 +7,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "peri/bonds/crossing.hpp"
+
 namespace peri {
 
 double reach(const BodyGeometry& g) {
@@ -287,15 +289,7 @@ std::int64_t family_class(const Nodes& nodes, const CellList& cells, std::int64_
 }
 
 bool crosses(const double* a, const double* b, const Crack& crack) {
-  auto orient = [](const double* p, const double* q, const double* r) {
-    return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
-  };
-  const double* c = crack.from.data();
-  const double* d = crack.to.data();
-  const double o1 = orient(a, b, c), o2 = orient(a, b, d);
-  const double o3 = orient(c, d, a), o4 = orient(c, d, b);
-  if (o1 == 0 && o2 == 0) return false;  // collinear: the bond runs along the crack line
-  return o1 * o2 <= 0 && o3 * o4 <= 0;
+  return segments_cross(a, b, crack.from.data(), crack.to.data());
 }
 
 double rounded_xi2(double xi2, double horizon) {

@@ -3,19 +3,21 @@
 # tests/fuzz/corpus/<target>. A crash, leak, timeout or out-of-memory is written to
 # tests/fuzz/crashes/<target>/ -- commit it: ctest replays every file there (fuzz_replay_*) so a
 # finding stays a regression test after it is fixed. New corpus entries go to a scratch copy.
-# usage: tests/fuzz/run.sh [SECONDS] [BUILD_DIR]
+# usage: tests/fuzz/run.sh [SECONDS] [BUILD_DIR] [TARGET...]   (default: every target)
 set -u
 seconds=${1:-60}
 src=$(cd "$(dirname "$0")/../.." && pwd)
 out=${2:-$src/build-fuzz}
 "$src/tests/fuzz/build.sh" "$out" || exit 1
+targets=("${@:3}")
+[ ${#targets[@]} -gt 0 ] || targets=(scene checkpoint crossing override)
 status=0
-for target in scene checkpoint; do
+for target in "${targets[@]}"; do
   work=$(mktemp -d)
   cp -r "$src/tests/fuzz/corpus/$target/." "$work/"
   crashes=$src/tests/fuzz/crashes/$target
   mkdir -p "$crashes"
-  max_len=$([ "$target" = scene ] && echo 8192 || echo 16384)
+  case $target in scene) max_len=8192 ;; checkpoint) max_len=16384 ;; crossing) max_len=65 ;; *) max_len=4096 ;; esac
   echo "== fuzz_$target for $seconds s"
   "$out/fuzz_$target" "$work" -max_total_time="$seconds" -max_len="$max_len" -timeout=10 -rss_limit_mb=2048 \
     -artifact_prefix="$crashes/" -print_final_stats=1 > "$out/fuzz_$target.log" 2>&1

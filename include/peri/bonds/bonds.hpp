@@ -103,8 +103,9 @@ std::int64_t family_class(const Nodes& nodes, const CellList& cells, std::int64_
 /// Largest distance at which a body may have a bond (horizon + cell half-diagonal).
 double reach(const BodyGeometry& g);
 
-/// True when the reference segment a-b crosses the crack segment (xy projection; membranes).
-/// Canonical in (a, b): the caller passes the lower natural id first so both ends agree.
+/// True when the reference segment a-b meets the crack segment, end points included (xy
+/// projection; membranes): segments_cross in exact arithmetic (crossing.hpp has the rule and its
+/// degenerate cases). Symmetric in (a, b): both ends of a bond see the same answer.
 bool crosses(const double* a, const double* b, const Crack& crack);
 
 /// Reference geometry of bond families, one copy per distinct family. Row r's bond b (CSR
