@@ -44,6 +44,21 @@ void scalar_attribute(hid_t obj, const char* name, hid_t type, T value) {
   H5Sclose(space);
 }
 
+/// A text of any length as a scalar string dataset (an attribute lives in its object's header,
+/// which holds at most 64 KB; a resolved scene can be larger). Collective; rank 0 writes it.
+void text_dataset(hid_t loc, const char* name, const std::string& value, bool writer) {
+  hid_t type = check_id(H5Tcopy(H5T_C_S1), "H5Tcopy");
+  check_h5(H5Tset_size(type, std::max<std::size_t>(value.size(), 1)), "H5Tset_size");
+  check_h5(H5Tset_strpad(type, H5T_STR_NULLPAD), "H5Tset_strpad");
+  check_h5(H5Tset_cset(type, H5T_CSET_UTF8), "H5Tset_cset");
+  hid_t space = check_id(H5Screate(H5S_SCALAR), "H5Screate");
+  hid_t dset = check_id(H5Dcreate2(loc, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), name);
+  if (writer) check_h5(H5Dwrite(dset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, value.empty() ? "" : value.c_str()), name);
+  H5Dclose(dset);
+  H5Sclose(space);
+  H5Tclose(type);
+}
+
 std::string frame_name(int k) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "/frames/%06d", k);
@@ -106,7 +121,7 @@ hid_t FrameWriter::create(const std::string& path, hid_t fapl, const std::string
   if (file < 0) throw Error("cannot create HDF5 file '" + path + "'");
   string_attribute(file, "peridrive_version", version());
   string_attribute(file, "git_revision", git_revision());
-  string_attribute(file, "scene", resolved_scene);
+  text_dataset(file, "scene", resolved_scene, domain.rank == 0);
   scalar_attribute<long long>(file, "nodes", H5T_NATIVE_LLONG, domain.global_nodes);
   scalar_attribute<int>(file, "ranks", H5T_NATIVE_INT, domain.ranks);
   hid_t mesh = check_id(H5Gcreate2(file, "/mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/mesh");
