@@ -461,7 +461,7 @@ class Map {
 // Schema
 
 const Keys kSceneKeys = {
-    {"name", true, "scene name: 1 to 64 characters from A-Z a-z 0-9 _ -"},
+    {"name", true, "scene name, 1 to 64 characters of A-Z a-z 0-9 _ - not starting with -"},
     {"description", false, ""},
     {"materials", true, "map of material name to material"},
     {"bodies", true, "map of body name to body"},
