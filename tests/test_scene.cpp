@@ -387,7 +387,7 @@ TEST(SceneRoundTrip, EveryFeatureAndAwkwardValues) {
   const std::string text = R"(name: "true"
 description: "colon: quote \" backslash \\ tab\t newline\n # hash, unicode é"
 materials:
-  "rubber gum":
+  "rubber_gum-2":
     model: membrane
     density: 0.30000000000000004
     bulk_modulus: 3.3333333333333335e5
@@ -402,7 +402,7 @@ materials:
     critical_stretch: 0.03
 bodies:
   sheet:
-    material: rubber gum
+    material: rubber_gum-2
     origin: [-0.1, 0.2, -0.0]
     size: [0.7, 0.1, 0]
     thickness: 1.0e-3
@@ -420,7 +420,7 @@ bodies:
 cracks:
   - from: [0, 0, 0]
     to: [0.1, 0, 0]
-  - name: "#2"
+  - name: "2e3"
     from: [0, 1, 0]
     to: [0.1, 1, 0]
 boundaries:
@@ -453,7 +453,7 @@ output:
   const Scene s = peri::parse_scene(text, "scene.yaml");
   EXPECT_EQ(s.name, "true");
   EXPECT_EQ(s.description, "colon: quote \" backslash \\ tab\t newline\n # hash, unicode é");
-  EXPECT_EQ(s.materials.at(0).name, "rubber gum");
+  EXPECT_EQ(s.materials.at(0).name, "rubber_gum-2");
   EXPECT_EQ(s.materials.at(1).name, "1");
   EXPECT_EQ(s.boundaries.at(0).name, "null");
   EXPECT_EQ(s.boundaries.at(0).components, (std::array<bool, 3>{true, false, true}));
@@ -991,4 +991,104 @@ TEST(SceneStages, Errors) {
               HasSubstr("crack 'slit' is already released by stage 'cut'"));
   EXPECT_THAT(error_of(kStaged + "stability: {energy_error: -0.1}\n"),
               StartsWith("scene.yaml:15: stability.energy_error: expected a non-negative number, got -0.1"));
+}
+
+// Every name a scene gives (scene, material, body, crack, boundary, tool, stage), in the file and
+// through --set: hostile names refused with the rule and the name on one line, at the line that
+// gives it (or "--set"); names at the rule's edges accepted as written.
+struct NameKind {
+  std::string what;
+  std::function<std::string(const std::string&)> file;                // scene text naming it `q` (YAML)
+  std::function<std::vector<Override>(const std::string&)> set;       // overrides naming it `q`
+  std::function<std::string(const Scene&)> name;                      // the name parsed
+};
+
+std::vector<NameKind> name_kinds() {
+  const std::string sheet = "{material: rubber, origin: [0, 0, 0], size: [0.01, 0.01], thickness: 0.0005, spacing: 0.001}";
+  return {
+      {"scene", [](const std::string& q) { return with("name: test", "name: " + q); },
+       [](const std::string& q) { return std::vector<Override>{{"name", q}}; },
+       [](const Scene& s) { return s.name; }},
+      {"material",
+       [](const std::string& q) { return with("  rubber:\n", "  " + q + ":\n", with("material: rubber", "material: " + q)); },
+       [](const std::string& q) {
+         return std::vector<Override>{{"materials", "{" + q + ": {model: membrane, density: 1200, wave_speed: 1000}}"},
+                                      {"bodies.sheet.material", q}};
+       },
+       [](const Scene& s) { return s.materials.at(0).name; }},
+      {"body", [](const std::string& q) { return with("  sheet:\n", "  " + q + ":\n"); },
+       [sheet](const std::string& q) { return std::vector<Override>{{"bodies", "{" + q + ": " + sheet + "}"}}; },
+       [](const Scene& s) { return s.bodies.at(0).name; }},
+      {"crack", [](const std::string& q) { return kBase + "cracks:\n  - {name: " + q + ", from: [0, 0, 0], to: [0.001, 0, 0]}\n"; },
+       [](const std::string& q) {
+         return std::vector<Override>{{"cracks", "[{name: " + q + ", from: [0, 0, 0], to: [0.001, 0, 0]}]"}};
+       },
+       [](const Scene& s) { return s.cracks.at(0).name; }},
+      {"boundary",
+       [](const std::string& q) { return kBase + "boundaries:\n  - {name: " + q + ", region: {min: [0, 0, 0], max: [1, 1, 1]}}\n"; },
+       [](const std::string& q) {
+         return std::vector<Override>{{"boundaries", "[{name: " + q + ", region: {min: [0, 0, 0], max: [1, 1, 1]}}]"}};
+       },
+       [](const Scene& s) { return s.boundaries.at(0).name; }},
+      {"tool",
+       [](const std::string& q) { return kBase + "tools:\n  - {name: " + q + ", kind: cylinder, radius: 0.001, center: [0.5, 0.5]}\n"; },
+       [](const std::string& q) {
+         return std::vector<Override>{{"tools", "[{name: " + q + ", kind: cylinder, radius: 0.001, center: [0.5, 0.5]}]"}};
+       },
+       [](const Scene& s) { return s.tools.at(0).name; }},
+      {"stage", [](const std::string& q) { return with("  - duration: 1.0e-5", "  - name: " + q + "\n    duration: 1.0e-5"); },
+       [](const std::string& q) { return std::vector<Override>{{"stages.0.name", q}}; },
+       [](const Scene& s) { return s.stages.at(0).name; }},
+  };
+}
+
+/// 1-based line of `text` holding `part` (0 if absent).
+int line_holding(const std::string& text, const std::string& part) {
+  const auto at = text.find(part);
+  return at == std::string::npos ? 0 : 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
+}
+
+TEST(SceneNames, HostileNamesRefused) {
+  // YAML double-quoted scalars: the name as written in the file and in --set values.
+  const std::vector<std::string> hostile = {
+      R"("a\"b")", R"("a\tb")", R"("a\\b")", R"("a,b")",  R"("a\nb")",     R"("a/b")",  R"("../../x")",
+      R"("..")",   R"(".hidden")", R"("-x")", R"("a b")",  R"("a.b")",      R"("a\0b")", R"("\u00e9t\u00e9")",
+      "\"" + std::string(65, 'a') + "\"", "\"" + std::string(1000, 'n') + "\"", R"("")"};
+  const std::string rule = " name (1 to 64 characters of A-Z a-z 0-9 _ - not starting with -)";
+  for (const NameKind& k : name_kinds()) {
+    const bool key = k.what == "material" || k.what == "body";
+    for (const std::string& q : hostile) {
+      const std::string want = q != "\"\"" ? "expected a " + k.what + rule
+                               : key       ? "expected a name as map key, got \"\""
+                                           : "expected a non-empty string, got \"\"";
+      const std::string text = k.file(q);
+      const std::string at = "scene.yaml:" + std::to_string(line_holding(text, q + (key ? ":" : ""))) + ": ";
+      const std::string in_file = error_of(text);
+      EXPECT_THAT(in_file, AllOf(StartsWith(at), HasSubstr(want))) << k.what << " " << q.substr(0, 20);
+      const std::string in_set = error_of(kBase, k.set(q));
+      EXPECT_THAT(in_set, AllOf(StartsWith("--set: "), HasSubstr(want))) << k.what << " " << q.substr(0, 20);
+      if (q.size() > 100) EXPECT_LT(in_file.size(), 300u) << "a long name is cut in the message";
+    }
+  }
+  EXPECT_EQ(error_of(with("name: test", R"(name: "a\tb/\u00e9")")),
+            "scene.yaml:1: name: expected a scene" + rule + ", got \"a\\x09b/\\xc3\\xa9\"");
+  EXPECT_EQ(error_of(kBase, {{"bodies.x/y.material", "rubber"}}),
+            "--set: bodies: expected a body" + rule + " as key, got \"x/y\"");
+  EXPECT_EQ(error_of(kBase, {{"name", std::string(70, 'z')}}),
+            "--set: name: expected a scene" + rule + ", got \"" + std::string(40, 'z') + "\" (70 characters)");
+}
+
+TEST(SceneNames, EdgesOfTheRuleAccepted) {
+  for (const NameKind& k : name_kinds()) {
+    for (const std::string& name : {std::string("a"), std::string("Z"), std::string("0"), std::string("_"),
+                                    std::string("a-b_C9-"), std::string("true"), std::string(64, 'x')}) {
+      const std::string q = "\"" + name + "\"";
+      try {
+        EXPECT_EQ(k.name(peri::parse_scene(k.file(q), "scene.yaml")), name) << k.what;
+        EXPECT_EQ(k.name(peri::parse_scene(kBase, "scene.yaml", k.set(q))), name) << k.what;
+      } catch (const InputError& e) {
+        ADD_FAILURE() << k.what << " " << name << ": " << e.what();
+      }
+    }
+  }
 }

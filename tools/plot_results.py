@@ -1,56 +1,168 @@
 #!/usr/bin/env python3
-"""Turn a peridrive output directory into pictures.
+"""Turn a peridrive output directory into pictures that fit its bodies.
 
 usage: /usr/bin/python3 tools/plot_results.py OUTDIR [--frame K]
 
-Writes into OUTDIR:
-  damage.png    damage (broken-bond fraction) of the last frame, drawn on the deformed membrane
-  deformed.png  deformed positions coloured by out-of-plane displacement (wrinkles)
+The view follows the run's body kinds (frames.h5 /mesh and the resolved scene): flat membranes
+and lattices as a sheet seen from above, solids as a mid-plane slice beside their damaged region
+in 3D, fibers as 3D curves, spheres and mixed scenes in 3D. Lengths are shown in nm, um, mm or m
+(whichever puts the run's extent between 1 and 1000), times likewise in ns, us, ms or s, damage
+always on [0, 1]. Writes into OUTDIR:
+  damage.png    damage (broken-bond fraction) of the frame (default: the last): sheets on the
+                reference configuration; solids in the slice and the damaged region; otherwise in 3D
+  deformed.png  deformed positions, sheets coloured by out-of-plane displacement, others by |u|
   energies.png  kinetic, strain, dissipated energy and external work versus time
-  wrinkles.png  four frames of the deformed membrane coloured by out-of-plane displacement
-                (the paper's Fig. 5 views: slit, crack running, crack through, halves rebounding)
+  wrinkles.png  (sheets) four frames of the deformed membrane coloured by out-of-plane
+                displacement (the paper's Fig. 5 views: slit, crack running, crack through,
+                halves rebounding)
   crack_speed.png, crack_speed.csv  (runs with crack tips, from tips.csv) smoothed crack tip speed
                 against tip position, one curve per tip (the paper's Fig. 6), with c_R and the
                 mean speed of summary.json
-Needs Debian's python3-h5py, python3-numpy and python3-matplotlib.
+  figures.json  per figure: view, projection, units and damage colour limits (peri_view.note)
+Needs Debian's python3-h5py, python3-numpy, python3-matplotlib and python3-yaml.
 """
 import argparse
 import csv
 import os
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import peri_view  # noqa: E402
+from peri_view import DAMAGE_CMAP, DAMAGE_LIMITS  # noqa: E402
 
-def load_frame(path, k):
-    with h5py.File(path, "r") as f:
-        names = sorted(f["frames"].keys())
-        if not names:
-            sys.exit(f"{path}: no complete frame")
-        name = names[k]
-        g = f["frames"][name]
-        return (dict(time=float(g.attrs["time"]), step=int(g.attrs["step"]),
-                     position=g["position"][...], displacement=g["displacement"][...],
-                     damage=g["damage"][...]), f["mesh/reference_position"][...])
+TOOL = "plot_results.py"
+MAX_3D_POINTS = 100000  # 3D scatters draw every k-th node beyond this
 
 
-def scatter(ax, xy, values, spacing, cmap, label, vmin=None, vmax=None):
+def scatter(ax, xy, values, spacing, cmap, label, vmin, vmax, unit, scale):
     # Marker size from the node spacing so the sheet looks continuous at any resolution.
     fig = ax.figure
     width_in = fig.get_size_inches()[0] * ax.get_position().width
     span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), spacing)
     points = max(0.05, (spacing / span * width_in * 72.0) ** 2)
-    sc = ax.scatter(xy[:, 0] * 1e3, xy[:, 1] * 1e3, c=values, s=points, marker="s", cmap=cmap,
+    sc = ax.scatter(xy[:, 0] / scale, xy[:, 1] / scale, c=values, s=points, marker="s", cmap=cmap,
                     vmin=vmin, vmax=vmax, linewidths=0)
     ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
+    ax.set_xlabel(f"x [{unit}]")
+    ax.set_ylabel(f"y [{unit}]")
     fig.colorbar(sc, ax=ax, label=label, shrink=0.85)
+    return sc
+
+
+def scatter3d(ax, p, values, cmap, label, vmin, vmax, unit, scale, run=None):
+    """Nodes in 3D at equal scales on every axis; fibers (run given) also as lines."""
+    step = max(1, len(p) // MAX_3D_POINTS)
+    q = p[::step] / scale
+    if run is not None:
+        # Consecutive nodes of one fiber lie about a spacing apart; a longer jump starts another.
+        ref = run.reference[::step]
+        cut = np.linalg.norm(np.diff(ref, axis=0), axis=1) > 2.5 * run.spacing() * step
+        starts = np.concatenate([[0], np.nonzero(cut)[0] + 1, [len(q)]])
+        for a, b in zip(starts[:-1], starts[1:]):
+            ax.plot(q[a:b, 0], q[a:b, 1], q[a:b, 2], color="0.6", lw=0.8)
+    sc = ax.scatter(q[:, 0], q[:, 1], q[:, 2], c=values[::step], s=4, cmap=cmap, vmin=vmin, vmax=vmax,
+                    linewidths=0)
+    mid, half = q.mean(axis=0), max(float(np.ptp(q, axis=0).max()) / 2, 1e-12)
+    for setlim, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
+        setlim(m - half, m + half)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel(f"x [{unit}]")
+    ax.set_ylabel(f"y [{unit}]")
+    ax.set_zlabel(f"z [{unit}]")
+    ax.figure.colorbar(sc, ax=ax, label=label, shrink=0.7)
+    return sc
+
+
+def mid_plane(run):
+    """Nodes of the solid bodies on the node layer nearest their mid-height (a z slice)."""
+    solid = run.nodes_of("solid")
+    z = run.reference[solid, 2]
+    layer = z[np.argmin(np.abs(z - 0.5 * (z.min() + z.max())))]
+    return solid & (np.abs(run.reference[:, 2] - layer) < 0.5 * run.spacing()), layer
+
+
+def plot_damage(run, fr, t_unit, t_scale):
+    when = f"t = {fr['time'] / t_scale:.3g} {t_unit} (step {fr['step']})"
+    u, s = run.unit, run.scale
+    if run.view == "sheet":
+        fig, ax = plt.subplots(figsize=(7, 6))
+        sc = scatter(ax, run.reference, fr["damage"], run.spacing(), DAMAGE_CMAP, "damage (broken fraction)",
+                     *DAMAGE_LIMITS, u, s)
+        ax.set_title(f"damage at {when}, reference configuration")
+    elif run.view == "solid":
+        fig = plt.figure(figsize=(13, 5.5))
+        ax = fig.add_subplot(1, 2, 1)
+        sel, z = mid_plane(run)
+        sc = scatter(ax, run.reference[sel], fr["damage"][sel], run.spacing(), DAMAGE_CMAP,
+                     "damage (broken fraction)", *DAMAGE_LIMITS, u, s)
+        ax.set_title(f"mid-plane slice z = {z / s:.4g} {u}, reference configuration", fontsize=10)
+        ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+        hit = fr["damage"] > 0
+        if hit.any():
+            scatter3d(ax3, run.reference[hit], fr["damage"][hit], DAMAGE_CMAP, "damage (broken fraction)",
+                      *DAMAGE_LIMITS, u, s)
+            ax3.set_title(f"damaged nodes ({int(hit.sum())} of {len(hit)}), reference configuration", fontsize=10)
+        else:
+            lo, hi = run.reference.min(axis=0) / s, run.reference.max(axis=0) / s
+            for setlim, a, b in zip((ax3.set_xlim, ax3.set_ylim, ax3.set_zlim), lo, hi):
+                setlim(a, b)
+            ax3.set_xlabel(f"x [{u}]")
+            ax3.set_title("no damaged node", fontsize=10)
+        fig.suptitle(f"damage at {when}")
+    else:
+        fig = plt.figure(figsize=(7.5, 6.5))
+        ax = fig.add_subplot(projection="3d")
+        sc = scatter3d(ax, fr["position"], fr["damage"], DAMAGE_CMAP, "damage (broken fraction)", *DAMAGE_LIMITS,
+                       u, s, run if run.view == "curves" else None)
+        ax.set_title(f"damage at {when}, deformed configuration", fontsize=10)
+    fig.savefig(os.path.join(run.outdir, "damage.png"), dpi=130, bbox_inches="tight")
+    peri_view.note(run.outdir, "damage.png", TOOL, run.view, fig, sc, run.unit)
+    plt.close(fig)
+    return ["damage.png"]
+
+
+def plot_deformed(run, fr, t_unit, t_scale):
+    u, s = run.unit, run.scale
+    when = f"t = {fr['time'] / t_scale:.3g} {t_unit}"
+    # Colour ranges from the 99th percentile, not from a fragment flying off; |u| in its own unit.
+    magnitude = np.linalg.norm(fr["displacement"], axis=1)
+    u_unit, u_scale = peri_view.length_unit(max(float(np.percentile(magnitude, 99.0)), 1e-15))
+    magnitude /= u_scale
+    top = max(float(np.percentile(magnitude, 99.0)), 1e-12)
+    if run.view == "sheet":
+        fig, ax = plt.subplots(figsize=(7, 6))
+        uz = fr["displacement"][:, 2] / s
+        lim = max(float(np.percentile(np.abs(uz), 99.0)), 1e-12)
+        sc = scatter(ax, fr["position"], uz, run.spacing(), "coolwarm", f"out-of-plane displacement [{u}]",
+                     -lim, lim, u, s)
+        # Frame the sheet, not the odd fragment that flies away after separation.
+        lo = np.percentile(fr["position"][:, :2], 0.5, axis=0) / s
+        hi = np.percentile(fr["position"][:, :2], 99.5, axis=0) / s
+        pad = 0.05 * (hi - lo)
+        ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
+        ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
+        ax.set_title(f"deformed membrane at {when}")
+    elif run.view == "solid":
+        fig, ax = plt.subplots(figsize=(7, 6))
+        sel, z = mid_plane(run)
+        sc = scatter(ax, fr["position"][sel], magnitude[sel], run.spacing(), "viridis", f"|u| [{u_unit}]", 0, top, u, s)
+        ax.set_title(f"mid-plane slice (z = {z / s:.4g} {u} at rest), deformed, at {when}", fontsize=10)
+    else:
+        fig = plt.figure(figsize=(7.5, 6.5))
+        ax = fig.add_subplot(projection="3d")
+        sc = scatter3d(ax, fr["position"], magnitude, "viridis", f"|u| [{u_unit}]", 0, top, u, s,
+                       run if run.view == "curves" else None)
+        ax.set_title(f"deformed configuration at {when}", fontsize=10)
+    fig.savefig(os.path.join(run.outdir, "deformed.png"), dpi=130, bbox_inches="tight")
+    peri_view.note(run.outdir, "deformed.png", TOOL, run.view, fig, None, run.unit)
+    plt.close(fig)
+    return ["deformed.png"]
 
 
 def main():
@@ -58,90 +170,75 @@ def main():
     ap.add_argument("outdir")
     ap.add_argument("--frame", type=int, default=-1, help="frame index (default: last)")
     a = ap.parse_args()
-    h5 = os.path.join(a.outdir, "frames.h5")
-    if not os.path.exists(h5):
-        sys.exit(f"{h5}: not found")
-    fr, ref = load_frame(h5, a.frame)
-    d = np.sqrt(np.sum((ref[1:] - ref[:-1]) ** 2, axis=1))
-    spacing = float(np.median(d[d > 0])) if len(d) else 1.0
-
-    # Damage on the reference configuration (as peridynamic damage maps are usually shown).
-    fig, ax = plt.subplots(figsize=(7, 6))
-    scatter(ax, ref, fr["damage"], spacing, "inferno", "damage (broken fraction)", 0.0, 1.0)
-    ax.set_title(f"damage at t = {fr['time'] * 1e6:.1f} us (step {fr['step']}), reference configuration")
-    fig.savefig(os.path.join(a.outdir, "damage.png"), dpi=130, bbox_inches="tight")
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 6))
-    uz = fr["displacement"][:, 2] * 1e6
-    # Colour range from the sheet's 99th percentile, not from a fragment flying off.
-    lim = max(float(np.percentile(np.abs(uz), 99.0)), 1e-12)
-    scatter(ax, fr["position"], uz, spacing, "coolwarm", "out-of-plane displacement [um]", -lim, lim)
-    # Frame the sheet, not the odd fragment that flies away after separation.
-    lo = np.percentile(fr["position"][:, :2], 0.5, axis=0) * 1e3
-    hi = np.percentile(fr["position"][:, :2], 99.5, axis=0) * 1e3
-    pad = 0.05 * (hi - lo)
-    ax.set_xlim(lo[0] - pad[0], hi[0] + pad[0])
-    ax.set_ylim(lo[1] - pad[1], hi[1] + pad[1])
-    ax.set_title(f"deformed membrane at t = {fr['time'] * 1e6:.1f} us")
-    fig.savefig(os.path.join(a.outdir, "deformed.png"), dpi=130, bbox_inches="tight")
-    plt.close(fig)
+    run = peri_view.Run(a.outdir)
+    fr = run.frame(a.frame)
+    t_unit, t_scale = peri_view.time_unit(run.frame(-1)["time"])
+    wrote = plot_damage(run, fr, t_unit, t_scale) + plot_deformed(run, fr, t_unit, t_scale)
 
     series = os.path.join(a.outdir, "series.csv")
     if os.path.exists(series):
         with open(series) as f:
             rows = list(csv.DictReader(f))
-        t = np.array([float(r["time"]) for r in rows]) * 1e6
+        t = np.array([float(r["time"]) for r in rows]) / t_scale
         fig, ax = plt.subplots(figsize=(7, 4.5))
         for key, label in [("kinetic_energy", "kinetic"), ("strain_energy", "strain"),
                            ("dissipated_energy", "dissipated (broken bonds)"), ("external_work", "external work"),
                            ("total_energy", "kinetic + strain + dissipated - work")]:
             ax.plot(t, [float(r[key]) for r in rows], label=label)
-        ax.set_xlabel("time [us]")
+        ax.set_xlabel(f"time [{t_unit}]")
         ax.set_ylabel("energy [J]")
         ax.legend()
         ax.grid(alpha=0.3)
         fig.savefig(os.path.join(a.outdir, "energies.png"), dpi=130, bbox_inches="tight")
+        peri_view.note(a.outdir, "energies.png", TOOL, "series", fig)
         plt.close(fig)
-    wrote = ["damage.png", "deformed.png", "energies.png"]
-    wrote += plot_wrinkles(h5, ref, spacing, a.outdir)
-    wrote += plot_crack_speed(a.outdir)
-    print(f"plot_results: wrote {', '.join(wrote)} in {a.outdir}")
+        wrote.append("energies.png")
+    if run.view == "sheet":
+        wrote += plot_wrinkles(run, t_unit, t_scale)
+    wrote += plot_crack_speed(run)
+    print(f"plot_results: {run.view} view of {', '.join(sorted(set(run.kinds)))} bodies in {run.unit}; "
+          f"wrote {', '.join(wrote)} in {a.outdir}")
 
 
-def plot_wrinkles(h5, ref, spacing, outdir):
-    with h5py.File(h5, "r") as f:
-        names = sorted(f["frames"].keys())
-        if len(names) < 4:
-            return []
-        times = np.array([float(f["frames"][n].attrs["time"]) for n in names])
-        picks = [names[round(k * (len(names) - 1) / 3)] for k in range(4)]
-        growth = crack_growth_times(outdir)
-        if growth:
-            # Slit before it grows, crack half way, crack through, halves rebounding (last frame).
-            t0, t1 = growth
-            picks = [names[int(np.argmin(np.abs(times - t)))] for t in (t0, 0.5 * (t0 + t1), t1)] + [names[-1]]
-        frames = [(float(f["frames"][n].attrs["time"]), f["frames"][n]["position"][...],
-                   f["frames"][n]["displacement"][:, 2]) for n in picks]
+def plot_wrinkles(run, t_unit, t_scale):
+    names = run.frame_names
+    if len(names) < 4:
+        return []
+    picks = [round(k * (len(names) - 1) / 3) for k in range(4)]
+    growth = crack_growth_times(run)
+    if growth:
+        # Slit before it grows, crack half way, crack through, halves rebounding (last frame).
+        times = np.array([run.frame(k)["time"] for k in range(len(names))])
+        t0, t1 = growth
+        picks = [int(np.argmin(np.abs(times - t))) for t in (t0, 0.5 * (t0 + t1), t1)] + [len(names) - 1]
+    frames = [run.frame(k) for k in picks]
+    # One unit for the out-of-plane displacement of the four views, from the largest of them.
+    lims = [max(float(np.percentile(np.abs(fr["displacement"][:, 2]), 99.0)), 1e-15) for fr in frames]
+    uz_unit, uz_scale = peri_view.length_unit(max(lims))
+    u, s = run.unit, run.scale
     fig, axes = plt.subplots(2, 2, figsize=(12.5, 10))
     fig.subplots_adjust(wspace=0.35)
-    for ax, (t, x, uz) in zip(axes.flat, frames):
-        lim = max(float(np.percentile(np.abs(uz), 99.0)) * 1e6, 1e-9)  # each view its own range
-        scatter(ax, x, uz * 1e6, spacing, "coolwarm", "u_z [um]", -lim, lim)
-        lo = np.percentile(x[:, :2], 0.5, axis=0) * 1e3
-        hi = np.percentile(x[:, :2], 99.5, axis=0) * 1e3
-        ax.set_xlim(lo[0] - 1, hi[0] + 1)
-        ax.set_ylim(lo[1] - 1, hi[1] + 1)
-        ax.set_title(f"t = {t * 1e6:.1f} us")
+    for ax, fr, lim in zip(axes.flat, frames, lims):
+        x = fr["position"]
+        scatter(ax, x, fr["displacement"][:, 2] / uz_scale, run.spacing(), "coolwarm", f"u_z [{uz_unit}]",
+                -lim / uz_scale, lim / uz_scale, u, s)  # each view its own range
+        lo = np.percentile(x[:, :2], 0.5, axis=0) / s
+        hi = np.percentile(x[:, :2], 99.5, axis=0) / s
+        pad = 0.02 * run.extent / s
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_title(f"t = {fr['time'] / t_scale:.3g} {t_unit}")
     fig.suptitle("out-of-plane displacement (wrinkles along the slit and in the wake), deformed configuration")
-    fig.savefig(os.path.join(outdir, "wrinkles.png"), dpi=110, bbox_inches="tight")
+    fig.savefig(os.path.join(run.outdir, "wrinkles.png"), dpi=110, bbox_inches="tight")
+    peri_view.note(run.outdir, "wrinkles.png", TOOL, run.view, fig, None, run.unit)
     plt.close(fig)
     return ["wrinkles.png"]
 
 
-def crack_growth_times(outdir):
-    """(time the first tip has moved 1 mm, time it has covered 95% of its travel), or None."""
-    path = os.path.join(outdir, "tips.csv")
+def crack_growth_times(run):
+    """(time the first tip has moved 2% of the run's extent, time it has covered 95% of its
+    travel), or None (no tips, or less than 4% of the extent travelled)."""
+    path = os.path.join(run.outdir, "tips.csv")
     if not os.path.exists(path):
         return None
     with open(path) as f:
@@ -151,12 +248,13 @@ def crack_growth_times(outdir):
     p = np.array([[float(r["x"]), float(r["y"])] for r in rs])
     t = np.array([float(r["time"]) for r in rs])
     travel = np.hypot(*(p - p[0]).T)
-    if travel[-1] < 2e-3:
+    if travel[-1] < 0.04 * run.extent:
         return None
-    return float(t[np.argmax(travel >= 1e-3)]), float(t[np.argmax(travel >= 0.95 * travel[-1])])
+    return float(t[np.argmax(travel >= 0.02 * run.extent)]), float(t[np.argmax(travel >= 0.95 * travel[-1])])
 
 
-def plot_crack_speed(outdir):
+def plot_crack_speed(run):
+    outdir = run.outdir
     path = os.path.join(outdir, "tips.csv")
     if not os.path.exists(path):
         return []
@@ -180,7 +278,7 @@ def plot_crack_speed(outdir):
                     out.write(f'{k},{r["time"]},{r["x"]},{r["y"]},{abs(float(r["x"]))},{r["speed"]}\n')
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for k, rs in sorted(tracks.items()):
-        pts = [(abs(float(r["x"])) * 1e3, float(r["speed"])) for r in rs if r["speed"]]
+        pts = [(abs(float(r["x"])) / run.scale, float(r["speed"])) for r in rs if r["speed"]]
         if len(pts) < 5:
             continue
         x, v = np.array(pts).T
@@ -192,12 +290,14 @@ def plot_crack_speed(outdir):
     if mean:
         ax.axhline(mean, color="gray", ls=":", lw=1, label=f"mean over the steady part {mean:.0f} m/s")
     win = summary.get("crack_speed_window")
-    ax.set_xlabel("crack tip position |x| [mm]")
-    ax.set_ylabel("crack tip speed [m/s]" + (f" ({win * 1e6:.1f} us window)" if win else ""))
+    ax.set_xlabel(f"crack tip position |x| [{run.unit}]")
+    w_unit, w_scale = peri_view.time_unit(win or 1.0)
+    ax.set_ylabel("crack tip speed [m/s]" + (f" ({win / w_scale:.3g} {w_unit} window)" if win else ""))
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.savefig(os.path.join(outdir, "crack_speed.png"), dpi=130, bbox_inches="tight")
+    peri_view.note(outdir, "crack_speed.png", TOOL, "series", fig, None, run.unit)
     plt.close(fig)
     dynamic_release_rate(outdir)
     return ["crack_speed.png", "crack_speed.csv"]

@@ -63,6 +63,18 @@ struct Writer {
     const std::string padded = value.empty() ? std::string(1, '\0') : value;
     check(H5Awrite(attr.get(), type.get(), padded.data()) >= 0, name);
   }
+  /// A text of any length (an attribute is limited to the 64 KB of its object's header).
+  void string_dataset(hid_t obj, const char* name, const std::string& value) const {
+    H5Id type(H5Tcopy(H5T_C_S1), H5Tclose);
+    check(type.ok() && H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) >= 0 &&
+              H5Tset_strpad(type.get(), H5T_STR_NULLPAD) >= 0 && H5Tset_cset(type.get(), H5T_CSET_UTF8) >= 0,
+          name);
+    H5Id space(H5Screate(H5S_SCALAR), H5Sclose);
+    H5Id d(H5Dcreate2(obj, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+    check(d.ok(), name);
+    const std::string padded = value.empty() ? std::string(1, '\0') : value;
+    check(H5Dwrite(d.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, padded.data()) >= 0, name);
+  }
   template <class T>
   void scalar_attr(hid_t obj, const char* name, hid_t type, T value) const {
     H5Id space(H5Screate(H5S_SCALAR), H5Sclose);
@@ -136,17 +148,20 @@ class Reader {
     H5Id attr(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose);
     if (!attr.ok()) fail(std::string("missing attribute '") + name + "'");
     H5Id type(H5Aget_type(attr.get()), H5Tclose);
-    if (!type.ok() || H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
-      fail(std::string("attribute '") + name + "' is not a fixed-length string");
-    const std::size_t size = H5Tget_size(type.get());
     H5Id space(H5Aget_space(attr.get()), H5Sclose);
-    if (size == 0 || size > file_bytes_ || !space.ok() || H5Sget_simple_extent_npoints(space.get()) != 1)
-      fail(std::string("attribute '") + name + "' has an impossible size");
-    std::vector<char> buf(size + 1, '\0');
-    H5Id mem(H5Tcopy(H5T_C_S1), H5Tclose);
-    if (!mem.ok() || H5Tset_size(mem.get(), size) < 0 || H5Aread(attr.get(), mem.get(), buf.data()) < 0)
-      fail(std::string("cannot read attribute '") + name + "'");
-    return std::string(buf.data(), strnlen(buf.data(), size));
+    return fixed_string("attribute '" + std::string(name) + "'", type.get(), space.get(),
+                        [&](hid_t mem, char* buf) { return H5Aread(attr.get(), mem, buf); });
+  }
+
+  /// A scalar string dataset (texts of any length: the resolved scene).
+  std::string string_dataset(hid_t obj, const char* name) const {
+    H5Id d(H5Dopen2(obj, name, H5P_DEFAULT), H5Dclose);
+    if (!d.ok()) fail(std::string("missing dataset '") + name + "'");
+    H5Id type(H5Dget_type(d.get()), H5Tclose);
+    H5Id space(H5Dget_space(d.get()), H5Sclose);
+    return fixed_string("dataset '" + std::string(name) + "'", type.get(), space.get(), [&](hid_t mem, char* buf) {
+      return H5Dread(d.get(), mem, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf);
+    });
   }
 
   template <class T>
@@ -187,6 +202,22 @@ class Reader {
   }
 
  private:
+  /// One fixed-length string of `type` in `space`, no longer than the file, read by `read`.
+  template <class Read>
+  std::string fixed_string(const std::string& what, hid_t type, hid_t space, Read read) const {
+    if (type < 0 || H5Tget_class(type) != H5T_STRING || H5Tis_variable_str(type) != 0)
+      fail(what + " is not a fixed-length string");
+    const std::size_t size = H5Tget_size(type);
+    if (size == 0 || size > file_bytes_ || space < 0 || H5Sget_simple_extent_npoints(space) != 1)
+      fail(what + " has an impossible size");
+    std::vector<char> buf(size + 1, '\0');
+    H5Id mem(H5Tcopy(H5T_C_S1), H5Tclose);
+    if (!mem.ok() || H5Tset_size(mem.get(), size) < 0 || H5Tset_strpad(mem.get(), H5Tget_strpad(type)) < 0 ||
+        H5Tset_cset(mem.get(), H5Tget_cset(type)) < 0 || read(mem.get(), buf.data()) < 0)
+      fail("cannot read " + what);
+    return std::string(buf.data(), strnlen(buf.data(), size));
+  }
+
   std::string path_;
   std::uint64_t file_bytes_;
 };
@@ -226,7 +257,7 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     w.scalar_attr<int>(f, "format_version", H5T_NATIVE_INT, c.format_version);
     w.string_attr(f, "peridrive_version", c.peridrive_version);
     w.string_attr(f, "git_revision", c.git_revision);
-    w.string_attr(f, "scene", c.scene);
+    w.string_dataset(f, "scene", c.scene);
     w.scalar_attr<std::uint64_t>(f, "scene_hash", H5T_NATIVE_UINT64, c.scene_hash);
     w.scalar_attr<long long>(f, "nodes", H5T_NATIVE_LLONG, c.nodes);
     w.scalar_attr<long long>(f, "ordered_bonds", H5T_NATIVE_LLONG, c.ordered_bonds);
@@ -352,7 +383,8 @@ Checkpoint read_checkpoint(const std::string& path) {
            std::to_string(kCheckpointFormatVersion));
   c.peridrive_version = r.string_attr(f, "peridrive_version");
   c.git_revision = r.string_attr(f, "git_revision");
-  c.scene = r.string_attr(f, "scene");
+  // Checkpoints written before the scene outgrew attributes hold it as one.
+  c.scene = H5Lexists(f, "scene", H5P_DEFAULT) > 0 ? r.string_dataset(f, "scene") : r.string_attr(f, "scene");
   c.scene_hash = r.scalar_attr<std::uint64_t>(f, "scene_hash", H5T_NATIVE_UINT64, H5T_INTEGER);
   if (fnv1a64(c.scene.data(), c.scene.size()) != c.scene_hash) r.fail("the stored scene does not match its hash");
   c.nodes = r.scalar_attr<long long>(f, "nodes", H5T_NATIVE_LLONG, H5T_INTEGER);

@@ -44,6 +44,21 @@ void scalar_attribute(hid_t obj, const char* name, hid_t type, T value) {
   H5Sclose(space);
 }
 
+/// A text of any length as a scalar string dataset (an attribute lives in its object's header,
+/// which holds at most 64 KB; a resolved scene can be larger). Collective; rank 0 writes it.
+void text_dataset(hid_t loc, const char* name, const std::string& value, bool writer) {
+  hid_t type = check_id(H5Tcopy(H5T_C_S1), "H5Tcopy");
+  check_h5(H5Tset_size(type, std::max<std::size_t>(value.size(), 1)), "H5Tset_size");
+  check_h5(H5Tset_strpad(type, H5T_STR_NULLPAD), "H5Tset_strpad");
+  check_h5(H5Tset_cset(type, H5T_CSET_UTF8), "H5Tset_cset");
+  hid_t space = check_id(H5Screate(H5S_SCALAR), "H5Screate");
+  hid_t dset = check_id(H5Dcreate2(loc, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), name);
+  if (writer) check_h5(H5Dwrite(dset, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, value.empty() ? "" : value.c_str()), name);
+  H5Dclose(dset);
+  H5Sclose(space);
+  H5Tclose(type);
+}
+
 std::string frame_name(int k) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "/frames/%06d", k);
@@ -106,7 +121,7 @@ hid_t FrameWriter::create(const std::string& path, hid_t fapl, const std::string
   if (file < 0) throw Error("cannot create HDF5 file '" + path + "'");
   string_attribute(file, "peridrive_version", version());
   string_attribute(file, "git_revision", git_revision());
-  string_attribute(file, "scene", resolved_scene);
+  text_dataset(file, "scene", resolved_scene, domain.rank == 0);
   scalar_attribute<long long>(file, "nodes", H5T_NATIVE_LLONG, domain.global_nodes);
   scalar_attribute<int>(file, "ranks", H5T_NATIVE_INT, domain.ranks);
   hid_t mesh = check_id(H5Gcreate2(file, "/mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/mesh");
@@ -115,6 +130,7 @@ hid_t FrameWriter::create(const std::string& path, hid_t fapl, const std::string
   for (std::int32_t i = 0; i < domain.owned; ++i) body[i] = domain.body[i];
   write_dataset(mesh, "body", state.to_natural(body.data(), 1), 1);
   write_dataset(mesh, "volume", state.to_natural(domain.volume.data(), 1), 1);
+  write_connectivity(mesh);
   H5Gclose(mesh);
   hid_t frames = check_id(H5Gcreate2(file, "/frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "/frames");
   H5Gclose(frames);
@@ -161,6 +177,13 @@ bool FrameWriter::reopen(const std::string& path, hid_t fapl, std::int64_t resum
   ok = all;
   for (std::size_t k = 0; ok && k < after.size(); ++k) ok = H5Ldelete(file_, after[k].c_str(), H5P_DEFAULT) >= 0;
   if (frames >= 0) H5Gclose(frames);
+  // Files written before the mesh held its cells get them now: the XDMF names them.
+  if (ok && H5Lexists(file_, "/mesh/connectivity", H5P_DEFAULT) <= 0) {
+    hid_t mesh = H5Gopen2(file_, "/mesh", H5P_DEFAULT);
+    ok = mesh >= 0;
+    if (ok) write_connectivity(mesh);
+    if (mesh >= 0) H5Gclose(mesh);
+  }
   ok = ok && H5Fflush(file_, H5F_SCOPE_GLOBAL) >= 0;
   if (!ok) {
     H5Fclose(file_);
@@ -272,11 +295,19 @@ FrameWriter::~FrameWriter() {
   if (file_ >= 0) H5Fclose(file_);
 }
 
-void FrameWriter::write_dataset(hid_t group, const char* name, const double* slice, int bs) {
+void FrameWriter::write_connectivity(hid_t mesh) {
+  // One vertex cell per node, numbered in natural order: readers that build cells from the
+  // topology (ParaView's Xdmf3 readers, meshio) then see every node.
+  std::vector<std::int64_t> cells(static_cast<std::size_t>(state_.natural_count()));
+  for (std::size_t k = 0; k < cells.size(); ++k) cells[k] = state_.natural_begin() + static_cast<std::int64_t>(k);
+  write_dataset(mesh, "connectivity", cells.data(), 1, H5T_NATIVE_INT64);
+}
+
+void FrameWriter::write_dataset(hid_t group, const char* name, const void* slice, int bs, hid_t type) {
   const hsize_t n = static_cast<hsize_t>(domain_.global_nodes);
   hsize_t dims[2] = {n, static_cast<hsize_t>(bs)};
   hid_t filespace = check_id(H5Screate_simple(bs == 1 ? 1 : 2, dims, nullptr), "H5Screate_simple");
-  hid_t dset = check_id(H5Dcreate2(group, name, H5T_NATIVE_DOUBLE, filespace, H5P_DEFAULT,
+  hid_t dset = check_id(H5Dcreate2(group, name, type, filespace, H5P_DEFAULT,
                                    H5P_DEFAULT, H5P_DEFAULT), name);
   hsize_t start[2] = {static_cast<hsize_t>(state_.natural_begin()), 0};
   hsize_t count[2] = {static_cast<hsize_t>(state_.natural_count()), static_cast<hsize_t>(bs)};
@@ -284,7 +315,7 @@ void FrameWriter::write_dataset(hid_t group, const char* name, const double* sli
   hid_t memspace = check_id(H5Screate_simple(bs == 1 ? 1 : 2, count, nullptr), "memspace");
   hid_t dxpl = check_id(H5Pcreate(H5P_DATASET_XFER), "dxpl");
   check_h5(H5Pset_dxpl_mpio(dxpl, H5FD_MPIO_COLLECTIVE), "H5Pset_dxpl_mpio");
-  check_h5(H5Dwrite(dset, H5T_NATIVE_DOUBLE, memspace, filespace, dxpl, slice), name);
+  check_h5(H5Dwrite(dset, type, memspace, filespace, dxpl, slice), name);
   H5Pclose(dxpl);
   H5Sclose(memspace);
   H5Sclose(filespace);
@@ -331,7 +362,9 @@ void FrameWriter::write_xdmf() const {
     const std::string f = frame_name(static_cast<int>(k));
     x << "   <Grid Name=\"frame" << k << "\" GridType=\"Uniform\">\n"
       << "    <Time Value=\"" << times_[k] << "\"/>\n"
-      << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\"/>\n"
+      << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\">"
+      << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5
+      << ":/mesh/connectivity</DataItem></Topology>\n"
       << "    <Geometry GeometryType=\"XYZ\">" << item(f + "/position", 3) << "</Geometry>\n"
       << "    <Attribute Name=\"displacement\" AttributeType=\"Vector\" Center=\"Node\">" << item(f + "/displacement", 3) << "</Attribute>\n";
     if (write_velocity_)

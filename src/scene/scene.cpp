@@ -106,6 +106,39 @@ std::string describe(const YAML::Node& node) {
   return node.Scalar();
 }
 
+/// Names given in a scene (the scene's, materials', bodies', cracks', boundaries', tools' and
+/// stages') become a directory (out/<scene name>), CSV columns, JSON keys and --set path segments.
+constexpr const char* kNameRule = "(1 to 64 characters of A-Z a-z 0-9 _ - not starting with -)";
+
+bool valid_name(std::string_view s) {
+  if (s.empty() || s.size() > 64 || s[0] == '-') return false;
+  return std::all_of(s.begin(), s.end(), [](char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+  });
+}
+
+/// A refused name as a message shows it: one line in double quotes, '"' and '\\' escaped, other
+/// bytes outside printable ASCII as \xNN, cut after 40 characters (the length then added).
+std::string quote_name(std::string_view s) {
+  std::string out = "\"";
+  for (std::size_t k = 0; k < s.size() && k < 40; ++k) {
+    const auto c = static_cast<unsigned char>(s[k]);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += static_cast<char>(c);
+    } else if (c >= 0x20 && c < 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    }
+  }
+  out += "\"";
+  if (s.size() > 40) out += " (" + std::to_string(s.size()) + " characters)";
+  return out;
+}
+
 // ------------------------------------------------------------------------------------------------
 // Locations and messages
 
@@ -181,6 +214,13 @@ class Value {
   std::string name() const {
     if (!node_.IsScalar() || node_.Scalar().empty()) fail("expected a non-empty string, got " + got());
     return node_.Scalar();
+  }
+
+  /// The name given to a `what` (scene, crack, ...): see valid_name.
+  std::string given_name(const std::string& what) const {
+    const std::string s = name();
+    if (!valid_name(s)) fail("expected a " + what + " name " + kNameRule + ", got " + quote_name(s));
+    return s;
   }
 
   /// A finite number; `expected` describes it for the message ("a positive number [m]").
@@ -352,6 +392,14 @@ class Map {
   const SourceLoc& where() const { return where_; }
   bool empty() const { return entries_.empty(); }
 
+  /// Free keys that name a `what` each (materials, bodies): see valid_name; reported at the key.
+  void check_key_names(const std::string& what) const {
+    for (const Entry& e : entries_)
+      if (!valid_name(e.name))
+        ctx_->fail(ctx_->loc(e.key_mark, child_path(path_, e.name)), path_,
+                   "expected a " + what + " name " + kNameRule + " as key, got " + quote_name(e.name));
+  }
+
   /// An optional key: empty when absent or given with an empty value.
   std::optional<Value> get(const std::string& key) const {
     const Entry* e = find(key);
@@ -413,7 +461,7 @@ class Map {
 // Schema
 
 const Keys kSceneKeys = {
-    {"name", true, "scene name, a non-empty string"},
+    {"name", true, "scene name, 1 to 64 characters of A-Z a-z 0-9 _ - not starting with -"},
     {"description", false, ""},
     {"materials", true, "map of material name to material"},
     {"bodies", true, "map of body name to body"},
@@ -605,6 +653,7 @@ std::string default_name_prefix(const std::string& list_path) {
 class UniqueNames {
  public:
   explicit UniqueNames(std::string what) : what_(std::move(what)) {}
+  const std::string& what() const { return what_; }
 
   /// `name_value`: the entry's name key if given (the error is reported there), else the entry.
   void add(const std::string& name, const std::optional<Value>& name_value, const Map& entry) {
@@ -627,7 +676,7 @@ class UniqueNames {
 /// prefix: the name is required).
 std::string entry_name(const Map& m, const std::string& prefix, std::size_t index, UniqueNames& names) {
   const std::optional<Value> v = prefix.empty() ? std::optional<Value>(m.at("name")) : m.get("name");
-  const std::string name = v ? v->name() : prefix + std::to_string(index);
+  const std::string name = v ? v->given_name(names.what()) : prefix + std::to_string(index);
   names.add(name, v, m);
   return name;
 }
@@ -1186,15 +1235,17 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   const Map top(Value(ctx, root, ""), &kSceneKeys, "a map");
   Scene s;
   s.file = file;
-  s.name = top.at("name").name();
+  s.name = top.at("name").given_name("scene");
   if (auto x = top.get("description")) s.description = x->string();
 
   const Map materials(top.at("materials"), nullptr, "a map of material name to material");
   if (materials.empty()) top.at("materials").fail("expected at least one material, got an empty map");
+  materials.check_key_names("material");
   for (const auto& [name, v] : materials.items()) s.materials.push_back(read_material(name, v));
 
   const Map bodies(top.at("bodies"), nullptr, "a map of body name to body");
   if (bodies.empty()) top.at("bodies").fail("expected at least one body, got an empty map");
+  bodies.check_key_names("body");
   for (const auto& [name, v] : bodies.items()) s.bodies.push_back(read_body(name, v, s.materials));
 
   UniqueNames crack_names("crack");

@@ -91,13 +91,13 @@ std::string json_number(double v) {
 std::string RunSummary::to_json() const {
   std::ostringstream j;
   j << "{\n"
-    << "  \"peridrive_version\": \"" << version() << "\",\n"
-    << "  \"git_revision\": \"" << git_revision() << "\",\n"
+    << "  \"peridrive_version\": " << json_string(version()) << ",\n"
+    << "  \"git_revision\": " << json_string(git_revision()) << ",\n"
     << "  \"nodes\": " << nodes << ",\n"
     << "  \"bonds\": " << ordered_bonds / 2 << ",\n"
     << "  \"ordered_bonds\": " << ordered_bonds << ",\n"
     << "  \"ranks\": " << ranks << ",\n"
-    << "  \"bond_kernel\": \"" << bond_kernel_isa() << "\",\n"
+    << "  \"bond_kernel\": " << json_string(bond_kernel_isa()) << ",\n"
     << "  \"dt\": " << json_number(dt) << ",\n"
     << "  \"dt_stable\": " << json_number(dt_stable) << ",\n"
     << "  \"steps\": " << steps << ",\n"
@@ -154,7 +154,7 @@ std::string RunSummary::to_json() const {
   j << "],\n"
     << "  \"derived\": {";
   for (std::size_t k = 0; k < derived.size(); ++k)
-    j << (k ? ", " : "") << "\"" << derived[k].first << "\": " << json_number(derived[k].second);
+    j << (k ? ", " : "") << json_string(derived[k].first) << ": " << json_number(derived[k].second);
   j << "}\n}\n";
   return j.str();
 }

@@ -6,9 +6,10 @@
 //               "fnv1a64: <16 hex digits>\n", padded with NUL bytes. The hash covers every byte
 //               after the user block, so a truncated, bit-flipped or foreign file is refused
 //               before HDF5 parses any of it.
-//   /           attributes: format_version, peridrive_version, git_revision, scene (resolved YAML),
-//               scene_hash, nodes, ordered_bonds, step, time, stage, stage_step,
-//               initial_total_energy, ranks
+//   /           attributes: format_version, peridrive_version, git_revision, scene_hash, nodes,
+//               ordered_bonds, step, time, stage, stage_step, initial_total_energy, ranks
+//   /scene      the resolved YAML, a scalar string dataset of any length (files written before
+//               it could exceed 64 KB hold it as an attribute `scene` of /, still read)
 //   /state      displacement [N,3], velocity [N,3] (natural node order: rank-independent)
 //   /bonds      broken [B,2]: every broken bond once as natural ids (i < j), sorted
 //   /tallies    per writing rank: dissipated, damping_work, external_work, newly_broken, owner_hash

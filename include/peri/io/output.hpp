@@ -48,7 +48,9 @@ class FrameWriter {
   int frames() const { return static_cast<int>(times_.size()); }
 
  private:
-  void write_dataset(hid_t group, const char* name, const double* natural_slice, int bs);
+  void write_dataset(hid_t group, const char* name, const void* natural_slice, int bs,
+                     hid_t type = H5T_NATIVE_DOUBLE);
+  void write_connectivity(hid_t mesh);  ///< /mesh/connectivity: 0..N-1, collective
   void write_xdmf() const;
   bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
   /// When reopen() fails: the file's readable frames up to resume_step copied into a new file

@@ -1,0 +1,36 @@
+// summary.json escapes every string it holds, whatever names reach it: derived constants keyed by
+// body name, quasi-static stage names, memory phases.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "peri/stages/simulation.hpp"
+
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::Not;
+
+TEST(SummaryJson, EscapesEveryString) {
+  peri::RunSummary s;
+  s.derived = {{"sheet\"1.horizon", 0.5}, {"a\\b\tc\nd.nodes", 2}, {"plain.micromodulus", 3}};
+  s.quasistatic.push_back({"pre\"load\n", peri::QuasiStaticStats{}});
+  s.quasistatic_work_error.push_back(0.25);
+  s.memory.push_back({"set\\up", 1, 1});
+  const std::string j = s.to_json();
+  EXPECT_THAT(j, HasSubstr("\"derived\": {\"sheet\\\"1.horizon\": 0.5, \"a\\\\b\\u0009c\\u000ad.nodes\": 2, "
+                           "\"plain.micromodulus\": 3}"));
+  EXPECT_THAT(j, HasSubstr("{\"stage\": \"pre\\\"load\\u000a\", \"increments\": 0"));
+  EXPECT_THAT(j, HasSubstr("{\"phase\": \"set\\\\up\", \"peak_bytes\": 1"));
+  // No raw tab, and raw newlines only between members (each line starts a member or closes).
+  EXPECT_THAT(j, Not(HasSubstr("\t")));
+  std::size_t lines = 0;
+  for (std::size_t at = 0; (at = j.find('\n', at)) != std::string::npos; ++at) {
+    ++lines;
+    if (at + 1 < j.size()) EXPECT_TRUE(j.compare(at + 1, 3, "  \"") == 0 || j[at + 1] == '}') << j.substr(at, 20);
+  }
+  EXPECT_GT(lines, 20u);
+}
+
+}  // namespace
