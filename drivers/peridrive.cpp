@@ -189,6 +189,7 @@ int rank_of_world() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  peri::end_with_launcher();  // first: a rank outlives no launcher
   Args args;
   std::string arg_error;
   try {
