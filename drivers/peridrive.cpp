@@ -1,6 +1,6 @@
 // peridrive: dynamic fracture of peridynamic membranes (and PMB solids) on MPI + PETSc.
 //
-//   mpirun -n 2 peridrive [scene.yaml] [--out DIR] [--set key=value ...] [PETSc options]
+//   mpirun -n 2 peridrive [scene] [--out DIR] [--set key=value ...] [PETSc options]
 //   mpirun -n 2 peridrive --resume DIR            (continue a stopped or killed run)
 //
 // With no scene, runs the embedded default: example 7.1 of Silling & Bobaru (slit membrane).
@@ -24,18 +24,23 @@
 
 namespace {
 
-const char* kUsage = R"(usage: mpirun -n N peridrive [scene.yaml] [options] [PETSc options]
+const char* kUsage = R"(usage: mpirun -n N peridrive [scene] [options] [PETSc options]
 
-Runs a peridynamic fracture scene. Without a scene file, runs the embedded default scene
-(Silling & Bobaru example 7.1: a slit membrane pulled apart, under a minute on 2 cores).
+Runs a peridynamic fracture scene. The scene is the first argument that is not an option, whatever
+its name: a YAML file (a regular file of at most 64 MiB). Without one, runs the embedded default
+scene (Silling & Bobaru example 7.1: a slit membrane pulled apart, under a minute on 2 cores).
 
-options:
-  --out DIR          output directory (default: out/<scene name>)
+options (a value must not be empty nor start with '-': write ./-name for such a path):
+  --out DIR          output directory (default: out/<scene name>), created if missing. One run
+                     writes into a directory at a time: rank 0 holds DIR/.peridrive.lock, naming
+                     it, for the whole run, and another run or resume into DIR is refused. A fresh
+                     run removes every file of an earlier run in DIR before it writes
   --resume PATH      continue a run from its last checkpoint: PATH is the run's output
                      directory (its checkpoint.h5, or checkpoint.prev.h5 if that is missing) or
                      a checkpoint file. The scene is the checkpoint's (a scene file given too must
                      resolve to the same physics); outputs continue in PATH (or --out), dropping
-                     frames and series rows after the checkpoint's step
+                     frames and series rows after the checkpoint's step. --out must be new, hold
+                     no run's files, or hold the checkpoint's own run (same scene)
   --set KEY=VALUE    override a scene value, e.g. --set bodies.sheet.spacing=5e-4,
                      --set stages.0.duration=1e-5, --set boundaries.top.velocity=[0,20,0];
                      repeatable; VALUE is YAML
@@ -44,8 +49,9 @@ options:
   --quiet            no progress lines
   --version          print the version and exit
   --help             this text
-PETSc options (single dash, e.g. -log_view) pass through to PETSc. Partitioner (which rank owns
-which node; results do not depend on it):
+PETSc options (one dash and a letter, e.g. -log_view) pass through to PETSc; the argument after
+one is its value unless it is an option (or, before any scene, a name ending in .yaml or .yml).
+Partitioner (which rank owns which node; results do not depend on it):
   -partition_method auto    the default: rcb for one square-grid body that fills its box, else cells
   -partition_method rcb     recursive coordinate bisection: flat cuts along grid planes, parts
                             weighted by their bonds, on every rank in O(N log N log P)
@@ -65,9 +71,13 @@ time, and the peak memory summed over ranks after each setup phase ("memory").
 outputs (in DIR): frames.h5 + frames.xdmf (open in ParaView), series.csv (energies),
 scene.resolved.yaml, summary.json (written last: its presence marks a complete run),
 checkpoint.h5 (+ checkpoint.prev.h5) every output.checkpoint_every_steps / _seconds.
-SIGTERM or SIGINT: all ranks write a final checkpoint and stop (a second signal ends at once).
-exit status: 0 success, 2 invalid input, 3 numerical failure, 5 stopped by SIGTERM/SIGINT after
-a final checkpoint (continue with --resume DIR), other values internal errors.
+SIGTERM or SIGINT to a rank: all ranks write a final checkpoint and stop (a second signal ends at
+once). mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
+odls_base_sigkill_timeout). Ranks started by mpirun end at once (SIGKILL) if mpirun dies.
+exit status: 0 success, 2 invalid input (command line, scene, output directory, checkpoint;
+nothing written), 3 failure during the run (numerical; DIR/FAILED), 4 internal error (MPI_ABORT),
+5 stopped by SIGTERM/SIGINT after a final checkpoint (continue with --resume DIR).
+See docs/user/running.md.
 )";
 
 struct Args {
