@@ -257,8 +257,11 @@ int main(int argc, char** argv) {
         // Before setup and before anything in the directory is touched: one run per directory,
         // and a resume only into the checkpoint's own run (or a new or empty directory).
         const peri::OutputDirLock lock(opt.out_dir, args.command, PETSC_COMM_WORLD);
-        if (checkpoint) peri::check_resume_dir(opt.out_dir, *checkpoint, checkpoint_file, PETSC_COMM_WORLD);
+        const std::vector<std::string> later =
+            checkpoint ? peri::check_resume_dir(opt.out_dir, *checkpoint, checkpoint_file, PETSC_COMM_WORLD)
+                       : std::vector<std::string>{};
         peri::Simulation sim(scene, PETSC_COMM_WORLD, opt);
+        for (const std::string& path : later) std::remove(path.c_str());  // as the frames after the step
         try {
           sim.run();
         } catch (const peri::RuntimeFailure& e) {

@@ -16,7 +16,8 @@
 #  resume        into another scene's directory (its scene.resolved.yaml, or only its frames.h5,
 #                checkpoint or series): exit status 2, the directory unchanged (file hashes); into
 #                a copy of the same run, a new or an empty directory: allowed, and the copy ends
-#                bit for bit where the run resumed in its own directory ends
+#                bit for bit where the run resumed in its own directory ends; checkpoints later
+#                than the one resumed from are removed
 #  fresh         a fresh run into another run's directory leaves none of that run's files (its
 #                checkpoints, tips, temporaries) to be mixed in
 # usage: run_dirs.sh PERIDRIVE SOURCE_DIR FLOCK_SHIM MPIEXEC [MPI flags...]
@@ -117,8 +118,8 @@ fi
 refused setup_error "boundaries.top.region: the region [-1, 0.9, -1] .. [1, 1, 1] selects no node" -- "$in/empty_region.yaml" --out new/a/b
 
 # --- lock -----------------------------------------------------------------------------------------
-# A: the scene with checkpoints at steps 50 and 100 (of 117); B: another scene (denser rubber); K:
-# the scene of A with another checkpoint cadence (checkpoints at 25, 50, 75, 100).
+# A: the scene, 195 steps with checkpoints every 50 (the last two kept: 100 and 150); B: another
+# scene (denser rubber); K: the scene of A with another checkpoint cadence (every 25).
 A=$work/A B=$work/B
 "${mpi[@]}" "$peridrive" "$scene" --quiet --out "$A" > "$work/A.log" 2>&1 || { bad "run A"; cat "$work/A.log"; }
 "${mpi[@]}" "$peridrive" "$scene" --quiet --set materials.rubber.density=1300 --out "$B" > "$work/B.log" 2>&1 ||
@@ -269,10 +270,10 @@ for d in ("C", "K", "N", "E"):
     for key in ("steps", "broken_bonds", "final", "energy_balance_error"):
         if s[key] != sr[key]:
             problems.append(f"{d}: summary {key} {s[key]} vs {sr[key]}")
-# A new or empty directory holds the frames from the checkpoint's step (100) on.
+# A new or empty directory holds the frames after the checkpoint's step (150).
 for d in ("N", "E"):
     got, last = frames(d), max(ref)
-    if not np.array_equal(got[max(got)]["position"], ref[last]["position"]) or min(v["step"] for v in got.values()) < 100:
+    if not np.array_equal(got[max(got)]["position"], ref[last]["position"]) or min(v["step"] for v in got.values()) <= 150:
         problems.append(f"{d}: frames {[int(v['step']) for v in got.values()]}")
 for p in problems:
     print("  " + p)
@@ -280,6 +281,18 @@ print(f"resumed copies compared with the run resumed in its own directory: {len(
 sys.exit(1 if problems else 0)
 PY
 [ $? -eq 0 ] && ok "resume_same_run: a copy ends bit for bit where the run's own directory ends" || bad "resume_same_run"
+
+# A checkpoint later than the one resumed from describes steps whose frames the resume drops: it
+# goes (here the resumed run writes no checkpoint of its own, so only the one resumed from is left).
+cp -r "$A" "$work/P"
+if "${mpi[@]}" "$peridrive" --resume "$work/P/checkpoint.prev.h5" --quiet --set output.checkpoint_every_steps=0 \
+     --set output.checkpoint_every_seconds=0 > "$work/P.log" 2>&1 &&
+   [ "$(cd "$work/P" && LC_ALL=C ls checkpoint*)" = "checkpoint.prev.h5" ] &&
+   [ "$($py -c "import h5py; print(h5py.File('$work/P/checkpoint.prev.h5', 'r').attrs['step'])")" = 100 ]; then
+  ok "resume_later_checkpoint: resumed from step 100, the checkpoint of step 150 removed"
+else
+  bad "resume_later_checkpoint: $(cd "$work/P" && ls checkpoint*)"; cat "$work/P.log"
+fi
 
 # --- fresh run into another run's directory -------------------------------------------------------
 # A scene whose sheet does not break (no crack tips, so no tips.csv) and that writes no checkpoint,

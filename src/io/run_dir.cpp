@@ -250,10 +250,12 @@ void OutputDirLock::release() {
   created_.clear();
 }
 
-void check_resume_dir(const std::string& dir, const Checkpoint& c, const std::string& checkpoint_file, MPI_Comm comm) {
+std::vector<std::string> check_resume_dir(const std::string& dir, const Checkpoint& c,
+                                          const std::string& checkpoint_file, MPI_Comm comm) {
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   std::string error;
+  std::vector<std::string> later;
   if (rank == 0) {
     const std::string refused = "cannot resume into output directory '" + dir + "': ";
     const std::string advice =
@@ -297,6 +299,7 @@ void check_resume_dir(const std::string& dir, const Checkpoint& c, const std::st
         try {
           const Checkpoint other = read_checkpoint(path);
           compare(name, other.scene);
+          if (other.step > c.step) later.push_back(path);
         } catch (const Error&) {  // damaged or foreign: the resume's own checkpoints replace it
         }
       }
@@ -313,6 +316,7 @@ void check_resume_dir(const std::string& dir, const Checkpoint& c, const std::st
   }
   broadcast(error, 0, comm);
   if (!error.empty()) throw InputError(error);
+  return later;
 }
 
 }  // namespace peri

@@ -61,7 +61,10 @@ class OutputDirLock {
 /// output.checkpoint_every_* (the parts a resume may change). An unreadable frames.h5 or
 /// checkpoint is no record (the resume replaces it). Anything else raises InputError on every
 /// rank naming the directory and the file that differs, before anything in `dir` is changed.
-/// Checked on rank 0, verdict broadcast. Collective.
-void check_resume_dir(const std::string& dir, const Checkpoint& c, const std::string& checkpoint_file, MPI_Comm comm);
+/// Returns, on rank 0, the checkpoints in `dir` of a later step than c's: they describe steps whose
+/// frames the resume drops, and go once its outputs are open. Checked on rank 0, verdict broadcast.
+/// Collective.
+std::vector<std::string> check_resume_dir(const std::string& dir, const Checkpoint& c,
+                                          const std::string& checkpoint_file, MPI_Comm comm);
 
 }  // namespace peri
