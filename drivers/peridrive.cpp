@@ -1,11 +1,12 @@
 // peridrive: dynamic fracture of peridynamic membranes (and PMB solids) on MPI + PETSc.
 //
-//   mpirun -n 2 peridrive [scene.yaml] [--out DIR] [--set key=value ...] [PETSc options]
+//   mpirun -n 2 peridrive [scene] [--out DIR] [--set key=value ...] [PETSc options]
 //   mpirun -n 2 peridrive --resume DIR            (continue a stopped or killed run)
 //
 // With no scene, runs the embedded default: example 7.1 of Silling & Bobaru (slit membrane).
 #include <petscsys.h>
 
+#include <cctype>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -18,22 +19,28 @@
 #include "peri/kernels/forces.hpp"
 #include "peri/io/output.hpp"
 #include "peri/io/restart.hpp"
+#include "peri/io/run_dir.hpp"
 #include "peri/stages/simulation.hpp"
 
 namespace {
 
-const char* kUsage = R"(usage: mpirun -n N peridrive [scene.yaml] [options] [PETSc options]
+const char* kUsage = R"(usage: mpirun -n N peridrive [scene] [options] [PETSc options]
 
-Runs a peridynamic fracture scene. Without a scene file, runs the embedded default scene
-(Silling & Bobaru example 7.1: a slit membrane pulled apart, under a minute on 2 cores).
+Runs a peridynamic fracture scene. The scene is the first argument that is not an option, whatever
+its name: a YAML file (a regular file of at most 64 MiB). Without one, runs the embedded default
+scene (Silling & Bobaru example 7.1: a slit membrane pulled apart, under a minute on 2 cores).
 
-options:
-  --out DIR          output directory (default: out/<scene name>)
+options (a value must not be empty nor start with '-': write ./-name for such a path):
+  --out DIR          output directory (default: out/<scene name>), created if missing. One run
+                     writes into a directory at a time: rank 0 holds DIR/.peridrive.lock, naming
+                     it, for the whole run, and another run or resume into DIR is refused. A fresh
+                     run removes every file of an earlier run in DIR before it writes
   --resume PATH      continue a run from its last checkpoint: PATH is the run's output
                      directory (its checkpoint.h5, or checkpoint.prev.h5 if that is missing) or
                      a checkpoint file. The scene is the checkpoint's (a scene file given too must
                      resolve to the same physics); outputs continue in PATH (or --out), dropping
-                     frames and series rows after the checkpoint's step
+                     frames and series rows after the checkpoint's step. --out must be new, hold
+                     no run's files, or hold the checkpoint's own run (same scene)
   --set KEY=VALUE    override a scene value, e.g. --set bodies.sheet.spacing=5e-4,
                      --set stages.0.duration=1e-5, --set boundaries.top.velocity=[0,20,0];
                      repeatable; VALUE is YAML
@@ -42,8 +49,9 @@ options:
   --quiet            no progress lines
   --version          print the version and exit
   --help             this text
-PETSc options (single dash, e.g. -log_view) pass through to PETSc. Partitioner (which rank owns
-which node; results do not depend on it):
+PETSc options (one dash and a letter, e.g. -log_view) pass through to PETSc; the argument after
+one is its value unless it is an option (or, before any scene, a name ending in .yaml or .yml).
+Partitioner (which rank owns which node; results do not depend on it):
   -partition_method auto    the default: rcb for one square-grid body that fills its box, else cells
   -partition_method rcb     recursive coordinate bisection: flat cuts along grid planes, parts
                             weighted by their bonds, on every rank in O(N log N log P)
@@ -63,57 +71,123 @@ time, and the peak memory summed over ranks after each setup phase ("memory").
 outputs (in DIR): frames.h5 + frames.xdmf (open in ParaView), series.csv (energies),
 scene.resolved.yaml, summary.json (written last: its presence marks a complete run),
 checkpoint.h5 (+ checkpoint.prev.h5) every output.checkpoint_every_steps / _seconds.
-SIGTERM or SIGINT: all ranks write a final checkpoint and stop (a second signal ends at once).
-exit status: 0 success, 2 invalid input, 3 numerical failure, 5 stopped by SIGTERM/SIGINT after
-a final checkpoint (continue with --resume DIR), other values internal errors.
+SIGTERM or SIGINT to a rank: all ranks write a final checkpoint and stop (a second signal ends at
+once). mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
+odls_base_sigkill_timeout). Ranks started by mpirun end at once (SIGKILL) if mpirun dies.
+exit status: 0 success, 2 invalid input (command line, scene, output directory, checkpoint;
+nothing written), 3 failure during the run (numerical; DIR/FAILED), 4 internal error (MPI_ABORT),
+5 stopped by SIGTERM/SIGINT after a final checkpoint (continue with --resume DIR).
+See docs/user/running.md.
 )";
 
 struct Args {
   std::string scene;
+  bool has_scene = false;
   std::string out;
   std::string resume;
   std::vector<peri::Override> overrides;
   bool print_scene = false, dry_run = false, quiet = false, help = false, version = false;
   std::vector<char*> petsc;  // argv for PetscInitialize
+  std::string command;       // the command line, for the output directory's lock
 };
 
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+bool ends_with_nocase(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  for (std::size_t k = 0; k < suffix.size(); ++k)
+    if (std::tolower(static_cast<unsigned char>(s[s.size() - suffix.size() + k])) != suffix[k]) return false;
+  return true;
+}
+
+// A PETSc option: one dash and a letter (-log_view), as PETSc itself tells options from values.
+bool petsc_option(const std::string& s) {
+  return s.size() > 1 && s[0] == '-' && std::isalpha(static_cast<unsigned char>(s[1]));
 }
 
 Args parse_args(int argc, char** argv) {
   Args a;
   a.petsc.push_back(argv[0]);
+  for (int k = 0; k < argc; ++k) a.command.append(k ? " " : "").append(argv[k]);
+  // An option's value: present, not empty, and not another option (--out --dry-run is a slip,
+  // not a directory named --dry-run; write ./-name for a name that starts with a dash).
+  auto checked = [](const std::string& opt, const std::string& v) {
+    if (v.empty()) throw peri::InputError("option " + opt + ": expected a value, got an empty string");
+    if (v[0] == '-')
+      throw peri::InputError("option " + opt + " needs a value, got the option '" + v + "'" +
+                             (opt == "--set" ? "" : " (a path that starts with '-' is written ./" + v + ")"));
+    return v;
+  };
   auto value = [&](int& k, const std::string& opt) -> std::string {
     if (k + 1 >= argc) throw peri::InputError("option " + opt + " needs a value; see --help");
-    return argv[++k];
+    return checked(opt, argv[++k]);
   };
+  auto once = [](std::string& slot, const std::string& opt, const std::string& v) {
+    if (!slot.empty()) throw peri::InputError("option " + opt + " given twice ('" + slot + "' and '" + v + "')");
+    slot = v;
+  };
+  bool after_petsc_option = false;  // the previous argument was a PETSc option: this may be its value
   for (int k = 1; k < argc; ++k) {
-    std::string s = argv[k];
+    const std::string s = argv[k];
+    const bool petsc_value_allowed = after_petsc_option;
+    after_petsc_option = false;
     if (s == "--help" || s == "-h") a.help = true;
     else if (s == "--version") a.version = true;
     else if (s == "--quiet") a.quiet = true;
     else if (s == "--print-scene") a.print_scene = true;
     else if (s == "--dry-run") a.dry_run = true;
-    else if (s == "--out") a.out = value(k, s);
-    else if (s.rfind("--out=", 0) == 0) a.out = s.substr(6);
-    else if (s == "--resume") a.resume = value(k, s);
-    else if (s.rfind("--resume=", 0) == 0) a.resume = s.substr(9);
+    else if (s == "--out") once(a.out, s, value(k, s));
+    else if (s.rfind("--out=", 0) == 0) once(a.out, "--out", checked("--out", s.substr(6)));
+    else if (s == "--resume") once(a.resume, s, value(k, s));
+    else if (s.rfind("--resume=", 0) == 0) once(a.resume, "--resume", checked("--resume", s.substr(9)));
     else if (s == "--set" || s.rfind("--set=", 0) == 0) {
-      const std::string kv = s == "--set" ? value(k, s) : s.substr(6);
+      const std::string kv = s == "--set" ? value(k, s) : checked("--set", s.substr(6));
       const auto eq = kv.find('=');
       if (eq == std::string::npos || eq == 0)
         throw peri::InputError("--set " + kv + ": expected KEY=VALUE, e.g. --set bodies.sheet.spacing=5e-4");
       a.overrides.push_back({kv.substr(0, eq), kv.substr(eq + 1)});
     } else if (s.rfind("--", 0) == 0) {
       throw peri::InputError("unknown option " + s + "; see --help");
-    } else if (s[0] != '-' && a.scene.empty() && (ends_with(s, ".yaml") || ends_with(s, ".yml"))) {
-      a.scene = s;
+    } else if (petsc_option(s)) {
+      a.petsc.push_back(argv[k]);
+      after_petsc_option = true;
+    } else if (petsc_value_allowed) {
+      // The PETSc option's value, as PETSc reads it; but a name ending in .yaml or .yml while no
+      // scene was given is the scene (-log_view scene.yaml), unless the option takes a file.
+      const std::string opt = a.petsc.back();
+      if (!a.has_scene && !s.empty() && s[0] != '-' && (ends_with_nocase(s, ".yaml") || ends_with_nocase(s, ".yml")) &&
+          opt != "-options_file" && opt != "-options_file_yaml") {
+        a.scene = s;
+        a.has_scene = true;
+      } else {
+        a.petsc.push_back(argv[k]);
+      }
+    } else if (!s.empty() && s[0] == '-') {
+      throw peri::InputError("unexpected argument '" + s + "'; see --help");
+    } else if (!a.has_scene) {
+      a.scene = s;  // the scene, whatever its name
+      a.has_scene = true;
     } else {
-      a.petsc.push_back(argv[k]);  // PETSc option or its value
+      throw peri::InputError("unexpected argument '" + s + "': the scene is '" + a.scene +
+                             "' (one scene per run; PETSc options take their value right after them)");
     }
   }
   return a;
+}
+
+// The scene file's text, read on rank 0 with limits and broadcast: every rank parses the same
+// text or none does. InputError naming the file otherwise. Collective.
+std::string read_scene_text(const std::string& path, MPI_Comm comm) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  std::string text, error;
+  if (rank == 0) error = peri::read_input_file(path, peri::kMaxSceneFileBytes, text);
+  long long sizes[2] = {static_cast<long long>(error.size()), static_cast<long long>(text.size())};
+  MPI_Bcast(sizes, 2, MPI_LONG_LONG, 0, comm);
+  error.resize(static_cast<std::size_t>(sizes[0]));
+  text.resize(static_cast<std::size_t>(sizes[1]));
+  MPI_Bcast(error.data(), static_cast<int>(sizes[0]), MPI_CHAR, 0, comm);
+  if (!error.empty()) throw peri::InputError("cannot read scene file '" + path + "': " + error);
+  MPI_Bcast(text.data(), static_cast<int>(sizes[1]), MPI_CHAR, 0, comm);  // <= 64 MiB
+  return text;
 }
 
 int rank_of_world() {
@@ -125,6 +199,7 @@ int rank_of_world() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  peri::end_with_launcher();  // first: a rank outlives no launcher
   Args args;
   std::string arg_error;
   try {
@@ -159,9 +234,9 @@ int main(int argc, char** argv) {
         }
       }
       const peri::Scene scene =
-          !args.scene.empty() ? peri::load_scene(args.scene, args.overrides)
-          : checkpoint        ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides)
-                              : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides);
+          args.has_scene ? peri::parse_scene(read_scene_text(args.scene, PETSC_COMM_WORLD), args.scene, args.overrides)
+          : checkpoint   ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides)
+                         : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides);
       if (args.print_scene) {
         if (rank == 0) std::fputs(peri::emit_scene(scene).c_str(), stdout);
       } else if (args.dry_run) {
@@ -179,7 +254,14 @@ int main(int argc, char** argv) {
         opt.out_dir = args.out.empty() ? "out/" + scene.name : args.out;
         opt.quiet = args.quiet;
         opt.restart = checkpoint;
+        // Before setup and before anything in the directory is touched: one run per directory,
+        // and a resume only into the checkpoint's own run (or a new or empty directory).
+        const peri::OutputDirLock lock(opt.out_dir, args.command, PETSC_COMM_WORLD);
+        const std::vector<std::string> later =
+            checkpoint ? peri::check_resume_dir(opt.out_dir, *checkpoint, checkpoint_file, PETSC_COMM_WORLD)
+                       : std::vector<std::string>{};
         peri::Simulation sim(scene, PETSC_COMM_WORLD, opt);
+        for (const std::string& path : later) std::remove(path.c_str());  // as the frames after the step
         try {
           sim.run();
         } catch (const peri::RuntimeFailure& e) {

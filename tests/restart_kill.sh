@@ -3,6 +3,8 @@
 #  kill      SIGKILL both ranks mid-run; the XDMF must list only complete frames; --resume from the
 #            last checkpoint must end with outputs identical (bit for bit) to an uninterrupted run
 #  partial   a frame half written (its object header overwritten): the same after --resume
+#  launcher  SIGKILL mpirun mid-run: its ranks end within 0.5 s and write nothing more; --resume
+#            ends identical to the uninterrupted run
 #  sigterm   SIGTERM to one rank: all ranks write a final checkpoint, exit status 5, no summary.json;
 #            --resume ends identical to the uninterrupted run
 #  one_rank  the 2-rank SIGTERM checkpoint resumed on 1 rank: final positions within 1e-12 relative
@@ -124,6 +126,51 @@ PY
   fi
 else
   bad "kill: the run ended before its second checkpoint"; cat "$work/kill.log"
+fi
+
+# --- launcher -----------------------------------------------------------------------------------
+# kill -9 of mpirun itself. Its ranks must end at once (orphans used to step and write on for 1 to
+# 3 s, long enough to finish a short run and write summary.json), write nothing after it, and
+# --resume (taking over the lock file that the killed rank 0 left) must end identical to the
+# uninterrupted run.
+if start_run "$work/launcher" 4; then
+  ranks=$(ranks_of "$run_pid")
+  killed_at=$(date +%s.%N)
+  kill -KILL "$run_pid"
+  gone=""
+  for _ in $(seq 1 500); do  # a rank is alive until it is gone or a zombie
+    alive=0
+    for r in $ranks; do
+      state=$(cut -d' ' -f3 "/proc/$r/stat" 2> /dev/null)
+      [ -n "$state" ] && [ "$state" != Z ] && alive=1
+    done
+    [ "$alive" -eq 0 ] && { gone=$(date +%s.%N); break; }
+    sleep 0.01
+  done
+  wait "$run_pid" 2> /dev/null
+  sleep 1  # anything a surviving rank would still write
+  if [ -n "$gone" ] && $py - "$work/launcher" "$killed_at" "$gone" <<'PY'
+import os, sys
+d, killed, gone = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+latest = max(os.stat(os.path.join(d, f)).st_mtime for f in os.listdir(d))
+print(f"ranks gone {gone - killed:.3f} s after the kill of mpirun; last write {latest - killed:+.3f} s from it")
+sys.exit(0 if gone - killed <= 0.5 and latest - killed <= 0.1 and not os.path.exists(f"{d}/summary.json") else 1)
+PY
+  then
+    ok "launcher: ranks gone within 0.5 s of the kill of mpirun, nothing written after it, no summary.json"
+  else
+    bad "launcher: ranks $ranks outlived mpirun ($([ -n "$gone" ] && echo "gone at $gone, killed at $killed_at" || echo "still alive after 5 s")), or wrote after it"
+    ls -la --time-style=+%s.%N "$work/launcher"
+  fi
+  [ -e "$work/launcher/.peridrive.lock" ] || bad "launcher: the killed rank 0 left no lock file behind"
+  if "${mpi[@]}" -n 2 "$peridrive" --resume "$work/launcher" --quiet > "$work/launcher-resume.log" 2>&1 &&
+     [ ! -e "$work/launcher/.peridrive.lock" ] && $py "$work/compare.py" "$work/ref" "$work/launcher" 0; then
+    ok "launcher: resumed run (stale lock taken over) identical to the uninterrupted one"
+  else
+    bad "launcher: resumed run differs"; cat "$work/launcher-resume.log"
+  fi
+else
+  bad "launcher: the run ended before its second checkpoint"; cat "$work/launcher.log"
 fi
 
 # --- partial frame ------------------------------------------------------------------------------

@@ -1,7 +1,13 @@
 #include "peri/io/restart.hpp"
 
+#include <unistd.h>
+#ifdef __linux__
+#include <sys/prctl.h>
+#endif
+
 #include <algorithm>
 #include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -53,6 +59,19 @@ void install_stop_handlers() {
 }
 
 int stop_signal() { return g_stop_signal; }
+
+void end_with_launcher() {
+#ifdef __linux__
+  bool launched = false;
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"})
+    launched = launched || std::getenv(v) != nullptr;
+  if (!launched) return;
+  // The signal comes when the parent dies after this call; a parent that died just before it
+  // shows as a changed parent pid (the orphan was adopted by init or a subreaper).
+  const pid_t parent = getppid();
+  if (prctl(PR_SET_PDEATHSIG, SIGKILL) == 0 && getppid() != parent) std::raise(SIGKILL);
+#endif
+}
 
 std::vector<double> gather_natural_to_root(State& state, const Domain& d, const double* owned, int bs,
                                            MPI_Comm comm) {

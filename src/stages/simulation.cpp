@@ -17,6 +17,7 @@
 #include "peri/io/checkpoint.hpp"
 #include "peri/core/resources.hpp"
 #include "peri/io/restart.hpp"
+#include "peri/io/run_dir.hpp"
 #include "peri/kernels/tangent.hpp"
 #include "peri/models/model.hpp"
 
@@ -454,14 +455,16 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // Output last: nothing is written unless every check above passed.
   if (!options_.out_dir.empty()) {
     make_output_dir(options_.out_dir, comm_);
+    const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
     if (rank_ == 0) {
-      // A previous run's completion marker must not vouch for this one until it finishes.
-      std::remove((options_.out_dir + "/summary.json").c_str());
-      std::remove((options_.out_dir + "/FAILED").c_str());
+      // A previous run's completion marker must not vouch for this one until it finishes; a fresh
+      // run leaves nothing of an earlier one (checkpoints, tips, temporaries) to be mixed with its own.
+      const std::vector<std::string> stale =
+          resume_step >= 0 ? std::vector<std::string>{"summary.json", "FAILED"} : run_file_names();
+      for (const std::string& name : stale) std::remove((options_.out_dir + "/" + name).c_str());
       write_text_file(options_.out_dir + "/scene.resolved.yaml", resolved_);
     }
     MPI_Barrier(comm_);
-    const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
     frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
                                             scene_.output.write_velocity, resume_step);
     std::string tip_columns;

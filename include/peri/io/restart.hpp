@@ -24,6 +24,13 @@ void install_stop_handlers();
 /// The signal that requested a stop on this rank, or 0.
 int stop_signal();
 
+/// Under an MPI launcher (Open MPI's mpirun or orted, MPICH's Hydra proxy, a PMIx or PMI server:
+/// told by its environment), have the kernel end this process with SIGKILL as soon as its parent
+/// process, the launcher, dies: a rank orphaned by a killed mpirun writes nothing more (no frame,
+/// checkpoint or summary.json). A run started without a launcher is left alone. Linux only; call
+/// first in main, before MPI starts threads.
+void end_with_launcher();
+
 /// Owned values (bs per node, local order) in natural order, complete on rank 0 and empty on the
 /// other ranks. Collective.
 std::vector<double> gather_natural_to_root(State& state, const Domain& d, const double* owned, int bs,
