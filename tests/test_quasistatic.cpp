@@ -418,5 +418,55 @@ TEST(QuasiStatic, SnesPreloadMatchesDampedDynamics) {
   EXPECT_LT(rel, 1e-4);
 }
 
+// An exception thrown inside a SNES callback (the residual or the tangent) reaches the caller as
+// itself, message and type, after SNESSolve returns (PETSc's C frames in between).
+class ThrowingModel : public EquilibriumModel {
+ public:
+  explicit ThrowingModel(bool in_tangent) : in_tangent_(in_tangent) {}
+  void set_displacement(const double* u) override { std::copy(u, u + 3, u_); }
+  void get_displacement(double* u) override { std::copy(u_, u_ + 3, u); }
+  void internal_force(double* f) override {
+    if (!in_tangent_ && ++calls_ > 1) throw RuntimeFailure("force kernel failed at node 7 (test)");
+    for (int c = 0; c < 3; ++c) f[c] = -1e3 * (u_[c] - 1e-5);  // equilibrium away from the predictor
+  }
+  void add_tangent(Mat J) override {
+    if (in_tangent_) throw RuntimeFailure("tangent kernel failed at node 7 (test)");
+    int rank = 0;
+    MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+    const PetscInt row = rank;
+    const double k[9] = {1e3, 0, 0, 0, 1e3, 0, 0, 0, 1e3};
+    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, 1, &row, k, ADD_VALUES));
+  }
+  std::int64_t break_bonds() override { return 0; }
+
+ private:
+  bool in_tangent_;
+  int calls_ = 0;
+  double u_[3] = {0, 0, 0};
+};
+
+TEST(QuasiStatic, CallbackExceptionsKeepTheirMessage) {
+  for (const bool in_tangent : {false, true}) {
+    Stage stage;
+    stage.name = "s";
+    stage.kind = StageKind::QuasiStatic;
+    stage.load_steps = 1;
+    QuasiStaticLoader loader(PETSC_COMM_WORLD, 1, {1}, {0}, 1e3, 1e-3, stage);
+    ThrowingModel model(in_tangent);
+    const std::vector<std::uint8_t> constrained{1, 0, 0};
+    const std::vector<double> increment{1e-4, 0, 0};
+    try {
+      loader.run(model, constrained, increment, false);
+      ADD_FAILURE() << "no exception";
+    } catch (const RuntimeFailure& e) {
+      EXPECT_NE(std::string(e.what()).find(in_tangent ? "tangent kernel failed at node 7" : "force kernel failed at node 7"),
+                std::string::npos)
+          << e.what();
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "the callback's exception was replaced by: " << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace peri

@@ -12,6 +12,7 @@
 #include <tuple>
 
 #include "peri/core/error.hpp"
+#include "peri/core/petsc.hpp"
 
 namespace peri {
 
@@ -406,11 +407,11 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
     }
   for (PetscInt r = 0; r < m; ++r)
     vwgt[r] = static_cast<PetscInt>(std::max<std::int64_t>(1, (local.vertex_weight[r] + 1) / vdiv));
-  Mat adj;
-  PERI_PETSC(MatCreateMPIAdj(comm, m, static_cast<PetscInt>(local.cells), ia, ja, values, &adj));  // owns ia, ja, values
-  MatPartitioning mp;
-  PERI_PETSC(MatPartitioningCreate(comm, &mp));
-  PERI_PETSC(PetscObjectSetOptionsPrefix(reinterpret_cast<PetscObject>(mp), "partition_"));
+  OwnedMat adj;
+  PERI_PETSC(MatCreateMPIAdj(comm, m, static_cast<PetscInt>(local.cells), ia, ja, values, adj.out()));  // owns ia, ja, values
+  OwnedPartitioning mp;
+  PERI_PETSC(MatPartitioningCreate(comm, mp.out()));
+  PERI_PETSC(PetscObjectSetOptionsPrefix(reinterpret_cast<PetscObject>(mp.get()), "partition_"));
   PERI_PETSC(MatPartitioningSetAdjacency(mp, adj));
   PERI_PETSC(MatPartitioningSetNParts(mp, parts));
   PERI_PETSC(MatPartitioningSetVertexWeights(mp, vwgt));  // owns vwgt
@@ -424,17 +425,11 @@ std::vector<int> petsc_cell_parts(const Nodes& nodes, const CellList& cells, dou
   MatPartitioningType type;
   PERI_PETSC(MatPartitioningGetType(mp, &type));
   type_used = type;
-  IS is, all;
-  PERI_PETSC(MatPartitioningApply(mp, &is));
-  PERI_PETSC(ISAllGather(is, &all));
-  const PetscInt* p;
-  PERI_PETSC(ISGetIndices(all, &p));
-  std::vector<int> cell_part(p, p + local.cells);
-  PERI_PETSC(ISRestoreIndices(all, &p));
-  ISDestroy(&all);
-  ISDestroy(&is);
-  MatPartitioningDestroy(&mp);
-  MatDestroy(&adj);
+  OwnedIS is, all;
+  PERI_PETSC(MatPartitioningApply(mp, is.out()));
+  PERI_PETSC(ISAllGather(is, all.out()));
+  const ISIndices p(all);
+  std::vector<int> cell_part(p.data(), p.data() + local.cells);
   return cell_part;
 }
 

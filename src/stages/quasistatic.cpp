@@ -27,17 +27,17 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
       length_(length_scale) {
   MPI_Comm_rank(comm_, &rank_);
   const PetscInt n = 3 * static_cast<PetscInt>(owned);
-  PERI_PETSC(VecCreateMPI(comm_, n, PETSC_DETERMINE, &x_));
+  PERI_PETSC(VecCreateMPI(comm_, n, PETSC_DETERMINE, x_.out()));
   PERI_PETSC(VecSetBlockSize(x_, 3));
-  PERI_PETSC(VecDuplicate(x_, &r_));
-  PERI_PETSC(SNESCreate(comm_, &snes_));
+  PERI_PETSC(VecDuplicate(x_, r_.out()));
+  PERI_PETSC(SNESCreate(comm_, snes_.out()));
   PERI_PETSC(SNESSetOptionsPrefix(snes_, "qs_"));
   PERI_PETSC(SNESSetFunction(snes_, r_, &QuasiStaticLoader::form_function, this));
   if (stage_.matrix_free) {
     PERI_PETSC(SNESSetUseMatrixFree(snes_, PETSC_TRUE, PETSC_FALSE));
   } else {
     // Block sparse (bs = 3) by default; -qs_mat_type aij for preconditioners that need AIJ (gamg).
-    PERI_PETSC(MatCreate(comm_, &J_));
+    PERI_PETSC(MatCreate(comm_, J_.out()));
     PERI_PETSC(MatSetSizes(J_, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
     PERI_PETSC(MatSetBlockSize(J_, 3));
     PERI_PETSC(MatSetType(J_, MATBAIJ));
@@ -57,12 +57,7 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
   PERI_PETSC(SNESSetFromOptions(snes_));
 }
 
-QuasiStaticLoader::~QuasiStaticLoader() {
-  if (snes_) SNESDestroy(&snes_);
-  if (J_) MatDestroy(&J_);
-  if (x_) VecDestroy(&x_);
-  if (r_) VecDestroy(&r_);
-}
+QuasiStaticLoader::~QuasiStaticLoader() = default;
 
 void QuasiStaticLoader::eval_residual(const double* x, double* f) {
   const std::size_t n = 3 * static_cast<std::size_t>(owned_);
@@ -88,38 +83,29 @@ void QuasiStaticLoader::eval_jacobian(const double* x, Mat J) {
 
 PetscErrorCode QuasiStaticLoader::form_function(SNES, Vec x, Vec f, void* ctx) {
   auto* self = static_cast<QuasiStaticLoader*>(ctx);
-  const double* xa;
-  double* fa;
-  if (const PetscErrorCode e = VecGetArrayRead(x, &xa)) return e;
-  if (const PetscErrorCode e = VecGetArray(f, &fa)) return e;
-  try {
-    self->eval_residual(xa, fa);
-  } catch (const std::exception&) {
-    VecRestoreArray(f, &fa);
-    VecRestoreArrayRead(x, &xa);
-    return PETSC_ERR_LIB;
-  }
-  if (const PetscErrorCode e = VecRestoreArray(f, &fa)) return e;
-  if (const PetscErrorCode e = VecRestoreArrayRead(x, &xa)) return e;
-  return 0;
+  return self->callback_error_.run([&] {
+    const VecArrayRead xa(x);
+    const VecArray fa(f);
+    self->eval_residual(xa.data(), fa.data());
+  });
 }
 
 PetscErrorCode QuasiStaticLoader::form_jacobian(SNES, Vec x, Mat J, Mat, void* ctx) {
   auto* self = static_cast<QuasiStaticLoader*>(ctx);
-  const double* xa;
-  if (const PetscErrorCode e = VecGetArrayRead(x, &xa)) return e;
-  try {
-    self->eval_jacobian(xa, J);
-  } catch (const std::exception&) {
-    VecRestoreArrayRead(x, &xa);
-    return PETSC_ERR_LIB;
-  }
-  if (const PetscErrorCode e = VecRestoreArrayRead(x, &xa)) return e;
-  return 0;
+  return self->callback_error_.run([&] {
+    const VecArrayRead xa(x);
+    self->eval_jacobian(xa.data(), J);
+  });
 }
 
 int QuasiStaticLoader::solve(Vec x) {
-  PERI_PETSC(SNESSolve(snes_, nullptr, x));
+  // An exception in a callback comes back as an error code through SNESSolve: PETSc's handler
+  // stays quiet meanwhile, and the exception itself (its message) is rethrown here.
+  PERI_PETSC(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
+  const PetscErrorCode error = SNESSolve(snes_, nullptr, x);
+  PERI_PETSC(PetscPopErrorHandler());
+  callback_error_.rethrow();
+  PERI_PETSC(error);
   SNESConvergedReason reason;
   PERI_PETSC(SNESGetConvergedReason(snes_, &reason));
   return static_cast<int>(reason);
@@ -163,14 +149,14 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     const double next = std::min(1.0, load + step);
     // Predictor: constrained components at their prescribed values, free ones extrapolated
     // along the last converged increment (secant).
-    double* x;
-    PERI_PETSC(VecGetArray(x_, &x));
-    const double ratio = load_prev >= 0 ? (next - load) / (load - load_prev) : 0.0;
-    for (std::size_t k = 0; k < n; ++k) {
-      target_[k] = constrained[k] ? u0[k] + next * increment[k] : 0.0;
-      x[k] = constrained[k] ? target_[k] : u_conv[k] + ratio * (u_conv[k] - u_prev[k]);
+    {
+      const VecArray x(x_);
+      const double ratio = load_prev >= 0 ? (next - load) / (load - load_prev) : 0.0;
+      for (std::size_t k = 0; k < n; ++k) {
+        target_[k] = constrained[k] ? u0[k] + next * increment[k] : 0.0;
+        x[k] = constrained[k] ? target_[k] : u_conv[k] + ratio * (u_conv[k] - u_prev[k]);
+      }
     }
-    PERI_PETSC(VecRestoreArray(x_, &x));
     LoadIncrement inc;
     inc.load_factor = next;
     int reason = solve(x_);
@@ -202,10 +188,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     inc.linear_iterations = static_cast<int>(lits);
     // Bonds break only between converged solves; re-equilibrate at the same load until none do.
     for (;;) {
-      const double* xa;
-      PERI_PETSC(VecGetArrayRead(x_, &xa));
-      model.set_displacement(xa);
-      PERI_PETSC(VecRestoreArrayRead(x_, &xa));
+      model.set_displacement(VecArrayRead(x_).data());
       const std::int64_t broke = model.break_bonds();
       if (broke == 0) break;
       inc.broken += broke;
@@ -235,10 +218,11 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     PERI_PETSC(SNESGetFunctionNorm(snes_, &fnorm));
     inc.residual = fnorm;
     // Work of the support reactions over the increment (trapezoidal rule).
-    const double* xa;
-    PERI_PETSC(VecGetArrayRead(x_, &xa));
-    std::vector<double> x_new(xa, xa + n);
-    PERI_PETSC(VecRestoreArrayRead(x_, &xa));
+    std::vector<double> x_new(n);
+    {
+      const VecArrayRead xa(x_);
+      std::copy(xa.data(), xa.data() + n, x_new.begin());
+    }
     reactions(x_new.data(), reaction_new);
     for (std::size_t k = 0; k < n; ++k)
       if (constrained[k]) stats.external_work += 0.5 * (reaction[k] + reaction_new[k]) * (x_new[k] - u_conv[k]);

@@ -21,55 +21,40 @@ State::State(const Domain& d, MPI_Comm comm) : comm_(comm), owned_(d.owned) {
   const PetscInt nghost = d.ghosts;
   std::vector<PetscInt> ghosts(nghost);
   for (PetscInt k = 0; k < nghost; ++k) ghosts[k] = static_cast<PetscInt>(d.global[d.owned + k]);
-  Vec u, v;
-  PERI_PETSC(VecCreateGhostBlock(comm, 3, 3 * d.owned, 3 * d.global_nodes, nghost, ghosts.data(), &u));
-  PERI_PETSC(VecDuplicate(u, &v));
+  PERI_PETSC(VecCreateGhostBlock(comm, 3, 3 * d.owned, 3 * d.global_nodes, nghost, ghosts.data(), u_.out()));
+  PERI_PETSC(VecDuplicate(u_, v_.out()));
   ghost_globals_ = ghosts;
   global_nodes_ = d.global_nodes;
-  u_ = OwnedVec(u);
-  v_ = OwnedVec(v);
-  PERI_PETSC(VecZeroEntries(u));
-  PERI_PETSC(VecZeroEntries(v));
+  PERI_PETSC(VecZeroEntries(u_));
+  PERI_PETSC(VecZeroEntries(v_));
 
   // Natural layout: contiguous blocks of natural ids, split as PETSc would by default.
-  Vec nat1, nat3, own1, own3;
-  PERI_PETSC(VecCreateMPI(comm, PETSC_DECIDE, d.global_nodes, &nat1));
+  PERI_PETSC(VecCreateMPI(comm, PETSC_DECIDE, d.global_nodes, nat1_.out()));
   PetscInt lo, hi;
-  PERI_PETSC(VecGetOwnershipRange(nat1, &lo, &hi));
+  PERI_PETSC(VecGetOwnershipRange(nat1_, &lo, &hi));
   nat_begin_ = lo;
   nat_count_ = hi - lo;
-  PERI_PETSC(VecCreate(comm, &nat3));
-  PERI_PETSC(VecSetSizes(nat3, 3 * nat_count_, 3 * d.global_nodes));
-  PERI_PETSC(VecSetBlockSize(nat3, 3));
-  PERI_PETSC(VecSetType(nat3, VECMPI));
-  PERI_PETSC(VecCreateMPI(comm, d.owned, d.global_nodes, &own1));
-  PERI_PETSC(VecCreate(comm, &own3));
-  PERI_PETSC(VecSetSizes(own3, 3 * d.owned, 3 * d.global_nodes));
-  PERI_PETSC(VecSetBlockSize(own3, 3));
-  PERI_PETSC(VecSetType(own3, VECMPI));
-  nat1_ = OwnedVec(nat1);
-  nat3_ = OwnedVec(nat3);
-  owned1_ = OwnedVec(own1);
-  owned3_ = OwnedVec(own3);
+  PERI_PETSC(VecCreate(comm, nat3_.out()));
+  PERI_PETSC(VecSetSizes(nat3_, 3 * nat_count_, 3 * d.global_nodes));
+  PERI_PETSC(VecSetBlockSize(nat3_, 3));
+  PERI_PETSC(VecSetType(nat3_, VECMPI));
+  PERI_PETSC(VecCreateMPI(comm, d.owned, d.global_nodes, owned1_.out()));
+  PERI_PETSC(VecCreate(comm, owned3_.out()));
+  PERI_PETSC(VecSetSizes(owned3_, 3 * d.owned, 3 * d.global_nodes));
+  PERI_PETSC(VecSetBlockSize(owned3_, 3));
+  PERI_PETSC(VecSetType(owned3_, VECMPI));
 
   std::vector<PetscInt> natural(d.owned);
   for (std::int32_t l = 0; l < d.owned; ++l) natural[l] = static_cast<PetscInt>(d.natural[l]);
-  IS from1, to1, from3, to3;
-  PERI_PETSC(ISCreateStride(comm, d.owned, static_cast<PetscInt>(d.global_begin), 1, &from1));
-  PERI_PETSC(ISCreateGeneral(comm, d.owned, natural.data(), PETSC_COPY_VALUES, &to1));
-  PERI_PETSC(ISCreateBlock(comm, 3, d.owned, natural.data(), PETSC_COPY_VALUES, &to3));
+  OwnedIS from1, to1, from3, to3;
+  PERI_PETSC(ISCreateStride(comm, d.owned, static_cast<PetscInt>(d.global_begin), 1, from1.out()));
+  PERI_PETSC(ISCreateGeneral(comm, d.owned, natural.data(), PETSC_COPY_VALUES, to1.out()));
+  PERI_PETSC(ISCreateBlock(comm, 3, d.owned, natural.data(), PETSC_COPY_VALUES, to3.out()));
   std::vector<PetscInt> own_blocks(d.owned);
   for (std::int32_t l = 0; l < d.owned; ++l) own_blocks[l] = static_cast<PetscInt>(d.global_begin + l);
-  PERI_PETSC(ISCreateBlock(comm, 3, d.owned, own_blocks.data(), PETSC_COPY_VALUES, &from3));
-  VecScatter s1, s3;
-  PERI_PETSC(VecScatterCreate(own1, from1, nat1, to1, &s1));
-  PERI_PETSC(VecScatterCreate(own3, from3, nat3, to3, &s3));
-  to_nat1_ = OwnedScatter(s1);
-  to_nat3_ = OwnedScatter(s3);
-  ISDestroy(&from1);
-  ISDestroy(&to1);
-  ISDestroy(&from3);
-  ISDestroy(&to3);
+  PERI_PETSC(ISCreateBlock(comm, 3, d.owned, own_blocks.data(), PETSC_COPY_VALUES, from3.out()));
+  PERI_PETSC(VecScatterCreate(owned1_, from1, nat1_, to1, to_nat1_.out()));
+  PERI_PETSC(VecScatterCreate(owned3_, from3, nat3_, to3, to_nat3_.out()));
   setup_halo(d);
 }
 
@@ -173,12 +158,12 @@ void State::halo_begin() {
   // This buffer's previous sends (two exchanges ago) must be complete before it is refilled.
   std::vector<MPI_Request>& sends = send_requests_[parity_];
   MPI_Waitall(static_cast<int>(sends.size()), sends.data(), MPI_STATUSES_IGNORE);
-  const double* u;
-  PERI_PETSC(VecGetArrayRead(u_.get(), &u));
-  double* out = send_buffer_[parity_].data();
-  for (std::size_t k = 0; k < send_nodes_.size(); ++k)
-    for (int c = 0; c < 3; ++c) out[3 * k + c] = u[3 * static_cast<std::size_t>(send_nodes_[k]) + c];
-  PERI_PETSC(VecRestoreArrayRead(u_.get(), &u));
+  {
+    const VecArrayRead u(u_);
+    double* out = send_buffer_[parity_].data();
+    for (std::size_t k = 0; k < send_nodes_.size(); ++k)
+      for (int c = 0; c < 3; ++c) out[3 * k + c] = u[3 * static_cast<std::size_t>(send_nodes_[k]) + c];
+  }
   if (!recv_requests_.empty()) MPI_Startall(static_cast<int>(recv_requests_.size()), recv_requests_.data());
   if (!sends.empty()) MPI_Startall(static_cast<int>(sends.size()), sends.data());
   parity_ ^= 1;
@@ -202,11 +187,9 @@ void State::velocity_halo_end() {
 
 void State::enable_force_accumulation(int bs) {
   if (f_.get()) return;
-  Vec f;
   PERI_PETSC(VecCreateGhostBlock(comm_, bs, bs * owned_, bs * global_nodes_,
-                                 static_cast<PetscInt>(ghost_globals_.size()), ghost_globals_.data(), &f));
-  PERI_PETSC(VecZeroEntries(f));
-  f_ = OwnedVec(f);
+                                 static_cast<PetscInt>(ghost_globals_.size()), ghost_globals_.data(), f_.out()));
+  PERI_PETSC(VecZeroEntries(f_));
 }
 
 void State::reverse_begin() {
@@ -221,16 +204,11 @@ const double* State::to_natural(const double* owned_values, int bs) {
   Vec src = bs == 3 ? owned3_.get() : owned1_.get();
   Vec dst = bs == 3 ? nat3_.get() : nat1_.get();
   VecScatter sc = bs == 3 ? to_nat3_.get() : to_nat1_.get();
-  PetscScalar* a;
-  PERI_PETSC(VecGetArray(src, &a));
-  std::copy(owned_values, owned_values + static_cast<std::size_t>(bs) * owned_, a);
-  PERI_PETSC(VecRestoreArray(src, &a));
+  std::copy(owned_values, owned_values + static_cast<std::size_t>(bs) * owned_, VecArray(src).data());
   PERI_PETSC(VecScatterBegin(sc, src, dst, INSERT_VALUES, SCATTER_FORWARD));
   PERI_PETSC(VecScatterEnd(sc, src, dst, INSERT_VALUES, SCATTER_FORWARD));
-  const PetscScalar* r;
-  PERI_PETSC(VecGetArrayRead(dst, &r));
-  slice_.assign(r, r + static_cast<std::size_t>(bs) * nat_count_);
-  PERI_PETSC(VecRestoreArrayRead(dst, &r));
+  const VecArrayRead r(dst);
+  slice_.assign(r.data(), r.data() + static_cast<std::size_t>(bs) * nat_count_);
   return slice_.data();
 }
 

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "peri/core/petsc.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri {
@@ -97,9 +98,10 @@ class QuasiStaticLoader {
   std::int32_t owned_ = 0;
   Stage stage_;
   double stiffness_ = 1, length_ = 1;
-  SNES snes_ = nullptr;
-  Mat J_ = nullptr;
-  Vec x_ = nullptr, r_ = nullptr;
+  OwnedVec x_, r_;
+  OwnedMat J_;
+  OwnedSNES snes_;  // destroyed first: it holds J_, r_
+  CallbackError callback_error_;  // an exception of form_function / form_jacobian, rethrown by solve
   EquilibriumModel* model_ = nullptr;
   const std::vector<std::uint8_t>* constrained_ = nullptr;
   std::vector<double> target_, force_;  // prescribed values; internal force work array

@@ -9,44 +9,10 @@
 #include <utility>
 #include <vector>
 
+#include "peri/core/petsc.hpp"
 #include "peri/partition/domain.hpp"
 
 namespace peri {
-
-/// RAII owner of a PETSc Vec.
-class OwnedVec {
- public:
-  OwnedVec() = default;
-  explicit OwnedVec(Vec v) : v_(v) {}
-  OwnedVec(const OwnedVec&) = delete;
-  OwnedVec& operator=(const OwnedVec&) = delete;
-  OwnedVec(OwnedVec&& o) noexcept : v_(o.v_) { o.v_ = nullptr; }
-  OwnedVec& operator=(OwnedVec&& o) noexcept {
-    std::swap(v_, o.v_);
-    return *this;
-  }
-  ~OwnedVec() { if (v_) VecDestroy(&v_); }
-  Vec get() const { return v_; }
- private:
-  Vec v_ = nullptr;
-};
-
-/// RAII owner of a VecScatter.
-class OwnedScatter {
- public:
-  OwnedScatter() = default;
-  explicit OwnedScatter(VecScatter s) : s_(s) {}
-  OwnedScatter(const OwnedScatter&) = delete;
-  OwnedScatter& operator=(const OwnedScatter&) = delete;
-  OwnedScatter& operator=(OwnedScatter&& o) noexcept {
-    std::swap(s_, o.s_);
-    return *this;
-  }
-  ~OwnedScatter() { if (s_) VecScatterDestroy(&s_); }
-  VecScatter get() const { return s_; }
- private:
-  VecScatter s_ = nullptr;
-};
 
 /// Raw access to the local (owned + ghost) array of a ghosted Vec for the lifetime of the guard.
 class LocalArray {
