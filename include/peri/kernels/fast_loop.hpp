@@ -238,10 +238,15 @@ __attribute__((always_inline)) inline bool pipelined_slots(Next next, Start star
 // (damaged_block: the same sums, no slot evaluated twice). The first `skip` rows were written
 // already.
 template <int G, class Law>
-bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
+__attribute__((always_inline)) inline bool intact_blocks(const Law& law_of, const BondView& v, const RunSlots& run_of,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, RowStep rows_at,
                    std::int64_t own, std::int64_t a, int skip, double* force, BondTally& tally,
                    Resume<typename Law::Pack, G>* resume = nullptr) {
+  // Local copies, as in damaged_block: Produce slots store coefficients, which may alias
+  // anything reached through a reference, and the compiler then reloaded the slot pointers and
+  // the law's constants on every slot.
+  const Law law = law_of;
+  const RunSlots run = run_of;
   const double* __restrict px = v.x + a;
   const double* __restrict py = v.x + v.x_stride + a;
   const double* __restrict pz = v.x + 2 * v.x_stride + a;
@@ -258,24 +263,34 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
   }
   // One block (G = 1), slots [k0, k1) (Produce: storing their coefficients too): pipelined_slots.
   auto evaluate_pipelined = [&](std::int64_t k0, std::int64_t k1, auto produce) __attribute__((always_inline)) {
+    // What the loop reads, in locals of this call (the compiler may keep this lambda out of line;
+    // through its captures, every Produce store would reload them).
+    const Law lw = law;
+    const RunSlots rs = run;
+    const double* __restrict qx = px;
+    const double* __restrict qy = py;
+    const double* __restrict qz = pz;
+    const std::int32_t* __restrict nb = nbr;
+    double* const* ring = at;
+    const std::int64_t lane0 = a;
     const V o0 = x0[0], o1 = x1[0], o2 = x2[0];
     V s0 = f0[0], s1 = f1[0], s2 = f2[0], sw = w[0];
     std::int64_t k_next = k0;
     const bool whole = pipelined_slots<Law>(
         [&]() -> std::int64_t { return k_next < k1 ? k_next++ : -1; },
         [&](std::int64_t k, typename Law::Bonds& b) __attribute__((always_inline)) {
-          const std::int64_t j = nbr[k];
-          run.template broadcast<Law::kSlotValues>(b, k);
+          const std::int64_t j = nb[k];
+          rs.template broadcast<Law::kSlotValues>(b, k);
           b.dead = 0;
-          b.d0 = S::sub(S::loadu(px + j), o0);
-          b.d1 = S::sub(S::loadu(py + j), o1);
-          b.d2 = S::sub(S::loadu(pz + j), o2);
-          return law.front(b, squared_length<S>(b));
+          b.d0 = S::sub(S::loadu(qx + j), o0);
+          b.d1 = S::sub(S::loadu(qy + j), o1);
+          b.d2 = S::sub(S::loadu(qz + j), o2);
+          return lw.front(b, squared_length<S>(b));
         },
         [&](std::int64_t k, const typename Law::Bonds& b, const typename Law::Front& p) __attribute__((always_inline)) {
           unsigned lanes;
-          const V coef = law.coefficient(b, p, sw, lanes);
-          if constexpr (decltype(produce)::value) S::storeu(at[k] + a, coef);
+          const V coef = lw.coefficient(b, p, sw, lanes);
+          if constexpr (decltype(produce)::value) S::storeu(ring[k] + lane0, coef);
           s0 = S::fmadd(coef, b.d0, s0);
           s1 = S::fmadd(coef, b.d1, s1);
           s2 = S::fmadd(coef, b.d2, s2);
@@ -337,14 +352,21 @@ bool intact_blocks(const Law& law, const BondView& v, const RunSlots& run,
   for (std::size_t s = 0; s < nsegments; ++s) {
     const SlotSegment seg = segments[s];
     if (seg.kind == BoxSlot::Consume) {
-      for (std::int64_t k = seg.begin; k < seg.end; ++k) {
-        const std::int64_t j = nbr[k];
-        for (int g = 0; g < G; ++g) {
+      // Block by block, the sums in locals (the arrays, whose addresses the lambdas above take,
+      // stayed in memory: a store and a reload per slot).
+      for (int g = 0; g < G; ++g) {
+        V s0 = f0[g], s1 = f1[g], s2 = f2[g];
+        const V o0 = x0[g], o1 = x1[g], o2 = x2[g];
+        for (std::int64_t k = seg.begin; k < seg.end; ++k) {
+          const std::int64_t j = nbr[k] + W * g;
           const V coef = S::loadu(at[k] + a + W * g);
-          f0[g] = S::fmadd(coef, S::sub(S::loadu(px + j + W * g), x0[g]), f0[g]);
-          f1[g] = S::fmadd(coef, S::sub(S::loadu(py + j + W * g), x1[g]), f1[g]);
-          f2[g] = S::fmadd(coef, S::sub(S::loadu(pz + j + W * g), x2[g]), f2[g]);
+          s0 = S::fmadd(coef, S::sub(S::loadu(px + j), o0), s0);
+          s1 = S::fmadd(coef, S::sub(S::loadu(py + j), o1), s1);
+          s2 = S::fmadd(coef, S::sub(S::loadu(pz + j), o2), s2);
         }
+        f0[g] = s0;
+        f1[g] = s1;
+        f2[g] = s2;
       }
     } else if (seg.kind == BoxSlot::Produce) {
       if (!evaluate(seg.begin, seg.end, std::true_type{})) return false;
