@@ -4,6 +4,8 @@
 // laws with a vector form also run in the SIMD accelerator (fast_loop.hpp), whose rows are the
 // same bits (the same operations in the same order, bond by bond and row by row).
 #pragma once
+#include <Eigen/Core>
+
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -158,10 +160,12 @@ void row_tangent(const E& law, const BondView& v, std::int32_t row, std::vector<
   cols.push_back(row);
   for (const FamilyBond& bond : family(v, row))
     if (!bond.broken()) cols.push_back(bond.j());
-  const std::size_t stride = 3 * cols.size();
-  blocks.assign(3 * stride, 0.0);
+  blocks.assign(9 * cols.size(), 0.0);
+  // The block row as a 3 x 3n matrix over `blocks` (MatSetValuesBlocked's row-major layout).
+  Eigen::Map<Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor>> K(blocks.data(), 3,
+                                                                          3 * static_cast<Eigen::Index>(cols.size()));
   const double scale = v.volume[row] * law.row_factor();
-  std::size_t col = 1;
+  Eigen::Index col = 1;
   for (const FamilyBond& bond : family(v, row)) {
     if (bond.broken()) continue;
     const typename E::Bonds b = scalar_bond(law, v, row, bond);
@@ -171,13 +175,10 @@ void row_tangent(const E& law, const BondView& v, std::int32_t row, std::vector<
     typename E::Bonds intact = b;
     intact.dead = 0;
     const double k = law.coefficient(intact, p, w, fresh), k2 = 2.0 * law.slope(intact, p);
-    const double y[3] = {b.d0, b.d1, b.d2};
-    for (int a = 0; a < 3; ++a)
-      for (int c = 0; c < 3; ++c) {
-        const double A = scale * ((a == c ? k : 0.0) + k2 * y[a] * y[c]);
-        blocks[a * stride + c] += A;            // K_ii
-        blocks[a * stride + 3 * col + c] = -A;  // K_ij
-      }
+    const Eigen::Vector3d y(b.d0, b.d1, b.d2);
+    const Eigen::Matrix3d A = scale * (k * Eigen::Matrix3d::Identity() + (k2 * y) * y.transpose());
+    K.block<3, 3>(0, 0) += A;         // K_ii
+    K.block<3, 3>(0, 3 * col) = -A;  // K_ij
     ++col;
   }
 }
