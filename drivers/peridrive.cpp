@@ -8,6 +8,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -63,9 +64,11 @@ time, and the peak memory summed over ranks after each setup phase ("memory").
 outputs (in DIR): frames.h5 + frames.xdmf (open in ParaView), series.csv (energies),
 scene.resolved.yaml, summary.json (written last: its presence marks a complete run),
 checkpoint.h5 (+ checkpoint.prev.h5) every output.checkpoint_every_steps / _seconds.
-SIGTERM or SIGINT: all ranks write a final checkpoint and stop (a second signal ends at once).
-exit status: 0 success, 2 invalid input, 3 numerical failure, 5 stopped by SIGTERM/SIGINT after
-a final checkpoint (continue with --resume DIR), other values internal errors.
+SIGTERM or SIGINT: all ranks write a final checkpoint and stop (a second signal ends at once);
+while the scene is read or the run set up (and in --dry-run) they stop at once, writing nothing.
+exit status: 0 success, 2 invalid input, 3 numerical failure, 5 stopped by SIGTERM/SIGINT (after
+a final checkpoint once the run has begun: continue with --resume DIR), other values internal
+errors. Limits and checks of scene values: docs/user/limits.md.
 )";
 
 struct Args {
@@ -158,10 +161,26 @@ int main(int argc, char** argv) {
           args.out = dir.empty() ? "." : dir;
         }
       }
-      const peri::Scene scene =
-          !args.scene.empty() ? peri::load_scene(args.scene, args.overrides)
-          : checkpoint        ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides)
-                              : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides);
+      // A stop request ends the reading on the ranks that see it; all ranks then agree (a stop
+      // wins over an input error, which every rank that read the whole scene found alike).
+      const peri::StopCheck stop = [] { return peri::stop_signal() != 0; };
+      peri::Scene scene;
+      std::exception_ptr invalid;
+      int stopped = 0, stopped_any = 0;
+      try {
+        scene = !args.scene.empty() ? peri::load_scene(args.scene, args.overrides, stop)
+                : checkpoint        ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides, stop)
+                                    : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides, stop);
+      } catch (const peri::StopRequested&) {
+        stopped = peri::stop_signal();
+      } catch (const peri::InputError&) {
+        invalid = std::current_exception();
+      }
+      MPI_Allreduce(&stopped, &stopped_any, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+      if (stopped_any)
+        throw peri::StopRequested("stopped by signal " + std::to_string(stopped_any) +
+                                  " while reading the scene; nothing was written");
+      if (invalid) std::rethrow_exception(invalid);
       if (args.print_scene) {
         if (rank == 0) std::fputs(peri::emit_scene(scene).c_str(), stdout);
       } else if (args.dry_run) {
@@ -202,6 +221,10 @@ int main(int argc, char** argv) {
                       opt.out_dir.c_str());
       }
     }
+  } catch (const peri::StopRequested& e) {
+    // Decided together (the scene reading above, the setup's stop points): all ranks arrive here.
+    if (rank == 0) std::fprintf(stderr, "peridrive: %s\n", e.what());
+    status = peri::kExitStopped;
   } catch (const peri::InputError& e) {
     // Input is validated identically on every rank: all ranks arrive here together.
     if (rank == 0) std::fprintf(stderr, "peridrive: error: %s\n", e.what());

@@ -1,5 +1,6 @@
 #include "peri/models/model.hpp"
 
+#include <limits>
 #include <sstream>
 
 namespace peri {
@@ -31,7 +32,53 @@ double youngs_per_c_fiber(ModelKind kind, const BodyGeometry& g, bool conical) {
                                      : g.area * moment(1, g.horizon, conical);
 }
 
+// A finite double no smaller than the smallest normal one: a derived constant every later product
+// (forces, energies, the stable step) can use without overflow to inf or underflow to 0.
+bool usable(double x) { return std::isfinite(x) && x >= std::numeric_limits<double>::min(); }
+
+std::string number(double x) {
+  std::ostringstream s;
+  s.precision(6);
+  s << x;
+  return s.str();
+}
+
+// Refuses a micromodulus that is not usable, naming what made it so: the material's stiffness
+// (its modulus overflows or underflows), the body's geometry (thickness, horizon, cross-section),
+// or the two together (their quotient does).
+void check_micromodulus(const Material& m, const BodyGeometry& g, const std::string& where, double modulus,
+                        double per_c, double c) {
+  if (usable(c)) return;
+  std::ostringstream msg;
+  const std::string geometry = (g.kind == BodyKind::Fiber ? "cross-section " + number(g.area) + " m^2"
+                                                          : "thickness " + number(g.thickness) + " m") +
+                               ", horizon " + number(g.horizon) + " m";
+  if (!usable(modulus)) {
+    msg << m.where.str() << ": " << stiffness_input(m) << " gives " << (g.kind == BodyKind::Fiber ? "E" : "mu")
+        << " = " << number(modulus) << " Pa, " << (modulus > 1 ? "beyond the largest double" : "below the smallest normal double");
+  } else if (!usable(per_c)) {
+    msg << where << ": the body's geometry (" << geometry << ") gives a stiffness per unit micromodulus of "
+        << number(per_c) << ", " << (per_c > 1 ? "beyond the largest double" : "below the smallest normal double");
+  } else {
+    msg << m.where.str() << ": " << stiffness_input(m) << " in " << where.substr(where.rfind(": ") == std::string::npos ? 0 : where.rfind(": ") + 2) << " ("
+        << geometry << ") gives a micromodulus c = " << number(c) << ", "
+        << (c > 1 ? "beyond the largest double" : "below the smallest normal double");
+  }
+  msg << "; expected a stiffness and geometry whose micromodulus is a finite double of at least 2.2e-308";
+  throw InputError(msg.str());
+}
+
 }  // namespace
+
+std::string stiffness_input(const Material& m) {
+  const std::string p = "materials." + m.name + ".";
+  if (m.marder) return p + "mooney_rivlin_a: " + number(m.marder->a) + " J/kg";
+  if (m.wave_speed)
+    return p + "wave_speed: " + number(*m.wave_speed) + " m/s (density " + number(m.density) + " kg/m^3)";
+  if (m.bulk_modulus) return p + "bulk_modulus: " + number(*m.bulk_modulus) + " Pa";
+  if (m.youngs_modulus) return p + "youngs_modulus: " + number(*m.youngs_modulus) + " Pa";
+  return p + "micromodulus: " + number(m.micromodulus.value_or(0));
+}
 
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where) {
   if (m.model == ModelKind::Membrane && g.kind == BodyKind::Solid)
@@ -55,11 +102,13 @@ BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& w
     if (m.bulk_modulus) e = *m.bulk_modulus;
     if (m.youngs_modulus) e = *m.youngs_modulus;
     law.c = e / youngs_per_c_fiber(m.model, g, law.conical);
+    check_micromodulus(m, g, where, e, youngs_per_c_fiber(m.model, g, law.conical), law.c);
   } else {
     if (m.wave_speed) mu = m.density * *m.wave_speed * *m.wave_speed / 3.0;
     if (m.bulk_modulus) mu = membrane ? *m.bulk_modulus / 2.0 : 0.6 * *m.bulk_modulus;
     if (m.youngs_modulus) mu = membrane ? 3.0 * *m.youngs_modulus / 8.0 : 0.4 * *m.youngs_modulus;
     law.c = mu / k;
+    check_micromodulus(m, g, where, mu, k, law.c);
   }
   if (m.critical_stretch) {
     law.breaks = true;

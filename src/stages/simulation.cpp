@@ -169,11 +169,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // Nodes, and every check that needs them, before anything is allocated per rank.
   PartitionSettings partition_settings = partition_settings_from_options();
   PetscLogEventBegin(events().nodes, 0, 0, 0, 0);
+  warn_large_families(estimate_size(scene_));
   check_fits(scene_, comm_, partition_settings.method == PartitionMethod::Bonds);
+  stop_point();
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
   for (const Boundary& b : scene_.boundaries)
     bc_nodes.push_back(select_nodes(nodes_, scene_, b.region, "boundaries." + b.name + ".region"));
+  warn_overlapping_boundaries(bc_nodes);
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const Material& m = scene_.material(scene_.bodies[b].material);
     laws_.push_back(scene_.bodies[b].kind == BodyKind::Lattice
@@ -188,6 +191,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     const double limit = scene_.stability.motion_per_step * scene_.bodies[b].spacing;
     motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
   }
+  check_node_masses();
+  stop_point();
 
   // Bonds, partition, this rank's domain and state.
   {
@@ -200,12 +205,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     partition_settings.method = resolve_partition_method(partition_settings.method, nodes_);  // auto: rcb or cells
     partition_ = partition_nodes(nodes_, cells, ranks_, comm_, partition_settings);
     PetscLogEventEnd(events().partition, 0, 0, 0, 0);
+    stop_point();
     mark_memory("partition");
     Scene initial_cracks = scene_;  // cracks named by release stages break later
     std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
     PetscLogEventBegin(events().bonds, 0, 0, 0, 0);
-    domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_);
+    domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_, [] { return stop_signal() != 0; });
     PetscLogEventEnd(events().bonds, 0, 0, 0, 0);
+    stop_point();  // before anything reads a domain the stop left unfinished
     if (partition_.edge_cut < 0) {  // a partitioner without a graph (rcb): the bonds to ghost nodes
       long long cut = 0, all = 0;
       for (std::int32_t i : domain_.boundary_rows)
@@ -297,21 +304,19 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   v_old_bc_ = du_bc_;
   prev_force_bc_ = du_bc_;
 
-  // Stable time step (collective) and each stage's step.
+  // Stable time step (collective, per body, then the smallest) and each stage's step.
   BondView view = bond_view();
-  double dt_local = std::numeric_limits<double>::infinity();
+  std::vector<double> dt_body(nb, std::numeric_limits<double>::infinity());
   for (std::size_t b = 0; b < nb; ++b) {
     if (marder_[b]) {
       if (!interior_by_body_[b].empty() || !boundary_by_body_[b].empty())
-        dt_local = std::min(dt_local, marder_stable_time_step(*marder_[b]));
+        dt_body[b] = marder_stable_time_step(*marder_[b]);
       continue;
     }
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
-      dt_local = std::min(dt_local, stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
+      dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
   }
-  MPI_Allreduce(&dt_local, &summary_.dt_stable, 1, MPI_DOUBLE, MPI_MIN, comm_);
-  if (!std::isfinite(summary_.dt_stable))
-    throw InputError(scene_.file + ": no node has a bond; the horizon is too small for the spacing");
+  check_stable_step(dt_body);
   // Tools: a penalty stiffness per unit mass of `stiffness` times the stiffest node's bond
   // stiffness (2 rho / dt_bound^2 at the bound), so that the bound with contact is at least
   // dt_bound / sqrt(1 + stiffness).
@@ -373,6 +378,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       continue;
     }
     const double dt = st.dt ? *st.dt : st.safety_factor * summary_.dt_stable;
+    check_stage_steps(s, dt);
     if (dt > summary_.dt_stable && !st.allow_unstable_dt) {
       std::ostringstream msg;
       msg << st.where.str() << ": stages." << s << ".dt: time step " << fmt(dt)
@@ -387,7 +393,12 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     stage_steps_.push_back(std::max<std::int64_t>(n, 1));
     total_steps_ += stage_steps_.back();
   }
-  const int frames = std::max(1, scene_.output.frames);
+  check_initial_state();
+  // More frames than steps would repeat steps: one per step at most (the same frames are written).
+  const int frames = static_cast<int>(std::clamp<std::int64_t>(scene_.output.frames, 1, total_steps_ + 1));
+  if (frames < scene_.output.frames && rank_ == 0)
+    std::fprintf(stderr, "peridrive: warning: output.frames: %d frames asked for a run of %lld steps; writing %d, "
+                 "one per step\n", scene_.output.frames, static_cast<long long>(total_steps_), frames);
   for (int k = 0; k < frames; ++k)
     frame_steps_.push_back(frames == 1 ? total_steps_ : std::llround(double(k) * total_steps_ / (frames - 1)));
 
@@ -455,6 +466,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
   // Output last: nothing is written unless every check above passed.
+  stop_point();
   if (!options_.out_dir.empty()) {
     make_output_dir(options_.out_dir, comm_);
     if (rank_ == 0) {
@@ -1017,9 +1029,8 @@ void Simulation::write_series_row() {
       msg << "energy balance error " << fmt(error) << " at step " << step_ << " (t = " << fmt(time_)
           << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
           << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt_)
-          << " s, stable bound " << fmt(summary_.dt_stable)
-          << " s at the reference state; the membrane law stiffens in compression), or boundary motion "
-             "too violent for the resolution";
+          << " s, stable bound " << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(-1)
+          << "), or boundary motion too violent for the resolution";
       throw RuntimeFailure(msg.str());
     }
   }
@@ -1253,6 +1264,10 @@ void Simulation::check_health(std::int64_t step, double time) {
     double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
     MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
     const std::array<double, 3> X = reference_position(node);
+    int body = -1, body_any = -1;  // of the node, from the rank that owns it
+    for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
+      if (domain_.natural[i] == node) body = domain_.body[i];
+    MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
     std::ostringstream msg;
     msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
         << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
@@ -1263,9 +1278,8 @@ void Simulation::check_health(std::int64_t step, double time) {
           << " s (accepted because of allow_unstable_dt)";
     else
       msg << "the time step " << fmt(dt_) << " s is too large for the current state (stable bound "
-          << fmt(summary_.dt_stable) << " s at the reference state; the membrane law stiffens in compression by "
-          << "1 + 3/lambda^4, so snapping-back fragments need a smaller safety_factor, e.g. 0.35), or a boundary "
-          << "velocity too violent for the resolution";
+          << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(body_any)
+          << "), or a boundary velocity too violent for the resolution";
     msg << ". Positions and velocities are still finite; nothing non-finite was written";
     throw RuntimeFailure(msg.str());
   }

@@ -124,8 +124,13 @@ struct ElasticConstants {
 };
 
 /// Build the law of a material in a body, calibrating c from the material's stiffness input.
-/// Throws InputError for combinations the code does not support (e.g. membrane law in a solid).
+/// Throws InputError for combinations the code does not support (e.g. membrane law in a solid),
+/// and when c is not a finite double of at least 2.2e-308 (naming what made it so).
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where);
+
+/// The material's stiffness input for messages: "materials.<name>.<key>: <value> <unit>" (a wave
+/// speed with its density, which gives a modulus only with it).
+std::string stiffness_input(const Material& m);
 
 /// Small-strain constants implied by a calibrated law (inverse of calibrate).
 ElasticConstants elastic_constants(const BondLaw& law, const BodyGeometry& g, double density);

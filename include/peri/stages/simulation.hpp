@@ -147,6 +147,16 @@ class Simulation : public EquilibriumModel {
   void flags_changed();
   bool has_intact_bond(std::int32_t row) const;
   void check_health(std::int64_t step, double time);
+  // Setup checks and warnings (src/stages/simulation_checks.cpp): derived quantities that the
+  // scene's values would make absurd are refused there, naming the keys; all before any output.
+  void stop_point();                              // collective: StopRequested on every rank after a signal
+  void warn_large_families(const SizeEstimate& e) const;
+  void warn_overlapping_boundaries(const std::vector<std::vector<std::int64_t>>& bc_nodes) const;
+  void check_node_masses() const;                 // global node arrays (before they are freed)
+  void check_stable_step(const std::vector<double>& dt_body);  // per body, collective
+  void check_stage_steps(std::size_t stage, double dt) const;
+  void check_initial_state();                     // initial conditions, boundaries, tools (collective)
+  std::string law_note(int body) const;           // how body's law behaves near the stable bound (-1: all)
   void write_frame();
   void write_series_row();
   /// Adds the tools' contact forces at time `t` to force_ (after compute_forces: positions_ of
