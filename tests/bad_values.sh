@@ -54,10 +54,12 @@ expect membrane_stretch_resolution "materials.rubber.critical_stretch: expected 
 expect pmb_strain_resolution "materials.film.critical_stretch: expected a critical bond strain s_0 >= 1e-10" -- "$tool" "${coarse[@]}" --set materials.film.critical_stretch=1e-300
 expect tool_stiffness_huge "--set: tools.0.stiffness: expected a number in (0, 1e6], got 1e300" -- "$tool" "${coarse[@]}" --set tools.rod.stiffness=1e300
 
-# --- Step counts: refused with the key, the time step it came from and the count ---------------
+# --- Step counts and damping: refused with the key, the time step it came from and the figure ------
 expect duration_huge "<default scene>:49: stages.0.duration: 1e+13 s in steps of 3.71387e-07 s (safety_factor 0.35 x the stable bound 1.0611e-06 s) takes 2.69261e+19 steps; expected at most 1000000000 steps per stage" -- "${coarse[@]}" --set stages.0.duration=1e13
 expect dt_tiny "stages.0.duration: 0.00013 s in steps of 1e-300 s (stages.0.dt) takes 1.3e+296 steps" -- "${coarse[@]}" --set stages.0.dt=1e-300
 expect safety_factor_tiny "(safety_factor 1e-300 x the stable bound 1.0611e-06 s) takes 1.22514e+302 steps" -- "${coarse[@]}" --set stages.0.safety_factor=1e-300
+expect damping_huge "<default scene>:49: stages.0.damping: 1e+300 1/s with time steps of 3.71387e-07 s gives alpha dt / 2 = 1.85693e+293; expected at most 1 (a damping of at most 5.38522e+06 1/s)" -- "${coarse[@]}" --set stages.0.damping=1e300
+expect damping_above_one "stages.0.damping: 6e+06 1/s with time steps of 3.71387e-07 s gives alpha dt / 2 = 1.11416; expected at most 1" -- "${coarse[@]}" --set stages.0.damping=6e6
 expect steps_huge "--set: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 1e10" -- "${coarse[@]}" --set stages.0.steps=1e10
 
 # --- steps and duration exclude each other -------------------------------------------------------

@@ -384,7 +384,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       continue;
     }
     const double dt = st.dt ? *st.dt : st.safety_factor * summary_.dt_stable;
-    check_stage_steps(s, dt);
+    check_stage(s, dt);
     if (dt > summary_.dt_stable && !st.allow_unstable_dt) {
       std::ostringstream msg;
       msg << st.where.str() << ": stages." << s << ".dt: time step " << fmt(dt)

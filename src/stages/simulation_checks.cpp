@@ -177,8 +177,18 @@ void Simulation::check_stable_step(const std::vector<double>& dt_body) {
                    " bonds exist: the bond stiffness sums overflow; expected stiffness and density of ordinary size");
 }
 
-void Simulation::check_stage_steps(std::size_t s, double dt) const {
+void Simulation::check_stage(std::size_t s, double dt) const {
   const Stage& st = scene_.stages[s];
+  // Damping alpha: the half-step velocity is (1 - alpha dt / 2) v, which reverses and grows when
+  // alpha dt / 2 exceeds 1 (the nodes then fly off instead of coming to rest).
+  if (!(0.5 * st.damping * dt <= 1)) {
+    std::ostringstream msg;
+    msg << st.where.str() << ": stages." << s << ".damping: " << num(st.damping) << " 1/s with time steps of "
+        << num(dt) << " s gives alpha dt / 2 = " << num(0.5 * st.damping * dt)
+        << "; expected at most 1 (a damping of at most " << num(2 / dt) << " 1/s): beyond it the damped half "
+        << "step reverses and amplifies the velocity";
+    throw InputError(msg.str());
+  }
   if (st.steps) return;  // bounded when read
   const double count = st.duration / dt;
   if (count <= static_cast<double>(kMaxStageSteps)) return;

@@ -162,7 +162,7 @@ class Simulation : public EquilibriumModel {
   void warn_overlapping_boundaries(const std::vector<std::vector<std::int64_t>>& bc_nodes) const;
   void check_node_masses() const;                 // global node arrays (before they are freed)
   void check_stable_step(const std::vector<double>& dt_body);  // per body, collective
-  void check_stage_steps(std::size_t stage, double dt) const;
+  void check_stage(std::size_t stage, double dt) const;  // step count, damping
   void check_initial_state();                     // initial conditions, boundaries, tools (collective)
   std::string law_note(int body) const;           // how body's law behaves near the stable bound (-1: all)
   void write_frame();
