@@ -32,10 +32,6 @@ double youngs_per_c_fiber(ModelKind kind, const BodyGeometry& g, bool conical) {
                                      : g.area * moment(1, g.horizon, conical);
 }
 
-// A finite double no smaller than the smallest normal one: a derived constant every later product
-// (forces, energies, the stable step) can use without overflow to inf or underflow to 0.
-bool usable(double x) { return std::isfinite(x) && x >= std::numeric_limits<double>::min(); }
-
 std::string number(double x) {
   std::ostringstream s;
   s.precision(6);
@@ -69,6 +65,8 @@ void check_micromodulus(const Material& m, const BodyGeometry& g, const std::str
 }
 
 }  // namespace
+
+bool usable(double x) { return std::isfinite(x) && x >= std::numeric_limits<double>::min(); }
 
 std::string stiffness_input(const Material& m) {
   const std::string p = "materials." + m.name + ".";

@@ -1352,6 +1352,15 @@ class StoppableText : public std::streambuf {
   std::size_t next_ = 0;
 };
 
+/// A stream over a StoppableText whose reads let the stop request (StopRequested) reach the caller.
+struct StoppableStream : std::istream {
+  StoppableStream(const std::string& text, const StopCheck& stop) : std::istream(nullptr), buffer(text, stop) {
+    rdbuf(&buffer);
+    exceptions(std::ios::badbit);
+  }
+  StoppableText buffer;
+};
+
 YAML::Node load_document(const std::string& text, const std::string& file, const StopCheck& stop) {
   std::vector<YAML::Node> docs;
   try {
@@ -1359,9 +1368,7 @@ YAML::Node load_document(const std::string& text, const std::string& file, const
     // ',' outside a flow collection) yaml-cpp returns the same empty document forever, filling
     // memory; a document that starts where the previous one started is that token.
     DocumentCounter counter(file);
-    StoppableText buffer(text, stop);
-    std::istream in(&buffer);
-    in.exceptions(std::ios::badbit);  // a stop request thrown by the buffer reaches the caller
+    StoppableStream in(text, stop);
     YAML::Parser parser(in);
     while (parser.HandleNextDocument(counter)) {
       const std::size_t n = counter.starts.size();
@@ -1379,10 +1386,8 @@ YAML::Node load_document(const std::string& text, const std::string& file, const
                        ": expected a single YAML document, found " + std::to_string(counter.starts.size()));
     }
     if (!counter.starts.empty()) {
-      StoppableText again(text, stop);
-      std::istream in2(&again);
-      in2.exceptions(std::ios::badbit);
-      docs.push_back(YAML::Load(in2));
+      StoppableStream again(text, stop);
+      docs.push_back(YAML::Load(again));
     }
   } catch (const YAML::Exception& e) {
     throw InputError(SourceLoc{file, e.mark.line >= 0 ? e.mark.line + 1 : 1}.str() +

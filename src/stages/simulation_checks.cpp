@@ -31,8 +31,6 @@ std::string num(double v) {
   return s.str();
 }
 
-bool usable(double x) { return std::isfinite(x) && x >= std::numeric_limits<double>::min(); }
-
 const char* beyond(double x) { return x > 1 ? "beyond the largest double" : "below the smallest normal double"; }
 
 // The keys that give a body's node measure.

@@ -19,7 +19,6 @@ class CrackIndex {
  public:
   /// `reach` [m]: the longest bond that will be asked about.
   CrackIndex(std::vector<const Crack*> cracks, double reach);
-  bool empty() const { return cracks_.empty(); }
   /// crosses(a, b, crack) for some indexed crack; a-b no longer than the reach.
   bool crosses_any(const double* a, const double* b) const;
 

@@ -128,6 +128,10 @@ struct ElasticConstants {
 /// and when c is not a finite double of at least 2.2e-308 (naming what made it so).
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where);
 
+/// A derived constant every later product (forces, energies, the stable step) can use without
+/// overflow to inf or underflow to 0: finite, and at least the smallest normal double.
+bool usable(double x);
+
 /// The material's stiffness input for messages: "materials.<name>.<key>: <value> <unit>" (a wave
 /// speed with its density, which gives a modulus only with it).
 std::string stiffness_input(const Material& m);
