@@ -116,7 +116,7 @@ def same_text(a, b, name):
 def same_summary(a, b):
     ja, jb = json.load(open(a)), json.load(open(b))
     out = []
-    for k in sorted(set(ja) | set(jb)):
+    for k in sorted(set(ja) & set(jb)):  # fields only one build writes are new, not different
         if k in VOLATILE:
             continue
         if ja.get(k) != jb.get(k):

@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -72,12 +73,13 @@ outputs (in DIR): frames.h5 + frames.xdmf (open in ParaView), series.csv (energi
 scene.resolved.yaml, summary.json (written last: its presence marks a complete run),
 checkpoint.h5 (+ checkpoint.prev.h5) every output.checkpoint_every_steps / _seconds.
 SIGTERM or SIGINT to a rank: all ranks write a final checkpoint and stop (a second signal ends at
-once). mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
+once); while the scene is read or the run set up (and in --dry-run) they stop at once, writing
+nothing. mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
 odls_base_sigkill_timeout). Ranks started by mpirun end at once (SIGKILL) if mpirun dies.
 exit status: 0 success, 2 invalid input (command line, scene, output directory, checkpoint;
 nothing written), 3 failure during the run (numerical; DIR/FAILED), 4 internal error (MPI_ABORT),
-5 stopped by SIGTERM/SIGINT after a final checkpoint (continue with --resume DIR).
-See docs/user/running.md.
+5 stopped by SIGTERM/SIGINT (after a final checkpoint once the run has begun: continue with
+--resume DIR). See docs/user/running.md; limits and checks of scene values: docs/user/limits.md.
 )";
 
 struct Args {
@@ -190,6 +192,12 @@ std::string read_scene_text(const std::string& path, MPI_Comm comm) {
   return text;
 }
 
+std::string fmt_error(double e) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2e", e);
+  return buf;
+}
+
 int rank_of_world() {
   int r = 0;
   MPI_Comm_rank(PETSC_COMM_WORLD, &r);
@@ -233,10 +241,27 @@ int main(int argc, char** argv) {
           args.out = dir.empty() ? "." : dir;
         }
       }
-      const peri::Scene scene =
-          args.has_scene ? peri::parse_scene(read_scene_text(args.scene, PETSC_COMM_WORLD), args.scene, args.overrides)
-          : checkpoint   ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides)
-                         : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides);
+      // A stop request ends the reading on the ranks that see it; all ranks then agree (a stop
+      // wins over an input error, which every rank that read the whole scene found alike).
+      const peri::StopCheck stop = [] { return peri::stop_signal() != 0; };
+      peri::Scene scene;
+      std::exception_ptr invalid;
+      int stopped = 0, stopped_any = 0;
+      try {
+        scene = args.has_scene ? peri::parse_scene(read_scene_text(args.scene, PETSC_COMM_WORLD), args.scene,
+                                                   args.overrides, stop)
+                : checkpoint   ? peri::parse_scene(checkpoint->scene, checkpoint_file + ": scene", args.overrides, stop)
+                               : peri::parse_scene(peri::default_scene_text(), "<default scene>", args.overrides, stop);
+      } catch (const peri::StopRequested&) {
+        stopped = peri::stop_signal();
+      } catch (const peri::InputError&) {
+        invalid = std::current_exception();
+      }
+      MPI_Allreduce(&stopped, &stopped_any, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+      if (stopped_any)
+        throw peri::StopRequested("stopped by signal " + std::to_string(stopped_any) +
+                                  " while reading the scene; nothing was written");
+      if (invalid) std::rethrow_exception(invalid);
       if (args.print_scene) {
         if (rank == 0) std::fputs(peri::emit_scene(scene).c_str(), stdout);
       } else if (args.dry_run) {
@@ -269,6 +294,7 @@ int main(int argc, char** argv) {
           throw;
         }
         const peri::RunSummary& s = sim.summary();
+        const bool preload_counted = s.run_energy_balance_error != s.energy_balance_error;
         if (sim.stopped()) {
           if (rank == 0)
             std::fprintf(stderr, "peridrive: stopped by signal %d at step %lld/%lld; checkpoint %s; continue with: "
@@ -276,14 +302,20 @@ int main(int argc, char** argv) {
                          static_cast<long long>(sim.total_steps()), sim.checkpoint_path().c_str(), opt.out_dir.c_str());
           status = peri::kExitStopped;
         } else if (rank == 0 && !args.quiet)
-          std::printf("[peridrive] done: %lld steps in %.3g s (%.3g bond updates/s), %lld bonds broken; "
-                      "energy balance error %.2e; results in %s/\n",
-                      static_cast<long long>(s.steps), s.wall_seconds,
-                      s.step_seconds > 0 ? double(s.ordered_bonds) * s.steps / s.step_seconds : 0.0,
+          std::printf("[peridrive] done: %lld steps (%lld timed here) in %.3g s (%.3g bond updates/s), %lld bonds "
+                      "broken; energy balance error %.2e%s; results in %s/\n",
+                      static_cast<long long>(s.steps), static_cast<long long>(s.steps_timed), s.wall_seconds,
+                      s.step_seconds > 0 ? double(s.ordered_bonds) * s.steps_timed / s.step_seconds : 0.0,
                       static_cast<long long>(s.final_energy.broken_bonds), s.energy_balance_error,
+                      preload_counted ? (" (explicit part; whole run, quasi-static work included: " +
+                                         fmt_error(s.run_energy_balance_error) + ")").c_str() : "",
                       opt.out_dir.c_str());
       }
     }
+  } catch (const peri::StopRequested& e) {
+    // Decided together (the scene reading above, the setup's stop points): all ranks arrive here.
+    if (rank == 0) std::fprintf(stderr, "peridrive: %s\n", e.what());
+    status = peri::kExitStopped;
   } catch (const peri::InputError& e) {
     // Input is validated identically on every rank: all ranks arrive here together.
     if (rank == 0) std::fprintf(stderr, "peridrive: error: %s\n", e.what());

@@ -393,7 +393,7 @@ materials:
     bulk_modulus: 3.3333333333333335e5
     influence: conical
     critical_stretch: 1.1
-    critical_stretch_at_horizon: 1.0000000000000002
+    critical_stretch_at_horizon: 1.0000000001000002
     hardening: {coefficient: 0, exponent: 4.5}
   "1":
     model: pmb
@@ -439,7 +439,6 @@ stages:
     dt: 1.0e-9
     allow_unstable_dt: true
   - name: relax
-    duration: 2.0e-4
     steps: 12
     safety_factor: 1
 output:
@@ -869,7 +868,7 @@ TEST(SceneErrors, Stages) {
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - steps: 2.5")),
               StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1, got 2.5"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - steps: 0")),
-              StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1, got 0"));
+              StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 0"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    safety_factor: 1.5")),
               StartsWith("scene.yaml:16: stages.0.safety_factor: expected a number in (0, 1], got 1.5"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    kind: static")),
@@ -1091,4 +1090,100 @@ TEST(SceneNames, EdgesOfTheRuleAccepted) {
       }
     }
   }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Extreme values refused where they are read (the derived ones at setup: bad_values.sh)
+
+TEST(SceneLimits, SubnormalAndUnderflowingNumbers) {
+  const std::string expected = "expected 0 or a number of magnitude at least 2.2e-308 (the smallest normal double), got ";
+  EXPECT_EQ(error_of(with("density: 1200", "density: 1e-310")), "scene.yaml:5: materials.rubber.density: " + expected + "1e-310");
+  EXPECT_EQ(error_of(with("density: 1200", "density: 4.9e-324")), "scene.yaml:5: materials.rubber.density: " + expected + "4.9e-324");
+  EXPECT_EQ(error_of(with("density: 1200", "density: 1e-400")), "scene.yaml:5: materials.rubber.density: " + expected + "1e-400");
+  EXPECT_EQ(error_of(with("origin: [0, 0, 0]", "origin: [0, -2e-320, 0]")),
+            "scene.yaml:10: bodies.sheet.origin.1: " + expected + "-2e-320");
+  EXPECT_EQ(error_of(kBase, {{"stages.0.dt", "1e-309"}}), "--set: stages.0.dt: " + expected + "1e-309");
+  // The smallest normal double itself, and 0 where 0 is allowed, are read.
+  EXPECT_EQ(peri::parse_scene(with("density: 1200", "density: 2.2250738585072014e-308"), "scene.yaml").materials[0].density,
+            2.2250738585072014e-308);
+  EXPECT_EQ(peri::parse_scene(with("origin: [0, 0, 0]", "origin: [0, -0.0, 0]"), "scene.yaml").bodies[0].origin[1], 0.0);
+}
+
+TEST(SceneLimits, StepsAreBoundedAndExcludeDuration) {
+  EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - steps: 1000000001")),
+              StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 1000000001"));
+  EXPECT_EQ(peri::parse_scene(with("  - duration: 1.0e-5", "  - steps: 1e9"), "scene.yaml").stages[0].steps, 1000000000);
+  // Both in the file (either order): refused at the duration, naming the stage and both values.
+  EXPECT_EQ(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    steps: 20")),
+            "scene.yaml:15: stages.0.duration: give either duration or steps, not both (stage 'stage0' has steps: 20 "
+            "and duration: 1.0e-5)");
+  EXPECT_EQ(error_of(with("  - duration: 1.0e-5", "  - {name: pull, steps: 20, duration: 2e-5}")),
+            "scene.yaml:15: stages.0.duration: give either duration or steps, not both (stage 'pull' has steps: 20 "
+            "and duration: 2e-5)");
+  // An override of one replaces the other the file gave, and is read back from the resolved text.
+  const Scene by_steps = peri::parse_scene(kBase, "scene.yaml", {{"stages.0.steps", "20"}});
+  EXPECT_EQ(by_steps.stages[0].steps, 20);
+  EXPECT_EQ(by_steps.stages[0].duration, 0.0);
+  EXPECT_EQ(peri::parse_scene(peri::emit_scene(by_steps), "resolved.yaml").stages[0].steps, 20);
+  const Scene by_duration =
+      peri::parse_scene(with("  - duration: 1.0e-5", "  - steps: 20"), "scene.yaml", {{"stages.0.duration", "3e-5"}});
+  EXPECT_FALSE(by_duration.stages[0].steps);
+  EXPECT_EQ(by_duration.stages[0].duration, 3e-5);
+  // Both by overrides: refused (the later one names the earlier).
+  EXPECT_EQ(error_of(kBase, {{"stages.0.steps", "20"}, {"stages.0.duration", "3e-5"}}),
+            "--set: stages.0.duration: give either duration or steps, not both (stage 'stage0' has steps: 20 and "
+            "duration: 3e-5)");
+  // An emptied key does not remove the other.
+  EXPECT_EQ(peri::parse_scene(kBase, "scene.yaml", {{"stages.0.steps", "~"}}).stages[0].duration, 1.0e-5);
+}
+
+TEST(SceneLimits, CriticalStretchAboveTheResolutionOfBondLengths) {
+  const std::string pmb = with("model: membrane", "model: pmb");
+  EXPECT_EQ(error_of(with("wave_speed: 1000", "wave_speed: 1000\n    critical_stretch: 1.00000000001")),
+            "scene.yaml:7: materials.rubber.critical_stretch: expected a critical stretch lambda_0 >= 1 + 1e-10 (a "
+            "smaller failure strain is below the resolution of reference bond lengths and breaks bonds at rest), got "
+            "1.00000000001");
+  EXPECT_THAT(error_of(with("wave_speed: 1000", "wave_speed: 1000\n    critical_stretch: 1e-300", pmb)),
+              StartsWith("scene.yaml:7: materials.rubber.critical_stretch: expected a critical bond strain s_0 >= 1e-10"));
+  EXPECT_THAT(error_of(with("wave_speed: 1000", "wave_speed: 1000\n    critical_stretch: 0.1\n    critical_stretch_at_horizon: 1e-11", pmb)),
+              StartsWith("scene.yaml:8: materials.rubber.critical_stretch_at_horizon: expected a critical bond strain s_0 >= 1e-10"));
+  EXPECT_EQ(peri::parse_scene(with("wave_speed: 1000", "wave_speed: 1000\n    critical_stretch: 1e-10", pmb), "scene.yaml")
+                .materials[0].critical_stretch, 1e-10);
+}
+
+TEST(SceneLimits, ToolStiffness) {
+  const std::string tools = kBase + "tools:\n  - {name: rod, kind: cylinder, radius: 0.001, center: [-0.002, 0.005], stiffness: 1e300}\n";
+  EXPECT_EQ(error_of(tools), "scene.yaml:17: tools.0.stiffness: expected a number in (0, 1e6], got 1e300");
+  EXPECT_EQ(error_of(tools, {{"tools.rod.stiffness", "0"}}), "--set: tools.0.stiffness: expected a number in (0, 1e6], got 0");
+  EXPECT_EQ(peri::parse_scene(tools, "scene.yaml", {{"tools.rod.stiffness", "1e6"}}).tools[0].stiffness, 1e6);
+}
+
+TEST(SceneLimits, ValuesAreCountedBeforeTheDocumentIsKept) {
+  // 100,000 cracks of 11 values each: refused at the line where the count passes 1,000,000,
+  // naming the top-level key being read.
+  std::string text = kBase + "cracks:\n";
+  for (int k = 0; k < 100000; ++k) text += "  - {from: [0, 0, 0], to: [" + std::to_string(k + 1) + ", 0, 0]}\n";
+  const std::string msg = error_of(text);
+  EXPECT_EQ(msg, "scene.yaml:90922: cracks: the scene holds more than 1000000 YAML values (numbers, strings, lists, maps) "
+                 "by this line; expected at most 1000000 (about 90000 cracks written as {from: [x, y, z], to: [x, y, z]})");
+  // 90,000 are read.
+  text = kBase + "cracks:\n";
+  for (int k = 0; k < 90000; ++k) text += "  - {from: [0, 0, 0], to: [" + std::to_string(k + 1) + ", 0, 0]}\n";
+  EXPECT_EQ(peri::parse_scene(text, "scene.yaml").cracks.size(), 90000u);
+}
+
+TEST(SceneLimits, ReadingStopsWhenAsked) {
+  // The stop check is asked before each 64 KiB of text: a long scene is abandoned mid-way.
+  std::string text = kBase + "cracks:\n";
+  for (int k = 0; k < 20000; ++k) text += "  - {from: [0, 0, 0], to: [" + std::to_string(k + 1) + ", 0, 0]}\n";
+  int asked = 0;
+  try {
+    peri::parse_scene(text, "scene.yaml", {}, [&] { return ++asked == 3; });
+    ADD_FAILURE() << "the reading went on after the stop request";
+  } catch (const peri::StopRequested& e) {
+    EXPECT_EQ(std::string(e.what()), "stopped while reading the scene");
+  }
+  EXPECT_EQ(asked, 3);
+  // Never asked to stop: the same text is read whole.
+  EXPECT_EQ(peri::parse_scene(text, "scene.yaml", {}, [] { return false; }).cracks.size(), 20000u);
 }

@@ -177,7 +177,8 @@ std::vector<std::vector<Vec3>> fiber_paths(const Body& b) {
 
 SizeEstimate estimate_size(const Scene& scene) {
   SizeEstimate e;
-  for (const Body& b : scene.bodies) {
+  for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
+    const Body& b = scene.bodies[bi];
     double n = 1;
     const int dims = b.kind == BodyKind::Solid ? 3 : b.kind == BodyKind::Fiber ? 0 : 2;
     for (int d = 0; d < dims; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
@@ -191,8 +192,14 @@ SizeEstimate estimate_size(const Scene& scene) {
         n = std::max(1.0, std::round(path_length(b.path) / b.spacing));
     }
     if (b.grid == Grid::Hexagonal || b.kind == BodyKind::Lattice) n *= 2.0 / std::sqrt(3.0);
+    // A horizon that takes in the whole body bonds every node to every other, no more.
+    const double family = std::min(neighbours_estimate(b), std::max(n - 1, 0.0));
     e.nodes += n;
-    e.bonds += n * neighbours_estimate(b);
+    e.bonds += n * family;
+    if (family > e.largest_family) {
+      e.largest_family = family;
+      e.largest_family_body = static_cast<int>(bi);
+    }
   }
   // 5 bytes per ordered bond (32-bit neighbour, flag; the reference geometry is shared by family
   // patterns) + ~350 bytes per node (state, PETSc, forces, output), as measured at 1M nodes.

@@ -38,21 +38,27 @@ double youngs_per_c_fiber(bool membrane_law, const BodyGeometry& g, bool conical
 }
 
 // The micromodulus of a stretch-based law from the material's one stiffness input.
-double micromodulus(const Material& m, const BodyGeometry& g, bool membrane_law, bool conical) {
+// (Refused where it is not a usable double: check_micromodulus names the cause.)
+double micromodulus(const Material& m, const BodyGeometry& g, const std::string& where, bool membrane_law,
+                    bool conical) {
   if (m.micromodulus) return *m.micromodulus;
   if (g.kind == BodyKind::Fiber) {  // one modulus in 1D: the bar's E (a "bulk modulus" is read as E too)
     double e = 0;
     if (m.wave_speed) e = m.density * *m.wave_speed * *m.wave_speed;
     if (m.bulk_modulus) e = *m.bulk_modulus;
     if (m.youngs_modulus) e = *m.youngs_modulus;
-    return e / youngs_per_c_fiber(membrane_law, g, conical);
+    const double per_c = youngs_per_c_fiber(membrane_law, g, conical), c = e / per_c;
+    check_micromodulus(m, g, where, e, per_c, c);
+    return c;
   }
   const bool membrane = in_plane(g);
   double mu = 0;
   if (m.wave_speed) mu = m.density * *m.wave_speed * *m.wave_speed / 3.0;
   if (m.bulk_modulus) mu = membrane ? *m.bulk_modulus / 2.0 : 0.6 * *m.bulk_modulus;
   if (m.youngs_modulus) mu = membrane ? 3.0 * *m.youngs_modulus / 8.0 : 0.4 * *m.youngs_modulus;
-  return mu / mu_per_c(membrane_law, g, conical);
+  const double per_c = mu_per_c(membrane_law, g, conical), c = mu / per_c;
+  check_micromodulus(m, g, where, mu, per_c, c);
+  return c;
 }
 
 // critical_stretch (membrane: lambda_0; PMB: the strain s_0, + 1) and eq. (29)'s value at delta.
@@ -73,6 +79,9 @@ ElasticConstants stretch_elastic(const L& law, bool membrane_law, const BodyGeom
 
 const LawEntry* entry_named(const char* name);
 
+constexpr const char* kMembraneStability =
+    "stiffens in compression by 1 + 3/lambda^4, so snapping-back fragments need a smaller safety_factor, e.g. 0.35";
+
 // The membrane law, or with a hardening key the membrane law with eq. (16)'s term.
 void calibrate_membrane(const Material& m, const BodyGeometry& g, const std::string& where, BondLaw& out) {
   if (g.kind == BodyKind::Solid)
@@ -82,7 +91,7 @@ void calibrate_membrane(const Material& m, const BodyGeometry& g, const std::str
   MembraneLaw law;
   law.horizon = g.horizon;
   law.conical = m.influence == Influence::Conical;
-  law.c = micromodulus(m, g, true, law.conical);
+  law.c = micromodulus(m, g, where, true, law.conical);
   law.failure = failure_of(m, 0.0);
   if (m.hardening) {
     const MembraneHardeningLaw hard{law, m.hardening->coefficient, m.hardening->exponent};
@@ -95,6 +104,7 @@ void calibrate_membrane(const Material& m, const BodyGeometry& g, const std::str
 LawEntry membrane_entry() {
   LawEntry e = make_law_entry<MembraneLaw>(
       "membrane", "rubbery membrane micropotential, eqs. (13), (15); failure at lambda_0 (eqs. 11, 22, 29)");
+  e.stability_note = kMembraneStability;
   e.calibrate = calibrate_membrane;
   e.elastic = [](const void* c, const BodyGeometry& g, double density) {
     return stretch_elastic(*static_cast<const MembraneLaw*>(c), true, g, density);
@@ -106,6 +116,7 @@ LawEntry membrane_entry() {
 LawEntry membrane_hardening_entry() {
   LawEntry e = make_law_entry<MembraneHardeningLaw>(
       "membrane_hardening", "the membrane micropotential with power-law hardening, eq. (16) (model membrane, key hardening)");
+  e.stability_note = kMembraneStability;
   e.calibrate = calibrate_membrane;
   // At small strain eq. (16)'s term adds c' n (n - 1)/2 eps^2 g to the membrane law's 4 c eps^2 g:
   // the moduli of a membrane law with c + c' n (n - 1) / 8.
@@ -121,11 +132,14 @@ LawEntry membrane_hardening_entry() {
 
 LawEntry pmb_entry() {
   LawEntry e = make_law_entry<PmbLaw>("pmb", "prototype microelastic brittle bonds: f = c s g, failure at the strain s_0");
-  e.calibrate = [](const Material& m, const BodyGeometry& g, const std::string&, BondLaw& out) {
+  e.stability_note =
+      "keeps its bond stiffness at any strain, so its bound holds throughout; look for a tool pressed in faster "
+      "than the sheet can follow, or a load that moves nodes a large part of the spacing per step";
+  e.calibrate = [](const Material& m, const BodyGeometry& g, const std::string& where, BondLaw& out) {
     PmbLaw law;
     law.horizon = g.horizon;
     law.conical = m.influence == Influence::Conical;
-    law.c = micromodulus(m, g, false, law.conical);
+    law.c = micromodulus(m, g, where, false, law.conical);
     law.failure = failure_of(m, 1.0);  // PMB's critical value is a strain s_0
     out = BondLaw(entry_named("pmb"), law);
   };

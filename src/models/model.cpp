@@ -1,10 +1,57 @@
 #include "peri/models/model.hpp"
 
 #include <cmath>
+#include <limits>
+#include <sstream>
 
 #include "peri/core/error.hpp"
 
 namespace peri {
+namespace {
+
+std::string number(double x) {
+  std::ostringstream s;
+  s.precision(6);
+  s << x;
+  return s.str();
+}
+
+}  // namespace
+
+bool usable(double x) { return std::isfinite(x) && x >= std::numeric_limits<double>::min(); }
+
+std::string stiffness_input(const Material& m) {
+  const std::string p = "materials." + m.name + ".";
+  if (m.marder) return p + "mooney_rivlin_a: " + number(m.marder->a) + " J/kg";
+  if (m.wave_speed)
+    return p + "wave_speed: " + number(*m.wave_speed) + " m/s (density " + number(m.density) + " kg/m^3)";
+  if (m.bulk_modulus) return p + "bulk_modulus: " + number(*m.bulk_modulus) + " Pa";
+  if (m.youngs_modulus) return p + "youngs_modulus: " + number(*m.youngs_modulus) + " Pa";
+  return p + "micromodulus: " + number(m.micromodulus.value_or(0));
+}
+
+void check_micromodulus(const Material& m, const BodyGeometry& g, const std::string& where, double modulus,
+                        double per_c, double c) {
+  if (usable(c)) return;
+  std::ostringstream msg;
+  const std::string geometry = (g.kind == BodyKind::Fiber ? "cross-section " + number(g.area) + " m^2"
+                                                          : "thickness " + number(g.thickness) + " m") +
+                               ", horizon " + number(g.horizon) + " m";
+  if (!usable(modulus)) {
+    msg << m.where.str() << ": " << stiffness_input(m) << " gives " << (g.kind == BodyKind::Fiber ? "E" : "mu")
+        << " = " << number(modulus) << " Pa, " << (modulus > 1 ? "beyond the largest double" : "below the smallest normal double");
+  } else if (!usable(per_c)) {
+    msg << where << ": the body's geometry (" << geometry << ") gives a stiffness per unit micromodulus of "
+        << number(per_c) << ", " << (per_c > 1 ? "beyond the largest double" : "below the smallest normal double");
+  } else {
+    msg << m.where.str() << ": " << stiffness_input(m) << " in "
+        << where.substr(where.rfind(": ") == std::string::npos ? 0 : where.rfind(": ") + 2) << " (" << geometry
+        << ") gives a micromodulus c = " << number(c) << ", "
+        << (c > 1 ? "beyond the largest double" : "below the smallest normal double");
+  }
+  msg << "; expected a stiffness and geometry whose micromodulus is a finite double of at least 2.2e-308";
+  throw InputError(msg.str());
+}
 
 double influence_moment(int k, double delta, bool conical) {
   const double full = std::pow(delta, k + 1) / (k + 1);

@@ -3,10 +3,14 @@
 #include <algorithm>
 #include <unordered_map>
 
+#include "peri/bonds/crack_index.hpp"
+
 namespace peri {
 
 Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cells,
-                    const Partition& partition, int rank) {
+                    const Partition& partition, int rank, const std::function<bool()>& stop) {
+  // Rows between polls of `stop`: a stopped build returns at once, unfinished.
+  constexpr std::int64_t kPollRows = 4096;
   Domain d;
   d.rank = rank;
   d.ranks = partition.parts;
@@ -36,6 +40,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
       ghost_globals.erase(std::unique(ghost_globals.begin(), ghost_globals.end()), ghost_globals.end());
       compact_at = 2 * ghost_globals.size() + 4096;
     }
+    if ((g - d.global_begin) % kPollRows == 0 && stop && stop()) return d;
   }
   std::sort(ghost_globals.begin(), ghost_globals.end());
   ghost_globals.erase(std::unique(ghost_globals.begin(), ghost_globals.end()), ghost_globals.end());
@@ -70,7 +75,14 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   PatternBuilder patterns;
   std::vector<double> xi2, measure;
   std::unordered_map<std::int64_t, std::int32_t> pattern_of_class;  // family_class -> pattern
+  double longest = 0;  // bond of a body that cracks cut (not solids)
+  for (const BodyGeometry& g : nodes.bodies)
+    if (g.kind != BodyKind::Solid) longest = std::max(longest, reach(g));
+  std::vector<const Crack*> crack_list;
+  for (const Crack& c : scene.cracks) crack_list.push_back(&c);
+  const CrackIndex cracks(std::move(crack_list), longest);
   for (std::int32_t r = 0; r < d.owned; ++r) {
+    if (r % kPollRows == 0 && stop && stop()) return d;
     bool touches_ghost = false;
     const std::int64_t i = d.natural[r];
     const std::int64_t family = family_class(nodes, cells, i);
@@ -96,13 +108,11 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
         const double* c = &nodes.X[3 * std::max(i, j)];
-        for (const Crack& crack : scene.cracks)
-          if (crosses(a, c, crack)) {
-            d.bonds.broken[b] = 1;
-            d.bonds.row_broken[r] = 1;
-            ++d.initially_broken;
-            break;
-          }
+        if (cracks.crosses_any(a, c)) {
+          d.bonds.broken[b] = 1;
+          d.bonds.row_broken[r] = 1;
+          ++d.initially_broken;
+        }
       }
     }
     if (known != pattern_of_class.end()) {

@@ -28,6 +28,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <limits>
@@ -77,10 +78,12 @@ std::string child_path(const std::string& parent, const std::string& key) {
   return parent.empty() ? key : parent + "." + key;
 }
 
-enum class NumberText { Ok, NotANumber, NotFinite };
+enum class NumberText { Ok, NotANumber, NotFinite, Subnormal };
 
 /// Parses a YAML plain scalar as a double. Accepts what std::from_chars accepts (plus a leading
-/// '+'); YAML's .nan/.inf spellings and out-of-range values are reported as not finite.
+/// '+'); YAML's .nan/.inf spellings and values beyond the largest double are reported as not
+/// finite; non-zero values below the smallest normal double (2.2e-308) as subnormal, so that no
+/// derived quantity silently loses its precision or becomes 0.
 NumberText parse_number(std::string_view s, double& out) {
   std::string lower(s);
   for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -90,9 +93,11 @@ NumberText parse_number(std::string_view s, double& out) {
   if (s.empty()) return NumberText::NotANumber;
   const auto r = std::from_chars(s.data(), s.data() + s.size(), out);
   if (r.ptr != s.data() + s.size()) return NumberText::NotANumber;
-  if (r.ec == std::errc::result_out_of_range) return NumberText::NotFinite;
+  if (r.ec == std::errc::result_out_of_range)  // too large, or too small in magnitude
+    return std::fabs(std::strtod(std::string(s).c_str(), nullptr)) < 1 ? NumberText::Subnormal : NumberText::NotFinite;
   if (r.ec != std::errc()) return NumberText::NotANumber;
-  return std::isfinite(out) ? NumberText::Ok : NumberText::NotFinite;
+  if (!std::isfinite(out)) return NumberText::NotFinite;
+  return out != 0 && std::fabs(out) < std::numeric_limits<double>::min() ? NumberText::Subnormal : NumberText::Ok;
 }
 
 /// A node as the "got ..." part of a message: scalars as written (quoted ones in quotes), other
@@ -232,6 +237,8 @@ class Value {
         return v;
       case NumberText::NotFinite:
         fail("expected a finite number, got " + got());
+      case NumberText::Subnormal:
+        fail("expected 0 or a number of magnitude at least 2.2e-308 (the smallest normal double), got " + got());
       case NumberText::NotANumber:
         break;
     }
@@ -693,6 +700,14 @@ double critical_value(const Value& v, ModelKind model) {
     v.fail("the membrane model needs a critical stretch lambda_0 > 1, got " + v.got());
   if (model == ModelKind::PMB && !(x > 0))
     v.fail("the pmb model needs a critical bond strain s_0 > 0, got " + v.got());
+  // Reference bond lengths are kept to 2^-46 relative: a smaller failure strain would break
+  // bonds at rest.
+  const double strain = model == ModelKind::Membrane ? x - 1 : x;
+  if (strain < 1e-10)
+    v.fail(std::string(model == ModelKind::Membrane ? "expected a critical stretch lambda_0 >= 1 + 1e-10"
+                                                    : "expected a critical bond strain s_0 >= 1e-10") +
+           " (a smaller failure strain is below the resolution of reference bond lengths and breaks bonds at "
+           "rest), got " + v.got());
   return x;
 }
 
@@ -1078,7 +1093,9 @@ Tool read_tool(const Value& v, UniqueNames& names) {
     }
   }
   if (auto x = m.get("friction")) t.friction = x->non_negative("");
-  if (auto x = m.get("stiffness")) t.stiffness = x->positive("");
+  // The stable step shrinks by sqrt(1 + stiffness): 1e6 already makes it a thousandth.
+  if (auto x = m.get("stiffness"))
+    t.stiffness = x->number_if("a number in (0, 1e6]", [](double k) { return k > 0 && k <= 1e6; });
   return t;
 }
 
@@ -1174,8 +1191,11 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
   }
   if (auto x = m.get("damping")) s.damping = x->non_negative("1/s");
   if (auto x = m.get("boundary_velocity")) s.boundary_velocity = read_boundary_values(*x, boundaries, "m/s");
-  if (auto x = m.get("steps")) s.steps = x->integer(1);
+  if (auto x = m.get("steps")) s.steps = x->integer(1, kMaxStageSteps);
   if (auto x = m.get("duration")) {
+    if (s.steps)
+      x->fail("give either duration or steps, not both (stage '" + s.name + "' has steps: " +
+              std::to_string(*s.steps) + " and duration: " + x->got() + ")");
     s.duration = x->positive("s");
   } else if (!s.steps) {
     m.missing("duration", "simulated time, s; or give steps");
@@ -1312,39 +1332,94 @@ std::string top_level_keys() {
   return join(names);
 }
 
-/// Counts the documents of a YAML stream and where each starts, without building nodes.
+/// Counts the documents of a YAML stream and where each starts, and the values they hold (at
+/// most kMaxSceneValues, else InputError naming the top-level key being read), without building
+/// nodes.
 class DocumentCounter : public YAML::EventHandler {
  public:
+  explicit DocumentCounter(std::string file) : file_(std::move(file)) {}
   std::vector<YAML::Mark> starts;  ///< per document: where it starts
   std::vector<YAML::Mark> roots;   ///< per document: where its root node starts
   void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
   void OnDocumentEnd() override {}
-  void OnNull(const YAML::Mark& m, YAML::anchor_t) override { root(m); }
-  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { root(m); }
-  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string&) override { root(m); }
+  void OnNull(const YAML::Mark& m, YAML::anchor_t) override { value(m, nullptr); }
+  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { value(m, nullptr); }
+  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string& text) override {
+    value(m, &text);
+  }
   void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
-    root(m);
+    value(m, nullptr);
+    ++depth_;
   }
-  void OnSequenceEnd() override {}
+  void OnSequenceEnd() override { --depth_; }
   void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
-    root(m);
+    value(m, nullptr);
+    ++depth_;
   }
-  void OnMapEnd() override {}
+  void OnMapEnd() override { --depth_; }
 
  private:
-  void root(const YAML::Mark& m) {
+  void value(const YAML::Mark& m, const std::string* scalar) {
     if (roots.size() < starts.size()) roots.push_back(m);
+    // Directly inside the top-level map, entries alternate key and value.
+    if (depth_ == 1) {
+      if (key_next_ && scalar) key_ = *scalar;
+      key_next_ = !key_next_;
+    }
+    if (++values_ <= kMaxSceneValues) return;
+    throw InputError(SourceLoc{file_, m.line >= 0 ? m.line + 1 : 1}.str() + ": " + (key_.empty() ? "top level" : key_) +
+                     ": the scene holds more than " + std::to_string(kMaxSceneValues) +
+                     " YAML values (numbers, strings, lists, maps) by this line; expected at most " +
+                     std::to_string(kMaxSceneValues) + " (about 90000 cracks written as {from: [x, y, z], to: [x, y, z]})");
   }
+
+  std::string file_;
+  std::string key_;  // top-level key whose value is being read
+  int depth_ = 0;
+  bool key_next_ = true;
+  long values_ = 0;
 };
 
-YAML::Node load_document(const std::string& text, const std::string& file) {
+/// The scene text handed to yaml-cpp in 64 KiB pieces, asking `stop` before each piece (yaml-cpp
+/// reads through the stream buffer as it scans), so that a long text can be abandoned mid-way.
+class StoppableText : public std::streambuf {
+ public:
+  StoppableText(const std::string& text, const StopCheck& stop) : text_(text), stop_(stop) {}
+
+ protected:
+  int_type underflow() override {
+    if (gptr() < egptr()) return traits_type::to_int_type(*gptr());
+    if (next_ >= text_.size()) return traits_type::eof();
+    if (stop_ && stop_()) throw StopRequested("stopped while reading the scene");
+    char* begin = const_cast<char*>(text_.data()) + next_;
+    next_ = std::min(text_.size(), next_ + (std::size_t{1} << 16));
+    setg(begin, begin, const_cast<char*>(text_.data()) + next_);
+    return traits_type::to_int_type(*begin);
+  }
+
+ private:
+  const std::string& text_;
+  const StopCheck& stop_;
+  std::size_t next_ = 0;
+};
+
+/// A stream over a StoppableText whose reads let the stop request (StopRequested) reach the caller.
+struct StoppableStream : std::istream {
+  StoppableStream(const std::string& text, const StopCheck& stop) : std::istream(nullptr), buffer(text, stop) {
+    rdbuf(&buffer);
+    exceptions(std::ios::badbit);
+  }
+  StoppableText buffer;
+};
+
+YAML::Node load_document(const std::string& text, const std::string& file, const StopCheck& stop) {
   std::vector<YAML::Node> docs;
   try {
     // Count the documents first. YAML::LoadAll is not used: on a token that starts no node (a
     // ',' outside a flow collection) yaml-cpp returns the same empty document forever, filling
     // memory; a document that starts where the previous one started is that token.
-    DocumentCounter counter;
-    std::istringstream in(text);
+    DocumentCounter counter(file);
+    StoppableStream in(text, stop);
     YAML::Parser parser(in);
     while (parser.HandleNextDocument(counter)) {
       const std::size_t n = counter.starts.size();
@@ -1361,7 +1436,10 @@ YAML::Node load_document(const std::string& text, const std::string& file) {
       throw InputError(SourceLoc{file, m.line >= 0 ? m.line + 1 : 1}.str() +
                        ": expected a single YAML document, found " + std::to_string(counter.starts.size()));
     }
-    if (!counter.starts.empty()) docs.push_back(YAML::Load(text));
+    if (!counter.starts.empty()) {
+      StoppableStream again(text, stop);
+      docs.push_back(YAML::Load(again));
+    }
   } catch (const YAML::Exception& e) {
     throw InputError(SourceLoc{file, e.mark.line >= 0 ? e.mark.line + 1 : 1}.str() +
                      ": YAML syntax error: " + e.msg);
@@ -1463,6 +1541,16 @@ void apply_override(YAML::Node& root, const Override& o, Context& ctx) {
            "), not a map or a list, so it has no entry '" + segment + "'");
     }
     cur.reset(next);
+  }
+  // A stage's steps and duration exclude each other: an override of one replaces the other where
+  // the file gave it (both given by overrides stay, and are refused).
+  const std::string leaf = segments.back();
+  if (cur.IsMap() && !value.IsNull() && (leaf == "steps" || leaf == "duration") && path.rfind("stages.", 0) == 0 &&
+      std::count(path.begin(), path.end(), '.') == 2) {
+    const std::string other = leaf == "steps" ? "duration" : "steps";
+    const std::string stage_path = path.substr(0, path.size() - leaf.size() - 1);
+    const YAML::Node& const_cur = cur;
+    if (const_cur[other].IsDefined() && !ctx.overridden(child_path(stage_path, other))) cur.remove(other);
   }
   ctx.mark_overridden(path);
 }
@@ -1753,14 +1841,15 @@ bool Scene::released_later(const std::string& crack) const {
   return false;
 }
 
-Scene parse_scene(const std::string& text, const std::string& file, const std::vector<Override>& overrides) {
+Scene parse_scene(const std::string& text, const std::string& file, const std::vector<Override>& overrides,
+                  const StopCheck& stop) {
   Context ctx(file);
-  YAML::Node root = load_document(text, file);
+  YAML::Node root = load_document(text, file, stop);
   for (const Override& o : overrides) apply_override(root, o, ctx);
   return read_scene(ctx, root, file);
 }
 
-Scene load_scene(const std::string& path, const std::vector<Override>& overrides) {
+Scene load_scene(const std::string& path, const std::vector<Override>& overrides, const StopCheck& stop) {
   const auto fail = [&](int err) {
     throw InputError("cannot read scene file '" + path + "': " + std::strerror(err));
   };
@@ -1774,7 +1863,7 @@ Scene load_scene(const std::string& path, const std::vector<Override>& overrides
     if (n < sizeof buf) break;
   }
   if (std::ferror(f.get())) fail(errno != 0 ? errno : EIO);
-  return parse_scene(text, path, overrides);
+  return parse_scene(text, path, overrides, stop);
 }
 
 std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) {

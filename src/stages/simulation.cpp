@@ -90,6 +90,10 @@ std::string json_number(double v) {
 }  // namespace
 
 std::string RunSummary::to_json() const {
+  // Rates over the steps this process timed (a resumed run: those after its checkpoint).
+  const double updates = step_seconds > 0 ? double(ordered_bonds) * double(steps_timed) / step_seconds : 0;
+  double qs_error = 0;
+  for (double e : quasistatic_work_error) qs_error = std::max(qs_error, e);
   std::ostringstream j;
   j << "{\n"
     << "  \"peridrive_version\": " << json_string(version()) << ",\n"
@@ -102,16 +106,15 @@ std::string RunSummary::to_json() const {
     << "  \"dt\": " << json_number(dt) << ",\n"
     << "  \"dt_stable\": " << json_number(dt_stable) << ",\n"
     << "  \"steps\": " << steps << ",\n"
+    << "  \"steps_timed\": " << steps_timed << ",\n"
     << "  \"simulated_time\": " << json_number(simulated_time) << ",\n"
     << "  \"frames\": " << frames << ",\n"
     << "  \"wall_seconds\": " << json_number(wall_seconds) << ",\n"
     << "  \"setup_seconds\": " << json_number(setup_seconds) << ",\n"
     << "  \"step_seconds\": " << json_number(step_seconds) << ",\n"
     << "  \"output_seconds\": " << json_number(output_seconds) << ",\n"
-    << "  \"bond_updates_per_second\": "
-    << json_number(step_seconds > 0 ? double(ordered_bonds) * steps / step_seconds : 0) << ",\n"
-    << "  \"bond_updates_per_second_per_rank\": "
-    << json_number(step_seconds > 0 ? double(ordered_bonds) * steps / step_seconds / ranks : 0) << ",\n"
+    << "  \"bond_updates_per_second\": " << json_number(updates) << ",\n"
+    << "  \"bond_updates_per_second_per_rank\": " << json_number(updates / ranks) << ",\n"
     << "  \"bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
     << "  \"partition_seconds\": " << json_number(partition_seconds) << ",\n"
     << "  \"edge_cut\": " << edge_cut << ",\n"
@@ -132,7 +135,10 @@ std::string RunSummary::to_json() const {
     << ", \"dissipated_energy\": " << json_number(final_energy.dissipated)
     << ", \"total_energy\": " << json_number(final_energy.total()) << "},\n"
     << "  \"initial_total_energy\": " << json_number(initial_total_energy) << ",\n"
-    << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n";
+    << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n"
+    << "  \"run_initial_total_energy\": " << json_number(run_initial_total_energy) << ",\n"
+    << "  \"run_energy_balance_error\": " << json_number(run_energy_balance_error) << ",\n"
+    << "  \"quasistatic_work_error\": " << json_number(qs_error) << ",\n";
   if (crack_tracking)
     j << "  \"crack_tips\": " << crack_tips_json << ",\n"
       << "  \"max_crack_speed\": " << json_number(max_crack_speed) << ",\n"
@@ -171,11 +177,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // Nodes, and every check that needs them, before anything is allocated per rank.
   PartitionSettings partition_settings = partition_settings_from_options();
   PetscLogEventBegin(events().nodes, 0, 0, 0, 0);
+  warn_large_families(estimate_size(scene_));
   check_fits(scene_, comm_, partition_settings.method == PartitionMethod::Bonds);
+  stop_point();
   nodes_ = discretize(scene_);
   std::vector<std::vector<std::int64_t>> bc_nodes;
   for (const Boundary& b : scene_.boundaries)
     bc_nodes.push_back(select_nodes(nodes_, scene_, b.region, "boundaries." + b.name + ".region"));
+  warn_overlapping_boundaries(bc_nodes);
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     const Material& m = scene_.material(scene_.bodies[b].material);
     laws_.push_back(scene_.bodies[b].kind == BodyKind::Lattice
@@ -186,6 +195,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     const double limit = scene_.stability.motion_per_step * scene_.bodies[b].spacing;
     motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
   }
+  check_node_masses();
+  stop_point();
 
   // Bonds, partition, this rank's domain and state.
   {
@@ -198,12 +209,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     partition_settings.method = resolve_partition_method(partition_settings.method, nodes_);  // auto: rcb or cells
     partition_ = partition_nodes(nodes_, cells, ranks_, comm_, partition_settings);
     PetscLogEventEnd(events().partition, 0, 0, 0, 0);
+    stop_point();
     mark_memory("partition");
     Scene initial_cracks = scene_;  // cracks named by release stages break later
     std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
     PetscLogEventBegin(events().bonds, 0, 0, 0, 0);
-    domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_);
+    domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_, [] { return stop_signal() != 0; });
     PetscLogEventEnd(events().bonds, 0, 0, 0, 0);
+    stop_point();  // before anything reads a domain the stop left unfinished
     if (partition_.edge_cut < 0) {  // a partitioner without a graph (rcb): the bonds to ghost nodes
       long long cut = 0, all = 0;
       for (std::int32_t i : domain_.boundary_rows)
@@ -295,21 +308,19 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   v_old_bc_ = du_bc_;
   prev_force_bc_ = du_bc_;
 
-  // Stable time step (collective) and each stage's step.
+  // Stable time step (collective, per body, then the smallest) and each stage's step.
   BondView view = bond_view();
-  double dt_local = std::numeric_limits<double>::infinity();
+  std::vector<double> dt_body(nb, std::numeric_limits<double>::infinity());
   for (std::size_t b = 0; b < nb; ++b) {
     if (marder_[b]) {
       if (!interior_by_body_[b].empty() || !boundary_by_body_[b].empty())
-        dt_local = std::min(dt_local, marder_stable_time_step(*marder_[b]));
+        dt_body[b] = marder_stable_time_step(*marder_[b]);
       continue;
     }
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
-      dt_local = std::min(dt_local, stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
+      dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
   }
-  MPI_Allreduce(&dt_local, &summary_.dt_stable, 1, MPI_DOUBLE, MPI_MIN, comm_);
-  if (!std::isfinite(summary_.dt_stable))
-    throw InputError(scene_.file + ": no node has a bond; the horizon is too small for the spacing");
+  check_stable_step(dt_body);
   // Tools: a penalty stiffness per unit mass of `stiffness` times the stiffest node's bond
   // stiffness (2 rho / dt_bound^2 at the bound), so that the bound with contact is at least
   // dt_bound / sqrt(1 + stiffness).
@@ -371,6 +382,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       continue;
     }
     const double dt = st.dt ? *st.dt : st.safety_factor * summary_.dt_stable;
+    check_stage(s, dt);
     if (dt > summary_.dt_stable && !st.allow_unstable_dt) {
       std::ostringstream msg;
       msg << st.where.str() << ": stages." << s << ".dt: time step " << fmt(dt)
@@ -385,7 +397,12 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     stage_steps_.push_back(std::max<std::int64_t>(n, 1));
     total_steps_ += stage_steps_.back();
   }
-  const int frames = std::max(1, scene_.output.frames);
+  check_initial_state();
+  // More frames than steps would repeat steps: one per step at most (the same frames are written).
+  const int frames = static_cast<int>(std::clamp<std::int64_t>(scene_.output.frames, 1, total_steps_ + 1));
+  if (frames < scene_.output.frames && rank_ == 0)
+    std::fprintf(stderr, "peridrive: warning: output.frames: %d frames asked for a run of %lld steps; writing %d, "
+                 "one per step\n", scene_.output.frames, static_cast<long long>(total_steps_), frames);
   for (int k = 0; k < frames; ++k)
     frame_steps_.push_back(frames == 1 ? total_steps_ : std::llround(double(k) * total_steps_ / (frames - 1)));
 
@@ -453,6 +470,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
   // Output last: nothing is written unless every check above passed.
+  stop_point();
   if (!options_.out_dir.empty()) {
     make_output_dir(options_.out_dir, comm_);
     const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
@@ -985,7 +1003,10 @@ EnergyRow Simulation::energies() {
 }
 
 double Simulation::energy_balance_error(const EnergyRow& row) const {
-  const double e0 = summary_.initial_total_energy;
+  return energy_balance_error(row, summary_.initial_total_energy);
+}
+
+double Simulation::energy_balance_error(const EnergyRow& row, double e0) const {
   const double scale = std::max({std::fabs(row.kinetic) + std::fabs(row.strain) + std::fabs(row.dissipated),
                                  std::fabs(row.external_work), std::fabs(e0), energy_floor_, 1e-300});
   return std::fabs(row.total() - e0) / scale;
@@ -1018,9 +1039,8 @@ void Simulation::write_series_row() {
       msg << "energy balance error " << fmt(error) << " at step " << step_ << " (t = " << fmt(time_)
           << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
           << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt_)
-          << " s, stable bound " << fmt(summary_.dt_stable)
-          << " s at the reference state; the membrane law stiffens in compression), or boundary motion "
-             "too violent for the resolution";
+          << " s, stable bound " << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(-1)
+          << "), or boundary motion too violent for the resolution";
       throw RuntimeFailure(msg.str());
     }
   }
@@ -1255,6 +1275,10 @@ void Simulation::check_health(std::int64_t step, double time) {
     double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
     MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
     const std::array<double, 3> X = reference_position(node);
+    int body = -1, body_any = -1;  // of the node, from the rank that owns it
+    for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
+      if (domain_.natural[i] == node) body = domain_.body[i];
+    MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
     std::ostringstream msg;
     msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
         << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
@@ -1265,9 +1289,8 @@ void Simulation::check_health(std::int64_t step, double time) {
           << " s (accepted because of allow_unstable_dt)";
     else
       msg << "the time step " << fmt(dt_) << " s is too large for the current state (stable bound "
-          << fmt(summary_.dt_stable) << " s at the reference state; the membrane law stiffens in compression by "
-          << "1 + 3/lambda^4, so snapping-back fragments need a smaller safety_factor, e.g. 0.35), or a boundary "
-          << "velocity too violent for the resolution";
+          << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(body_any)
+          << "), or a boundary velocity too violent for the resolution";
     msg << ". Positions and velocities are still finite; nothing non-finite was written";
     throw RuntimeFailure(msg.str());
   }
@@ -1288,8 +1311,8 @@ void Simulation::check_health(std::int64_t step, double time) {
   long long broken_local = tally_.newly_broken, broken = 0;
   MPI_Reduce(&broken_local, &broken, 1, MPI_LONG_LONG, MPI_SUM, 0, comm_);
   if (rank_ == 0) {
-    const double elapsed = std::chrono::duration<double>(now - start_).count() - summary_.setup_seconds;
-    const double rate = step / std::max(elapsed, 1e-9);
+    const double elapsed = std::chrono::duration<double>(now - loop_start_).count();
+    const double rate = (step - loop_start_step_) / std::max(elapsed, 1e-9);
     std::printf("[peridrive] step %lld/%lld  t = %.4g s  %.0f steps/s  ETA %.0f s  broken bonds %lld\n",
                 static_cast<long long>(step), static_cast<long long>(total_steps_), time, rate,
                 (total_steps_ - step) / std::max(rate, 1e-9), broken / 2);
@@ -1321,6 +1344,9 @@ void Simulation::begin() {
   add_pressure_forces(time_, false);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
+  // Without a leading preload the whole run's balance starts here too (run_quasistatic sets it
+  // before the first preload's work).
+  if (summary_.quasistatic.empty()) summary_.run_initial_total_energy = summary_.initial_total_energy;
   if (frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) {
     write_frame();
     while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) ++next_frame_;
@@ -1333,6 +1359,7 @@ void Simulation::begin() {
     std::fflush(stdout);
   }
   loop_start_ = std::chrono::steady_clock::now();
+  loop_start_step_ = step_;
   output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
   last_progress_ = loop_start_;
 }
@@ -1494,6 +1521,7 @@ void Simulation::run_quasistatic(const Stage& stage) {
     }
   }
   const EnergyRow before = energies();
+  if (step_ == 0 && summary_.quasistatic.empty()) summary_.run_initial_total_energy = before.total();
   std::unique_ptr<QuasiStaticLoader> loader = make_loader(stage);
   if (rank_ == 0 && !options_.quiet) {
     std::printf("[peridrive] quasistatic '%s': %ld initial load steps\n", stage.name.c_str(), stage.load_steps);
@@ -1510,6 +1538,17 @@ void Simulation::run_quasistatic(const Stage& stage) {
   const double stored = (after.strain - before.strain) + (after.dissipated - before.dissipated) - before.kinetic;
   summary_.quasistatic.push_back({stage.name, stats});
   summary_.quasistatic_work_error.push_back(std::fabs(work - stored) / std::max(std::fabs(work), 1e-300));
+  // Work the supports did that the body neither holds nor dissipated: bonds that break between
+  // two equilibria (a preload that tears the sheet) release energy no stage follows. The explicit
+  // part's balance restarts after this stage and would not show it; run_energy_balance_error does.
+  const double tolerance = scene_.stability.energy_error;
+  if (rank_ == 0 && tolerance > 0 && !(summary_.quasistatic_work_error.back() <= tolerance))
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: stages.%zu ('%s'): the quasi-static supports did %.6g J of work, but "
+                 "the body stores and dissipated %.6g J (%.3g%% apart, more than stability.energy_error = %g; "
+                 "%lld bonds broke in the stage); summary.json's run_energy_balance_error counts the difference\n",
+                 stage.where.str().c_str(), stage_, stage.name.c_str(), work, stored,
+                 100 * summary_.quasistatic_work_error.back(), tolerance, static_cast<long long>(stats.broken));
   if (rank_ == 0 && !options_.quiet) {
     std::printf("[peridrive] quasistatic '%s': %zu increments, %d cut-backs, %ld Newton and %ld linear iterations, "
                 "%lld bonds broken, %.3g s; support work %.6g J vs stored + dissipated %.6g J\n",
@@ -1572,10 +1611,12 @@ void Simulation::finish() {
   const auto t_end = std::chrono::steady_clock::now();
   summary_.step_seconds = std::chrono::duration<double>(t_end - loop_start_).count() -
                           (summary_.output_seconds - output_seconds_at_loop_start_);
+  summary_.steps_timed = step_ - loop_start_step_;
   summary_.wall_seconds = std::chrono::duration<double>(t_end - start_).count();
   summary_.simulated_time = time_;
   summary_.frames = frames_ ? frames_->frames() : 0;
   summary_.energy_balance_error = energy_balance_error(summary_.final_energy);
+  summary_.run_energy_balance_error = energy_balance_error(summary_.final_energy, summary_.run_initial_total_energy);
   if (tracker_) summarize_crack_tips();
   // Timings of the slowest rank: the job's figures.
   double times[4] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
@@ -1740,6 +1781,7 @@ Checkpoint Simulation::make_checkpoint() {
   // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
   // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
   c.extras["summary.precrack_bonds"] = {double(summary_.precrack_bonds)};
+  c.extras["summary.run_initial_total_energy"] = {summary_.run_initial_total_energy};
   for (std::size_t k = 0; k < summary_.quasistatic.size(); ++k) {
     const auto& [name, q] = summary_.quasistatic[k];
     double stage = -1;
@@ -1806,6 +1848,10 @@ void Simulation::restore_summary_extras(const Checkpoint& c) {
   // Written by make_checkpoint; absent extras leave the figures as the constructor set them.
   if (const auto it = c.extras.find("summary.precrack_bonds"); it != c.extras.end() && it->second.size() == 1)
     summary_.precrack_bonds = std::llround(it->second[0]);
+  // (Checkpoints without it: the explicit part's start, as before quasi-static stages were counted.)
+  summary_.run_initial_total_energy = c.initial_total_energy;
+  if (const auto it = c.extras.find("summary.run_initial_total_energy"); it != c.extras.end() && it->second.size() == 1)
+    summary_.run_initial_total_energy = it->second[0];
   for (std::size_t k = 0;; ++k) {
     const auto it = c.extras.find("summary.quasistatic." + std::to_string(k));
     if (it == c.extras.end()) break;
@@ -1902,6 +1948,7 @@ void Simulation::restore(const Checkpoint& c) {
     std::fflush(stdout);
   }
   loop_start_ = std::chrono::steady_clock::now();
+  loop_start_step_ = step_;  // the steps before the checkpoint were timed by the run that took them
   output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
   last_progress_ = loop_start_;
 }

@@ -34,6 +34,13 @@ class RuntimeFailure : public Error {
   using Error::Error;
 };
 
+/// A stop request (SIGTERM/SIGINT) honoured before the run began: while the scene was read or
+/// the run was set up. Nothing was written.
+class StopRequested : public Error {
+ public:
+  using Error::Error;
+};
+
 /// A non-zero PETSc/MPI/HDF5 return code.
 class PetscError : public Error {
  public:

@@ -44,9 +44,13 @@ struct Nodes {
   std::int64_t size() const { return static_cast<std::int64_t>(volume.size()); }
 };
 
-/// Rough size of a scene before anything is allocated (nodes, ordered bonds, bytes).
+/// Rough size of a scene before anything is allocated (nodes, ordered bonds, bytes), and the
+/// largest family: bonds per node min(body's nodes - 1, nodes within the horizon) of the body
+/// with the most.
 struct SizeEstimate {
   double nodes = 0, bonds = 0, bytes = 0;
+  double largest_family = 0;
+  int largest_family_body = -1;  ///< index into Scene::bodies
 };
 SizeEstimate estimate_size(const Scene& scene);
 

@@ -41,6 +41,9 @@ struct LawEntry {
   std::string name;
   std::string description;  ///< one line for --describe-keys and the docs
   bool vectorized = false;  ///< the bond loop's SIMD path serves it (else the portable walk)
+  /// What an unstable explicit step means for this law, completing "the <name> law (body ...) ":
+  /// the instability messages' likely cause.
+  std::string stability_note;
   // One bond, per unit quadrature measure (the tangent, tests, closed-form checks):
   double (*coefficient)(const void* law, double xi2, double y2) = nullptr;  ///< f / y [N/m^7]
   double (*slope)(const void* law, double xi2, double y2) = nullptr;        ///< d(f/y)/d(y^2)

@@ -22,8 +22,23 @@ namespace peri {
 
 /// The law of a material in a body, its constant calibrated from the material's stiffness input
 /// (through the registry entry of the material's model). Throws InputError for combinations the
-/// law does not support (e.g. the membrane law in a solid).
+/// law does not support (e.g. the membrane law in a solid), and when c is not a finite double of
+/// at least 2.2e-308 (naming what made it so).
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where);
+
+/// A derived constant every later product (forces, energies, the stable step) can use without
+/// overflow to inf or underflow to 0: finite, and at least the smallest normal double.
+bool usable(double x);
+
+/// The material's stiffness input for messages: "materials.<name>.<key>: <value> <unit>" (a wave
+/// speed with its density, which gives a modulus only with it).
+std::string stiffness_input(const Material& m);
+
+/// Refuses (InputError) a micromodulus c = modulus / per_c that is not usable, naming what made it
+/// so: the material's stiffness (the modulus over- or underflows), the body's geometry (per_c:
+/// stiffness per unit micromodulus, from thickness, horizon, cross-section), or the two together.
+void check_micromodulus(const Material& m, const BodyGeometry& g, const std::string& where, double modulus,
+                        double per_c, double c);
 
 /// Small-strain constants implied by a calibrated law in a body (inverse of calibrate).
 ElasticConstants elastic_constants(const BondLaw& law, const BodyGeometry& g, double density);

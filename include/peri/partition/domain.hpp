@@ -4,6 +4,7 @@
 // on any number of ranks (results independent of the rank count bit for bit).
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "peri/partition/partition.hpp"
@@ -27,8 +28,9 @@ struct Domain {
   std::int32_t local() const { return owned + ghosts; }
 };
 
-/// Build this rank's domain from the global node set and the partition.
+/// Build this rank's domain from the global node set and the partition. `stop` is polled now
+/// and then: once it returns true, the build returns at once with an unfinished domain.
 Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cells,
-                    const Partition& partition, int rank);
+                    const Partition& partition, int rank, const std::function<bool()>& stop = {});
 
 }  // namespace peri

@@ -3,6 +3,7 @@
 // Nothing downstream reads YAML: the rest of the program sees only these structs.
 #pragma once
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -215,9 +216,9 @@ struct Stage {
   std::string name;
   SourceLoc where;
   StageKind kind = StageKind::Dynamic;
-  // Dynamic stages.
-  double duration = 0.0;               ///< simulated time [s] (> 0); 0 when only steps is given
-  std::optional<long> steps;           ///< number of steps; overrides duration
+  // Dynamic stages: duration or steps (exactly one of them).
+  double duration = 0.0;               ///< simulated time [s] (> 0); 0 when steps is given
+  std::optional<long> steps;           ///< number of steps (1 .. kMaxStageSteps)
   std::optional<double> dt;            ///< time step [s]; default safety_factor * stable bound
   double safety_factor = 0.7;          ///< (0, 1]
   bool allow_unstable_dt = false;      ///< accept a dt above the stable bound
@@ -309,9 +310,20 @@ struct Scene {
   bool released_later(const std::string& crack) const;
 };
 
+/// Most steps one dynamic stage may take, given as steps or as duration / dt.
+inline constexpr long kMaxStageSteps = 1000000000;
+/// Most YAML values (scalars, lists, maps) one scene may hold: the reader keeps about 0.5 kB
+/// per value on every rank, so the limit is checked while the text is scanned, before any is kept.
+inline constexpr long kMaxSceneValues = 1000000;
+
+/// Polled by the scene reader while it scans long texts: true once the reading should stop
+/// (the reader then throws StopRequested). Empty: never.
+using StopCheck = std::function<bool()>;
+
 /// Command-line override "path.to.key=value"; value is parsed as YAML (scalars, [a, b], {k: v}).
 /// Map entries by key (bodies.sheet.spacing); list entries by index (stages.0.duration) or by
-/// their name (boundaries.top.velocity).
+/// their name (boundaries.top.velocity). A stage's steps and duration exclude each other: an
+/// override of one drops the other when the file gave it.
 struct Override {
   std::string path;
   std::string value;
@@ -321,10 +333,11 @@ struct Override {
 /// messages. Throws InputError with "file:line: a.b.c: expected ..., got ..." on the first
 /// problem found ("--set: a.b.c: ..." for overridden values). Identical on every rank.
 Scene parse_scene(const std::string& text, const std::string& file,
-                  const std::vector<Override>& overrides = {});
+                  const std::vector<Override>& overrides = {}, const StopCheck& stop = {});
 
 /// Read a scene file (InputError if it cannot be read).
-Scene load_scene(const std::string& path, const std::vector<Override>& overrides = {});
+Scene load_scene(const std::string& path, const std::vector<Override>& overrides = {},
+                 const StopCheck& stop = {});
 
 /// The embedded default scene (example 7.1 at demo resolution), as YAML text.
 const std::string& default_scene_text();

@@ -37,6 +37,9 @@ struct RunOptions {
 /// Figures of a finished (or running) simulation, as written to summary.json.
 struct RunSummary {
   std::int64_t nodes = 0, ordered_bonds = 0, steps = 0, precrack_bonds = 0;
+  /// Steps this process took and timed in step_seconds (after a resume: those after the
+  /// checkpoint; the rates are steps_timed * ordered_bonds / step_seconds).
+  std::int64_t steps_timed = 0;
   int ranks = 1, frames = 0;
   double dt = 0, dt_stable = 0, simulated_time = 0;
   double setup_seconds = 0, step_seconds = 0, output_seconds = 0, wall_seconds = 0;
@@ -55,6 +58,11 @@ struct RunSummary {
   EnergyRow final_energy;
   double initial_total_energy = 0;  ///< total at the start of the explicit part (after quasi-static stages)
   double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
+  /// The same over the whole run: from the total before the first stage, so that a quasi-static
+  /// stage whose support work is not stored or dissipated shows here (equal to the above when
+  /// the run has no quasi-static stage).
+  double run_initial_total_energy = 0;
+  double run_energy_balance_error = 0;
   /// Quasi-static stages run: (stage name, figures).
   std::vector<std::pair<std::string, QuasiStaticStats>> quasistatic;
   /// Per quasi-static stage: |W_reactions - (dU + D)| / W_reactions (trapezoidal work).
@@ -147,6 +155,16 @@ class Simulation : public EquilibriumModel {
   void flags_changed();
   bool has_intact_bond(std::int32_t row) const;
   void check_health(std::int64_t step, double time);
+  // Setup checks and warnings (src/stages/simulation_checks.cpp): derived quantities that the
+  // scene's values would make absurd are refused there, naming the keys; all before any output.
+  void stop_point();                              // collective: StopRequested on every rank after a signal
+  void warn_large_families(const SizeEstimate& e) const;
+  void warn_overlapping_boundaries(const std::vector<std::vector<std::int64_t>>& bc_nodes) const;
+  void check_node_masses() const;                 // global node arrays (before they are freed)
+  void check_stable_step(const std::vector<double>& dt_body);  // per body, collective
+  void check_stage(std::size_t stage, double dt) const;  // step count, damping
+  void check_initial_state();                     // initial conditions, boundaries, tools (collective)
+  std::string law_note(int body) const;           // how body's law behaves near the stable bound (-1: all)
   void write_frame();
   void write_series_row();
   /// Adds the tools' contact forces at time `t` to force_ (after compute_forces: positions_ of
@@ -178,8 +196,10 @@ class Simulation : public EquilibriumModel {
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
-  /// |total - initial total| over the run's energy scale (at least energy_floor_).
+  /// |total - initial total| over the run's energy scale (at least energy_floor_); from the
+  /// total `e0` (the explicit part's initial total when not given).
   double energy_balance_error(const EnergyRow& row) const;
+  double energy_balance_error(const EnergyRow& row, double e0) const;
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
   void check_restart(const Checkpoint& c);        // InputError unless c continues this scene
   void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
@@ -275,6 +295,7 @@ class Simulation : public EquilibriumModel {
   std::size_t stage_ = 0;           // current stage
   std::int64_t stage_step_ = 0;     // steps taken in it
   std::chrono::steady_clock::time_point loop_start_;
+  std::int64_t loop_start_step_ = 0;  ///< step_ at loop_start_ (a resumed run's checkpoint step)
   double output_seconds_at_loop_start_ = 0;  ///< output time spent before the loop (the first frame)
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;

@@ -1,0 +1,370 @@
+// Simulation: the setup checks. Derived quantities that extreme scene values would make overflow,
+// vanish or grow without bound (node masses, energy scales, the stable step, step counts, motion
+// per step, a tool's overlap with the body at t = 0, a sphere's wall stress) are refused with
+// InputError naming the keys that made them and the bound; scenes that run but are likely not
+// what was meant get a warning. Each verdict is the same on every rank (global data, or
+// reductions), and all come before anything is written. docs/user/limits.md lists them.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include "peri/io/restart.hpp"
+#include "peri/models/model.hpp"
+#include "peri/stages/simulation.hpp"
+
+namespace peri {
+namespace {
+
+constexpr double kFamilyWarning = 1e4;    // bonds per node beyond which a horizon is suspect
+constexpr double kSmallestStep = 1e-150;  // [s]: 2 / dt^2 (a tool's penalty) stays finite
+constexpr double kEnergyRange = 1e280;    // [J]: a body's energy scale sum m c_l^2 in [1/x, x]
+constexpr double kLargestStrain = 100;    // initial displacement / body extent
+constexpr double kLargestWallStress = 100;  // sphere: p R / (2 h) / in-plane bulk modulus
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+const char* beyond(double x) { return x > 1 ? "beyond the largest double" : "below the smallest normal double"; }
+
+// The keys that give a body's node measure.
+std::string measure_keys(const Body& b) {
+  const std::string p = "bodies." + b.name + ".";
+  if (b.kind == BodyKind::Fiber) return p + "diameter " + num(b.diameter) + " m, " + p + "spacing " + num(b.spacing) + " m";
+  if (b.kind == BodyKind::Solid) return p + "spacing " + num(b.spacing) + " m";
+  return p + "spacing " + num(b.spacing) + " m, " + p + "thickness " + num(b.thickness) + " m";
+}
+
+}  // namespace
+
+void Simulation::stop_point() {
+  int mine = stop_signal(), any = 0;
+  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, comm_);
+  if (any != 0)
+    throw StopRequested("stopped by signal " + std::to_string(any) + " while setting up the run; nothing was written");
+}
+
+void Simulation::warn_large_families(const SizeEstimate& e) const {
+  if (rank_ != 0 || !(e.largest_family > kFamilyWarning) || e.largest_family_body < 0) return;
+  const Body& b = scene_.bodies[static_cast<std::size_t>(e.largest_family_body)];
+  std::fprintf(stderr,
+               "peridrive: warning: %s: bodies.%s.%s: a horizon of %s m (%s spacings) gives each node about %s "
+               "bonds, more than %s: setup, memory and every step grow as nodes x bonds per node (about %s "
+               "bonds in all)\n",
+               b.where.str().c_str(), b.name.c_str(), b.horizon ? "horizon" : "horizon_factor",
+               num(b.horizon_value()).c_str(), num(b.horizon_value() / b.spacing).c_str(),
+               num(e.largest_family).c_str(), num(kFamilyWarning).c_str(), num(e.bonds / 2).c_str());
+}
+
+void Simulation::warn_overlapping_boundaries(const std::vector<std::vector<std::int64_t>>& bc_nodes) const {
+  if (rank_ != 0) return;
+  // Two boundaries that prescribe the same motion in every stage may share nodes freely (clamps
+  // meeting at a corner).
+  const auto same_motion = [&](const Boundary& p, const Boundary& q) {
+    if (p.components != q.components || p.velocity != q.velocity || p.ramp_time != q.ramp_time) return false;
+    for (const Stage& st : scene_.stages) {
+      const auto in = [](const std::vector<BoundaryValue>& values, const std::string& name) {
+        for (const BoundaryValue& v : values)
+          if (v.boundary == name) return std::optional<Vec3>(v.value);
+        return std::optional<Vec3>();
+      };
+      if (in(st.boundary_velocity, p.name) != in(st.boundary_velocity, q.name) ||
+          in(st.displacements, p.name).value_or(Vec3{}) != in(st.displacements, q.name).value_or(Vec3{}))
+        return false;
+    }
+    return true;
+  };
+  for (std::size_t a = 0; a < bc_nodes.size(); ++a)
+    for (std::size_t b = a + 1; b < bc_nodes.size(); ++b) {
+      if (same_motion(scene_.boundaries[a], scene_.boundaries[b])) continue;
+      // select_nodes lists a region's nodes in ascending natural order.
+      std::int64_t shared = 0;
+      for (auto i = bc_nodes[a].begin(), j = bc_nodes[b].begin(); i != bc_nodes[a].end() && j != bc_nodes[b].end();) {
+        if (*i < *j) ++i;
+        else if (*j < *i) ++j;
+        else ++shared, ++i, ++j;
+      }
+      if (shared == 0) continue;
+      const std::string first = scene_.boundaries[a].name, later = scene_.boundaries[b].name;
+      std::fprintf(stderr,
+                   "peridrive: warning: %s: boundaries.%s.region and boundaries.%s.region share %lld nodes, which "
+                   "they move differently; those follow '%s', the later one (its velocity, components, ramp and "
+                   "stage values), not '%s'\n",
+                   scene_.boundaries[b].where.str().c_str(), first.c_str(), later.c_str(),
+                   static_cast<long long>(shared), later.c_str(), first.c_str());
+    }
+}
+
+void Simulation::check_node_masses() const {
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    const BodyGeometry& g = nodes_.bodies[b];
+    const Body& body = scene_.bodies[b];
+    const Material& mat = scene_.material(body.material);
+    double least = INFINITY, most = 0, all = 0;
+    for (std::int64_t i = g.first; i < g.first + g.count; ++i) {
+      least = std::min(least, nodes_.volume[i]);
+      most = std::max(most, nodes_.volume[i]);
+      all += nodes_.volume[i];
+    }
+    if (g.count == 0) continue;
+    std::ostringstream msg;
+    const double rho = density_[b];
+    if (!usable(least) || !std::isfinite(most)) {
+      const double bad = usable(least) ? most : least;
+      msg << body.where.str() << ": bodies." << body.name << ": " << measure_keys(body) << " give nodes a measure of "
+          << num(bad) << " m^3, " << beyond(bad)
+          << "; expected a geometry whose node measures are finite doubles of at least 2.2e-308";
+    } else if (!usable(rho * least) || !std::isfinite(rho * most)) {
+      const double bad = usable(rho * least) ? rho * most : rho * least;
+      msg << mat.where.str() << ": materials." << mat.name << ".density: " << num(rho) << " kg/m^3 gives the nodes of body '"
+          << body.name << "' (measure " << num(bad / rho) << " m^3) a mass of " << num(bad) << " kg, " << beyond(bad)
+          << "; expected a density whose node masses are finite doubles of at least 2.2e-308";
+    } else {
+      const double wave2 = mat.marder ? mat.marder->a
+                                      : std::pow(elastic_constants(laws_[b], g, rho).c_longitudinal, 2);
+      const double mass = rho * all, scale = mass * wave2;  // sum m c_l^2
+      if (scale >= 1 / kEnergyRange && scale <= kEnergyRange) continue;
+      // The factor farthest from 1 (in decades) is named: the density, the geometry or the stiffness.
+      const auto decades = [](double x) { return std::fabs(std::log10(x)); };
+      const std::string what = "an energy scale sum m c_l^2 = " + num(scale) + " J (mass " + num(mass) + " kg, c_l^2 " +
+                               num(wave2) + " m^2/s^2)";
+      if (decades(wave2) > decades(mass))
+        msg << mat.where.str() << ": " << stiffness_input(mat) << " gives body '" << body.name << "' " << what;
+      else if (decades(rho) >= decades(all))
+        msg << mat.where.str() << ": materials." << mat.name << ".density: " << num(rho) << " kg/m^3 gives body '"
+            << body.name << "' " << what;
+      else
+        msg << body.where.str() << ": bodies." << body.name << ": " << measure_keys(body) << " give the body " << what;
+      msg << "; expected " << num(1 / kEnergyRange) << " to " << num(kEnergyRange)
+          << " J, so that energies, their sums and the balance's floor (1e-20 of it) stay finite doubles";
+    }
+    throw InputError(msg.str());
+  }
+}
+
+void Simulation::check_stable_step(const std::vector<double>& dt_body) {
+  const std::size_t nb = dt_body.size();
+  std::vector<double> dt(nb);
+  MPI_Allreduce(dt_body.data(), dt.data(), static_cast<int>(nb), MPI_DOUBLE, MPI_MIN, comm_);
+  summary_.dt_stable = std::numeric_limits<double>::infinity();
+  for (std::size_t b = 0; b < nb; ++b) {
+    summary_.dt_stable = std::min(summary_.dt_stable, dt[b]);
+    if (std::isinf(dt[b]) || dt[b] >= kSmallestStep) continue;  // inf: a body without bonds
+    const Body& body = scene_.bodies[b];
+    const Material& mat = scene_.material(body.material);
+    std::ostringstream msg;
+    msg << body.where.str() << ": bodies." << body.name << ": the stable time step is " << num(dt[b])
+        << " s, below " << num(kSmallestStep) << " s: " << stiffness_input(mat);
+    if (!marder_[b]) msg << " gives a micromodulus c = " << num(laws_[b].derived("micromodulus"));
+    msg << ", too stiff for the node masses (density " << num(density_[b])
+        << " kg/m^3); expected a stiffness and density whose wave speed crosses a spacing in at least "
+        << num(kSmallestStep) << " s";
+    throw InputError(msg.str());
+  }
+  if (std::isfinite(summary_.dt_stable)) return;
+  std::int64_t mine = domain_.bonds.size(), bonds = 0;
+  MPI_Allreduce(&mine, &bonds, 1, MPI_INT64_T, MPI_SUM, comm_);
+  if (bonds == 0) throw InputError(scene_.file + ": no node has a bond; the horizon is too small for the spacing");
+  throw InputError(scene_.file + ": the stable time step is not a finite number although " + std::to_string(bonds / 2) +
+                   " bonds exist: the bond stiffness sums overflow; expected stiffness and density of ordinary size");
+}
+
+void Simulation::check_stage(std::size_t s, double dt) const {
+  const Stage& st = scene_.stages[s];
+  // Damping alpha: the half-step velocity is (1 - alpha dt / 2) v, which reverses and grows when
+  // alpha dt / 2 exceeds 1 (the nodes then fly off instead of coming to rest).
+  if (!(0.5 * st.damping * dt <= 1)) {
+    std::ostringstream msg;
+    msg << st.where.str() << ": stages." << s << ".damping: " << num(st.damping) << " 1/s with time steps of "
+        << num(dt) << " s gives alpha dt / 2 = " << num(0.5 * st.damping * dt)
+        << "; expected at most 1 (a damping of at most " << num(2 / dt) << " 1/s): beyond it the damped half "
+        << "step reverses and amplifies the velocity";
+    throw InputError(msg.str());
+  }
+  if (st.steps) return;  // bounded when read
+  const double count = st.duration / dt;
+  if (count <= static_cast<double>(kMaxStageSteps)) return;
+  std::ostringstream msg;
+  msg << st.where.str() << ": stages." << s << ".duration: " << num(st.duration) << " s in steps of " << num(dt)
+      << " s (";
+  if (st.dt) msg << "stages." << s << ".dt";
+  else msg << "safety_factor " << num(st.safety_factor) << " x the stable bound " << num(summary_.dt_stable) << " s";
+  msg << ") takes " << num(count) << " steps; expected at most " << kMaxStageSteps
+      << " steps per stage: a shorter duration, a larger time step or a coarser spacing";
+  throw InputError(msg.str());
+}
+
+void Simulation::check_initial_state() {
+  // The state begin() starts from (it applies the initial conditions again, or a checkpoint's).
+  apply_initial_conditions();
+  const std::size_t nb = scene_.bodies.size(), nt = scene_.tools.size(), nc = scene_.boundaries.size();
+  const Initial& ic = scene_.initial;
+  // Maxima over all ranks: per body, the largest |u0|, |H (X - center)| and |v0| of a node
+  // without boundary, and -lo, hi of its reference box (3 each); per tool, the deepest node inside
+  // at t = 0; per boundary, the smallest spacing among its nodes' bodies (its negative). Sums: per
+  // tool, the nodes inside.
+  const std::size_t n_max = 9 * nb + nt + nc;
+  std::vector<double> most(n_max, -INFINITY), count(nt, 0.0);
+  double* u_max = most.data();
+  double* affine_max = u_max + nb;
+  double* v_max = affine_max + nb;
+  double* lo_neg = v_max + nb;
+  double* hi = lo_neg + 3 * nb;
+  double* depth = hi + 3 * nb;
+  double* neg_spacing = depth + nt;
+  {
+    const double* u;
+    const double* v;
+    PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
+    PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
+    for (std::int32_t i = 0; i < domain_.owned; ++i) {
+      const int b = domain_.body[i];
+      const double* X = &domain_.X[3 * static_cast<std::size_t>(i)];
+      const double* ui = &u[3 * static_cast<std::size_t>(i)];
+      const double* vi = &v[3 * static_cast<std::size_t>(i)];
+      double affine[3] = {0, 0, 0};
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) affine[a] += ic.displacement_gradient[3 * a + c] * (X[c] - ic.center[c]);
+      u_max[b] = std::max(u_max[b], std::hypot(ui[0], ui[1], ui[2]));
+      affine_max[b] = std::max(affine_max[b], std::hypot(affine[0], affine[1], affine[2]));
+      if (bc_[i] < 0) v_max[b] = std::max(v_max[b], std::hypot(vi[0], vi[1], vi[2]));
+      else neg_spacing[bc_[i]] = std::max(neg_spacing[bc_[i]], -nodes_.bodies[b].spacing);
+      for (int c = 0; c < 3; ++c) {
+        lo_neg[3 * b + c] = std::max(lo_neg[3 * b + c], -X[c]);
+        hi[3 * b + c] = std::max(hi[3 * b + c], X[c]);
+      }
+      for (std::size_t k = 0; k < nt; ++k) {
+        const Tool& t = scene_.tools[k];
+        double r2 = 0;
+        for (int c = 0; c < (t.sphere ? 3 : 2); ++c) r2 += std::pow(X[c] + ui[c] - t.center[c], 2);
+        if (!(r2 < t.radius * t.radius)) continue;
+        count[k] += 1;
+        depth[k] = std::max(depth[k], t.radius - std::sqrt(r2));
+      }
+    }
+    PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
+    PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
+  }
+  MPI_Allreduce(MPI_IN_PLACE, most.data(), static_cast<int>(n_max), MPI_DOUBLE, MPI_MAX, comm_);
+  MPI_Allreduce(MPI_IN_PLACE, count.data(), static_cast<int>(nt), MPI_DOUBLE, MPI_SUM, comm_);
+  const std::string where = scene_.file + ": ";
+
+  // Initial displacements: at most kLargestStrain times the body's extent.
+  for (std::size_t b = 0; b < nb; ++b) {
+    double extent2 = 0;
+    for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
+    const double extent = std::max(std::sqrt(extent2), nodes_.bodies[b].spacing);
+    if (u_max[b] <= kLargestStrain * extent) continue;
+    const bool affine = !(affine_max[b] <= kLargestStrain * extent);
+    std::ostringstream msg;
+    msg << where << (affine ? "initial.displacement_gradient" : "initial.seed.amplitude") << ": displaces nodes of body '"
+        << scene_.bodies[b].name << "' by up to " << num(u_max[b]) << " m, more than " << num(kLargestStrain)
+        << " times its extent (" << num(extent) << " m); expected an initial stretch of at most " << num(kLargestStrain + 1);
+    throw InputError(msg.str());
+  }
+  // Tools start clear of every node: one inside would be thrown out by a penalty force far
+  // beyond what the time step resolves.
+  for (std::size_t k = 0; k < nt; ++k) {
+    if (count[k] == 0) continue;
+    const Tool& t = scene_.tools[k];
+    std::ostringstream msg;
+    msg << t.where.str() << ": tools." << k << ".center: tool '" << t.name << "' (" << (t.sphere ? "sphere" : "cylinder")
+        << " of radius " << num(t.radius) << " m) holds " << num(count[k]) << " node" << (count[k] > 1 ? "s" : "")
+        << " at t = 0, the deepest " << num(depth[k])
+        << " m inside; expected a tool that starts clear of the body (move it out by at least that much)";
+    throw InputError(msg.str());
+  }
+  // Motion per step: boundaries, tools and the initial velocity field move nodes by at most the
+  // spacing (or stability.motion_per_step spacings, where larger) in one step.
+  const double per_step = std::max(1.0, scene_.stability.motion_per_step);
+  double finest = INFINITY;
+  for (const BodyGeometry& g : nodes_.bodies) finest = std::min(finest, g.spacing);
+  bool first = true;
+  for (std::size_t s = 0; s < scene_.stages.size(); ++s) {
+    const Stage& st = scene_.stages[s];
+    if (st.kind != StageKind::Dynamic) {
+      first = first && st.kind != StageKind::QuasiStatic;  // which leaves the nodes at rest
+      continue;
+    }
+    const double dt = stage_dt_[s];
+    auto refuse = [&](const std::string& key, double speed, double spacing) {
+      std::ostringstream msg;
+      msg << key << ": " << num(speed) << " m/s moves nodes " << num(speed * dt) << " m in one step of stage '" << st.name
+          << "' (dt = " << num(dt) << " s), more than " << (per_step > 1 ? num(per_step) + " x " : "") << "the spacing "
+          << num(spacing) << " m; expected a speed of at most " << num(per_step * spacing / dt) << " m/s";
+      throw InputError(msg.str());
+    };
+    for (std::size_t b = 0; b < nb && first; ++b)
+      if (!(v_max[b] * dt <= per_step * nodes_.bodies[b].spacing))
+        refuse(where + "initial.velocity_gradient", v_max[b], nodes_.bodies[b].spacing);
+    for (std::size_t c = 0; c < nc; ++c) {
+      const Boundary& bc = scene_.boundaries[c];
+      std::string key = bc.where.str() + ": boundaries." + bc.name + ".velocity";
+      Vec3 vel = bc.velocity;
+      for (const BoundaryValue& bv : st.boundary_velocity)
+        if (bv.boundary == bc.name) {
+          vel = bv.value;
+          key = st.where.str() + ": stages." + std::to_string(s) + ".boundary_velocity." + bc.name;
+        }
+      for (int d = 0; d < 3; ++d) vel[d] = bc.components[d] ? vel[d] : 0.0;
+      const double speed = std::hypot(vel[0], vel[1], vel[2]), spacing = -neg_spacing[c];
+      if (!(speed * dt <= per_step * spacing)) refuse(key, speed, spacing);
+    }
+    for (std::size_t k = 0; k < nt; ++k) {
+      const Tool& t = scene_.tools[k];
+      const double speed = std::hypot(t.velocity[0], t.velocity[1], t.velocity[2]);
+      if (!(speed * dt <= per_step * finest)) refuse(t.where.str() + ": tools." + std::to_string(k) + ".velocity", speed, finest);
+    }
+    first = false;
+  }
+  // Internal pressure: a wall stress p R / (2 h) beyond kLargestWallStress in-plane bulk moduli
+  // tears any sphere at once (and overflows the forces long before that).
+  for (std::size_t b = 0; b < nb; ++b) {
+    const Body& body = scene_.bodies[b];
+    if (body.kind != BodyKind::Shell || !(body.pressure > 0)) continue;
+    const double stress = body.pressure * body.radius / (2 * body.thickness);
+    const double bulk = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]).bulk;
+    if (stress <= kLargestWallStress * bulk) continue;  // (a NaN or inf stress is refused)
+    std::ostringstream msg;
+    msg << body.where.str() << ": bodies." << body.name << ".pressure: " << num(body.pressure)
+        << " Pa gives the wall a stress p R / (2 h) = " << num(stress) << " Pa, more than " << num(kLargestWallStress)
+        << " times its in-plane bulk modulus " << num(bulk) << " Pa; expected at most "
+        << num(kLargestWallStress * bulk * 2 * body.thickness / body.radius) << " Pa";
+    throw InputError(msg.str());
+  }
+}
+
+std::string Simulation::law_note(int body) const {
+  // Each law once, with the bodies that use it (in the order first met).
+  std::vector<std::pair<std::string, std::vector<std::string>>> laws;  // law name, bodies
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    if (body >= 0 && static_cast<int>(b) != body) continue;
+    const std::string name = marder_[b] ? "marder" : laws_[b].name();
+    auto it = std::find_if(laws.begin(), laws.end(), [&](const auto& l) { return l.first == name; });
+    if (it == laws.end()) it = laws.insert(laws.end(), {name, {}});
+    it->second.push_back("'" + scene_.bodies[b].name + "'");
+  }
+  std::string out;
+  for (const auto& [law, names] : laws) {
+    std::string bodies = names[0];
+    for (std::size_t k = 1; k < names.size(); ++k) bodies += ", " + names[k];
+    if (!out.empty()) out += "; ";
+    if (law == "marder")
+      out += "the marder lattice law (body " + bodies +
+             ") has its bound from the two- and three-body stiffness over the bond lengths it allows; a lattice "
+             "driven beyond them (bonds compressed past the cutoff u_s, dashpots on fast motion) needs a smaller "
+             "safety_factor";
+    else
+      out += "the " + law + " law (body " + bodies + ") " + find_law(law)->stability_note;
+  }
+  return out;
+}
+
+}  // namespace peri

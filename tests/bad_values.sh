@@ -1,0 +1,166 @@
+#!/usr/bin/env bash
+# Extreme scene values at the driver level, on 2 ranks. Refused ones: exit status 2 at setup, one
+# message naming the key that made a derived quantity absurd (overflow, underflow, a step count,
+# motion per step, a tool inside the body), no output directory; never a run that fails later
+# (status 3) or runs out of memory. Runs that do fail later (status 3) name the law their bodies
+# use. Warned ones: the run goes on, with one warning naming what.
+# usage: bad_values.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
+set -u
+peridrive=$1 src=$2 mpiexec=$3
+shift 3
+mpi=("$mpiexec" -n 2 "$@")
+py=/usr/bin/python3
+scenes=$src/drivers/scenes
+sheet=$scenes/slit_membrane.yaml
+tool=$scenes/blunt_tool.yaml
+balloon=$scenes/balloon.yaml
+coarse=(--set bodies.sheet.spacing=0.001)  # the default scene in 2500 nodes: every case is quick
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+pass=0 fail=0
+ok() { echo "ok   $1"; pass=$((pass + 1)); }
+bad() { echo "FAIL $1"; cat "$work/stderr"; fail=$((fail + 1)); }
+
+# expect NAME EXPECTED_SUBSTRING -- peridrive arguments...: refused at setup.
+expect() {
+  local name=$1 want=$2
+  shift 3
+  local out="$work/out-$name"
+  timeout -s KILL 300 "${mpi[@]}" "$peridrive" "$@" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+  local rc=$?
+  if [ "$rc" -ne 2 ]; then bad "$name: exit status $rc, expected 2"
+  elif ! grep -qF -- "$want" "$work/stderr"; then bad "$name: message lacks '$want'"
+  elif [ "$(grep -c "peridrive: error:" "$work/stderr")" -ne 1 ]; then bad "$name: expected exactly one error line"
+  elif [ -e "$out" ]; then bad "$name: output directory $out was created"
+  else ok "$name: $(grep "peridrive: error:" "$work/stderr" | cut -c1-200)"
+  fi
+}
+
+# --- Derived constants that overflow or vanish: named by the key that made them ---------------
+expect wave_speed_huge "<default scene>:17: materials.rubber.wave_speed: 1e+308 m/s (density 1200 kg/m^3) gives mu = inf Pa, beyond the largest double" -- "${coarse[@]}" --set materials.rubber.wave_speed=1e308
+expect wave_speed_tiny "materials.rubber.wave_speed: 1e-300 m/s (density 1200 kg/m^3) gives mu = 0 Pa, below the smallest normal double" -- "${coarse[@]}" --set materials.rubber.wave_speed=1e-300
+expect density_huge "materials.rubber.wave_speed: 1000 m/s (density 1e+308 kg/m^3) gives mu = inf Pa" -- "${coarse[@]}" --set materials.rubber.density=1e308
+expect density_tiny "materials.rubber.density: 1e-300 kg/m^3 gives the nodes of body 'sheet' (measure 5e-10 m^3) a mass of 5e-310 kg, below the smallest normal double" -- "${coarse[@]}" --set materials.rubber.density=1e-300
+expect density_subnormal "--set: materials.rubber.density: expected 0 or a number of magnitude at least 2.2e-308 (the smallest normal double), got 1e-310" -- "${coarse[@]}" --set materials.rubber.density=1e-310
+expect density_underflow "--set: materials.rubber.density: expected 0 or a number of magnitude at least 2.2e-308 (the smallest normal double), got 1e-400" -- "${coarse[@]}" --set materials.rubber.density=1e-400
+expect thickness_tiny "materials.rubber.wave_speed: 1000 m/s (density 1200 kg/m^3) in bodies.sheet (thickness 1e-300 m, horizon 0.003 m) gives a micromodulus c = inf" -- "${coarse[@]}" --set bodies.sheet.thickness=1e-300
+expect thickness_huge "bodies.sheet: bodies.sheet.spacing 0.001 m, bodies.sheet.thickness 1e+300 m give the body an energy scale sum m c_l^2 = 3e+306 J" -- "${coarse[@]}" --set bodies.sheet.thickness=1e300
+expect bulk_modulus_huge "materials.film.bulk_modulus: 1e+300 Pa in bodies.sheet (thickness 0.0002 m, horizon 0.003 m) gives a micromodulus c = inf" -- "$tool" "${coarse[@]}" --set materials.film.bulk_modulus=1e300
+expect micromodulus_huge "materials.film.micromodulus: 1e+300 gives body 'sheet' an energy scale sum m c_l^2 = 3.39292e+281 J" -- "$tool" "${coarse[@]}" --set materials.film.bulk_modulus=~ --set materials.film.micromodulus=1e300
+expect youngs_modulus_huge "(safety_factor 0.35 x the stable bound 3.46555e-127 s) takes 1.07177e+123 steps; expected at most 1000000000 steps per stage" -- "${coarse[@]}" --set materials.rubber.wave_speed=~ --set materials.rubber.youngs_modulus=1e250
+expect pressure_huge "bodies.balloon.pressure: 1e+308 Pa gives the wall a stress p R / (2 h) = inf Pa, more than 100 times its in-plane bulk modulus 8e+08 Pa" -- "$balloon" --set bodies.balloon.spacing=0.01 --set bodies.balloon.pressure=1e308
+expect pressure_large "bodies.balloon.pressure: 1e+12 Pa gives the wall a stress p R / (2 h) = 3.33333e+13 Pa, more than 100 times its in-plane bulk modulus" -- "$balloon" --set bodies.balloon.spacing=0.01 --set bodies.balloon.pressure=1e12
+expect membrane_stretch_resolution "materials.rubber.critical_stretch: expected a critical stretch lambda_0 >= 1 + 1e-10" -- "${coarse[@]}" --set materials.rubber.critical_stretch=1.00000000001
+expect pmb_strain_resolution "materials.film.critical_stretch: expected a critical bond strain s_0 >= 1e-10" -- "$tool" "${coarse[@]}" --set materials.film.critical_stretch=1e-300
+expect tool_stiffness_huge "--set: tools.0.stiffness: expected a number in (0, 1e6], got 1e300" -- "$tool" "${coarse[@]}" --set tools.rod.stiffness=1e300
+
+# --- Step counts and damping: refused with the key, the time step it came from and the figure ------
+expect duration_huge "<default scene>:49: stages.0.duration: 1e+13 s in steps of 3.71387e-07 s (safety_factor 0.35 x the stable bound 1.0611e-06 s) takes 2.69261e+19 steps; expected at most 1000000000 steps per stage" -- "${coarse[@]}" --set stages.0.duration=1e13
+expect dt_tiny "stages.0.duration: 0.00013 s in steps of 1e-300 s (stages.0.dt) takes 1.3e+296 steps" -- "${coarse[@]}" --set stages.0.dt=1e-300
+expect safety_factor_tiny "(safety_factor 1e-300 x the stable bound 1.0611e-06 s) takes 1.22514e+302 steps" -- "${coarse[@]}" --set stages.0.safety_factor=1e-300
+expect damping_huge "<default scene>:49: stages.0.damping: 1e+300 1/s with time steps of 3.71387e-07 s gives alpha dt / 2 = 1.85693e+293; expected at most 1 (a damping of at most 5.38522e+06 1/s)" -- "${coarse[@]}" --set stages.0.damping=1e300
+expect damping_above_one "stages.0.damping: 6e+06 1/s with time steps of 3.71387e-07 s gives alpha dt / 2 = 1.11416; expected at most 1" -- "${coarse[@]}" --set stages.0.damping=6e6
+expect steps_huge "--set: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 1e10" -- "${coarse[@]}" --set stages.0.steps=1e10
+
+# --- steps and duration exclude each other -------------------------------------------------------
+sed 's/^    duration: 1.3e-4$/    duration: 1.3e-4\n    steps: 54/' "$sheet" > "$work/both.yaml"
+expect steps_and_duration "$work/both.yaml:$(grep -n 'duration: 1.3e-4' "$work/both.yaml" | cut -d: -f1): stages.0.duration: give either duration or steps, not both (stage 'pull' has steps: 54 and duration: 1.3e-4)" -- "$work/both.yaml" "${coarse[@]}"
+expect steps_and_duration_set "--set: stages.0.duration: give either duration or steps, not both (stage 'pull' has steps: 10 and duration: 1e-5)" -- "${coarse[@]}" --set stages.0.steps=10 --set stages.0.duration=1e-5
+
+# --- Motion per step and at the start -------------------------------------------------------------
+expect boundary_velocity_huge "<default scene>:37: boundaries.top.velocity: 1e+300 m/s moves nodes 3.7037e+293 m in one step of stage 'pull' (dt = 3.7037e-07 s), more than the spacing 0.001 m; expected a speed of at most 2700 m/s" -- "${coarse[@]}" --set 'boundaries.top.velocity=[0, 1e300, 0]'
+expect stage_boundary_velocity "<default scene>:49: stages.0.boundary_velocity.top: 1e+10 m/s moves nodes 3703.7 m in one step of stage 'pull'" -- "${coarse[@]}" --set 'stages.0.boundary_velocity={top: [0, 1e10, 0]}'
+expect initial_velocity_huge "<default scene>: initial.velocity_gradient: 2.45e+298 m/s moves nodes" -- "${coarse[@]}" --set 'initial.velocity_gradient=[[1e300, 0, 0], [0, 0, 0], [0, 0, 0]]'
+expect initial_stretch_huge "<default scene>: initial.displacement_gradient: displaces nodes of body 'sheet' by up to 2.45e+298 m, more than 100 times its extent (0.0692965 m)" -- "${coarse[@]}" --set 'initial.displacement_gradient=[[1e300, 0, 0], [0, 0, 0], [0, 0, 0]]'
+expect seed_huge "<default scene>: initial.seed.amplitude: displaces nodes of body 'sheet' by up to 1e+300 m" -- "${coarse[@]}" --set 'initial.seed={amplitude: 1e300}'
+expect tool_velocity_huge "tools.0.velocity: 1e+300 m/s moves nodes 1.1156e+294 m in one step of stage 'push'" -- "$tool" "${coarse[@]}" --set 'tools.rod.velocity=[1e300, 0]'
+
+# --- Tools that start inside the body: refused, not an instability 10 steps later -----------------
+expect cylinder_inside "tools.0.center: tool 'rod' (cylinder of radius 0.0015 m) holds 4 nodes at t = 0, the deepest 0.000792893 m inside; expected a tool that starts clear of the body" -- "$tool" "${coarse[@]}" --set 'tools.rod.center=[0.01, 0.01]'
+expect cylinder_inside_fine "tools.0.center: tool 'rod' (cylinder of radius 0.0015 m) holds 112 nodes at t = 0, the deepest 0.00132322 m inside" -- "$tool" --set 'tools.rod.center=[0.01, 0.01]'
+expect cylinder_grazing "tools.0.center: tool 'rod' (cylinder of radius 0.0015 m) holds 6 nodes at t = 0, the deepest 0.000169117 m inside" -- "$tool" --set 'tools.rod.center=[-0.0012, 0.01]'
+expect sphere_inside "tools.0.center: tool 'fragment' (sphere of radius 0.01 m) holds 4 nodes at t = 0, the deepest 0.00438815 m inside" -- "$balloon" --set bodies.balloon.spacing=0.01 --set 'tools.fragment.center=[0.1, 0, 0]'
+expect tool_radius_huge "tool 'rod' (cylinder of radius 1e+300 m) holds 800 nodes at t = 0, the deepest 1e+300 m inside" -- "$tool" "${coarse[@]}" --set tools.rod.radius=1e300
+
+# --- A run that fails on the way names the law its bodies use ------------------------------------
+# expect_failure NAME EXPECTED_SUBSTRING UNWANTED_SUBSTRING -- peridrive arguments: exit status 3.
+expect_failure() {
+  local name=$1 want=$2 unwanted=$3
+  shift 4
+  "${mpi[@]}" "$peridrive" "$@" --out "$work/out-$name" --quiet > "$work/stdout" 2> "$work/stderr"
+  local rc=$?
+  if [ "$rc" -eq 3 ] && grep -qF -- "$want" "$work/stderr" && ! grep -qF -- "$unwanted" "$work/stderr"; then
+    ok "$name: ...$(grep -o "; the [a-z]* [a-z]* *law (body[^)]*)" "$work/stderr" | head -1)"
+  else bad "$name: exit status $rc, expected 3 with '$want' and without '$unwanted'"; fi
+}
+expect_failure pmb_energy "stable bound 1.59381e-06 s at the reference state; the pmb law (body 'sheet') keeps its bond stiffness at any strain" "membrane law" -- \
+  "$tool" "${coarse[@]}" --set stability.energy_error=1e-12
+expect_failure pmb_motion "more than stability.motion_per_step = 0.001 of the grid spacing; likely cause: the time step 2.78916e-07 s is too large for the current state (stable bound 3.98453e-07 s at the reference state; the pmb law (body 'sheet')" "membrane law" -- \
+  "$tool" --set stability.motion_per_step=1e-3
+expect_failure lattice_energy "the marder lattice law (body 'strip') has its bound from the two- and three-body stiffness" "membrane law" -- \
+  "$scenes/supersonic_rubber.yaml" --set stability.energy_error=1e-12
+expect_failure membrane_energy "the membrane law (body 'sheet') stiffens in compression by 1 + 3/lambda^4" "pmb law" -- \
+  "${coarse[@]}" --set stability.energy_error=1e-12
+
+# --- Warned, not refused ----------------------------------------------------------------------------
+# output.frames beyond the steps: one frame per step, with a warning; no memory per requested frame
+# (2e8 requested frames would be 1.6 GB per rank).
+out="$work/out-frames"
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set stages.0.steps=54 --set output.frames=2e8 --out "$out" --quiet \
+  > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ] && grep -qF "peridrive: warning: output.frames: 200000000 frames asked for a run of 54 steps; writing 55, one per step" "$work/stderr" &&
+   $py - "$out/summary.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+peak = max(m["peak_bytes"] for m in s["memory"])  # summed over the 2 ranks
+print(f"  frames {s['frames']}, steps {s['steps']}, peak resident memory {peak / 1e6:.0f} MB over 2 ranks")
+sys.exit(0 if s["frames"] == 55 and s["steps"] == 54 and peak < 1.0e9 else 1)
+PY
+then ok "frames_beyond_steps: 55 frames written, memory bounded"; else bad "frames_beyond_steps: exit status $rc"; fi
+
+# A --set of steps replaces the file's duration (the other way round too): the run takes them.
+out="$work/out-steps"
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set stages.pull.steps=30 --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && [ "$($py -c "import json; print(json.load(open('$out/summary.json'))['steps'])")" = 30 ] &&
+   ! grep -q "duration:" <(sed -n '/^stages:/,/^stability:/p' "$out/scene.resolved.yaml"); then
+  ok "set_steps_replaces_duration: 30 steps, no duration in the resolved scene"
+else bad "set_steps_replaces_duration"; fi
+
+# Boundaries that share nodes and move them differently: a warning naming both and the count (the
+# later one prescribes them); clamps sharing corners (membrane_tearing) stay silent.
+awk '{print} /^    velocity: \[0, -12.5, 0\]/ {print "  - {name: grip, region: {min: [-1, 0.02, -1], max: [0, 1, 1]}, velocity: [0, 5, 0]}"}' \
+  "$sheet" > "$work/overlap.yaml"
+"${mpi[@]}" "$peridrive" "$work/overlap.yaml" "${coarse[@]}" --dry-run > "$work/stdout" 2> "$work/stderr"
+want="boundaries.top.region and boundaries.grip.region share 25 nodes, which they move differently; those follow 'grip', the later one"
+if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "overlapping_boundaries: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "overlapping_boundaries: expected one warning '$want'"; fi
+"${mpi[@]}" "$peridrive" "$scenes/membrane_tearing.yaml" --set bodies.sheet.spacing=0.001 --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "clamps_sharing_corners: no warning"
+else bad "clamps_sharing_corners: exit status or warning"; fi
+
+# A horizon that covers the whole sheet: the estimate counts every other node, not pi m^2 (which
+# would claim 3.9e9 bonds for 2500 nodes and refuse the scene); --dry-run then builds them.
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.horizon_factor=1000 --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ] && $py - "$work/stdout" <<'PY'
+import re, sys
+text = open(sys.argv[1]).read()
+estimate = float(re.search(r"estimate: \S+ nodes, (\S+) bonds", text).group(1))
+bonds = int(re.search(r"ordered_bonds = (\d+)", text).group(1)) / 2
+print(f"  estimate {estimate:.4g} bonds, built {bonds:.4g} (every pair of 2500 nodes: {2500 * 2499 / 2:.4g})")
+sys.exit(0 if 0.5 < estimate / bonds < 2 else 1)
+PY
+then ok "all_to_all_estimate: within a factor 2 of the bonds built"; else bad "all_to_all_estimate: exit status $rc"; cat "$work/stdout"; fi
+# ... and at 250,000 nodes: a warning (about 250,000 bonds per node), then the memory refusal.
+"${mpi[@]}" "$peridrive" --set bodies.sheet.spacing=0.0001 --set bodies.sheet.horizon_factor=1000 --out "$work/out-big" --quiet \
+  > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="bodies.sheet.horizon_factor: a horizon of 0.1 m (1000 spacings) gives each node about 249999 bonds, more than 10000"
+if [ "$rc" -eq 2 ] && grep -qF "$want" "$work/stderr" && grep -qF "the scene cannot fit in memory: about 2.5e+05 nodes, 3.125e+10 bonds" "$work/stderr"; then
+  ok "large_family: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "large_family: exit status $rc, expected 2 with the warning '$want'"; fi
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]

@@ -1,0 +1,113 @@
+#!/usr/bin/env bash
+# summary.json and the console tell the truth after a resume and after a preload (2 ranks):
+#  resume    a run resumed from a checkpoint at step 320 of 400 times 80 steps: steps_timed = 80,
+#            bond_updates_per_second = ordered_bonds x 80 / step_seconds (not 400 steps over the
+#            time of 80), within a factor 4 of the uninterrupted run's rate; the console says so
+#  preload   a quasi-static preload that tears the sheet (its supports do about 9.9 J of work, the
+#            sheet stores and dissipated about 6.2 J): a warning naming the stage and both figures;
+#            summary.json keeps the explicit part's balance and adds the whole run's, which counts
+#            the preload's work (about 0.37), and the stage's work error beside it
+#  control   a preload that does not tear: no warning, the whole run's balance within 5%
+# usage: summary_figures.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
+set -u
+peridrive=$1 src=$2 mpiexec=$3
+shift 3
+mpi=("$mpiexec" -n 2 "$@")
+py=/usr/bin/python3
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+pass=0 fail=0
+ok() { echo "ok   $1"; pass=$((pass + 1)); }
+bad() { echo "FAIL $1"; fail=$((fail + 1)); }
+
+# --- resume ------------------------------------------------------------------------------------
+opts=(--set bodies.sheet.spacing=0.0005 --set stages.0.steps=400 --set output.checkpoint_every_steps=320
+      --set output.checkpoint_every_seconds=0 --set output.frames=3)
+"${mpi[@]}" "$peridrive" "${opts[@]}" --out "$work/whole" > "$work/whole.log" 2>&1 || { cat "$work/whole.log"; exit 1; }
+cp "$work/whole/summary.json" "$work/whole.json"
+"${mpi[@]}" "$peridrive" --resume "$work/whole" > "$work/resume.log" 2>&1 || { cat "$work/resume.log"; exit 1; }
+if $py - "$work/whole.json" "$work/whole/summary.json" "$work/resume.log" <<'PY'
+import json, re, sys
+whole, resumed, log = json.load(open(sys.argv[1])), json.load(open(sys.argv[2])), open(sys.argv[3]).read()
+problems = []
+def rate(s):
+    return s["ordered_bonds"] * s["steps_timed"] / s["step_seconds"]
+if resumed.get("steps") != 400 or resumed.get("steps_timed") != 80 or whole.get("steps_timed") != 400:
+    problems.append(f"steps {resumed.get('steps')}, steps_timed {resumed.get('steps_timed')} resumed, "
+                    f"{whole.get('steps_timed')} uninterrupted; expected 400, 80 and 400")
+else:
+    for name, s in (("uninterrupted", whole), ("resumed", resumed)):
+        if abs(s["bond_updates_per_second"] / rate(s) - 1) > 1e-9:
+            problems.append(f"{name}: bond_updates_per_second {s['bond_updates_per_second']:.6g} is not "
+                            f"ordered_bonds x steps_timed / step_seconds = {rate(s):.6g}")
+    ratio = resumed["bond_updates_per_second"] / whole["bond_updates_per_second"]
+    print(f"bond updates/s: {whole['bond_updates_per_second']:.4g} uninterrupted (400 steps), "
+          f"{resumed['bond_updates_per_second']:.4g} resumed (80 steps timed), ratio {ratio:.2f}")
+    if not 0.25 < ratio < 4:
+        problems.append(f"the resumed rate is {ratio:.2f} times the uninterrupted one")
+    m = re.search(r"done: 400 steps \(80 timed here\) in \S+ s \((\S+) bond updates/s\)", log)
+    if not m:
+        problems.append("the console's done line lacks '400 steps (80 timed here)'")
+    elif abs(float(m.group(1)) / resumed["bond_updates_per_second"] - 1) > 2e-3:
+        problems.append(f"the console's rate {m.group(1)} is not summary.json's")
+for p in problems:
+    print("  " + p)
+sys.exit(1 if problems else 0)
+PY
+then ok "resume: rates over the 80 steps timed"; else bad "resume"; cat "$work/resume.log"; fi
+
+# --- preload -------------------------------------------------------------------------------------
+cat > "$work/tear.yaml" <<'EOF'
+name: tear
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 2}
+bodies:
+  sheet: {material: rubber, origin: [-0.01, -0.01, 0], size: [0.02, 0.02], thickness: 0.0005, spacing: 0.0005}
+cracks:
+  - {name: slit, from: [-0.002, 0, 0], to: [0.002, 0, 0]}
+boundaries:
+  - {name: top, region: {min: [-1, 0.0088, -1], max: [1, 1, 1]}}
+  - {name: bottom, region: {min: [-1, -1, -1], max: [1, -0.0088, 1]}}
+stages:
+  - {name: preload, kind: quasistatic, displacements: {top: [0, 0.005, 0], bottom: [0, -0.005, 0]}, load_steps: 4}
+  - {name: hold, steps: 20, safety_factor: 0.35}
+output: {frames: 1, series_every: 5}
+EOF
+# check_balance SUMMARY MIN MAX: the whole run's balance from the summary's own figures, in [MIN, MAX].
+check_balance() {
+  $py - "$@" <<'PY'
+import json, sys
+s, lo, hi = json.load(open(sys.argv[1])), float(sys.argv[2]), float(sys.argv[3])
+f = s["final"]
+e0 = s["run_initial_total_energy"]
+scale = max(abs(f["kinetic_energy"]) + abs(f["strain_energy"]) + abs(f["dissipated_energy"]),
+            abs(f["external_work"]), abs(e0))
+expected = abs(f["total_energy"] - e0) / scale
+worst = max(q["work_error"] for q in s["quasistatic"])
+print(f"explicit part: from {s['initial_total_energy']:.4g} J, error {s['energy_balance_error']:.3g}; whole run: from "
+      f"{e0:.4g} J to {f['total_energy']:.4g} J, error {s['run_energy_balance_error']:.3g}; "
+      f"quasi-static work error {s['quasistatic_work_error']:.3g}")
+ok = (abs(s["run_energy_balance_error"] - expected) <= 1e-9 * max(expected, 1e-300) and lo <= expected <= hi and
+      s["quasistatic_work_error"] == worst)
+sys.exit(0 if ok else 1)
+PY
+}
+"${mpi[@]}" "$peridrive" "$work/tear.yaml" --out "$work/tear" --quiet > "$work/stdout" 2> "$work/stderr"
+rc=$?
+line=$(grep -n "name: preload" "$work/tear.yaml" | cut -d: -f1)
+want="peridrive: warning: $work/tear.yaml:$line: stages.0 ('preload'): the quasi-static supports did 9.86"
+if [ "$rc" -eq 0 ] && grep -qF "$want" "$work/stderr" && grep -q "but the body stores and dissipated 6.2[0-9]* J" "$work/stderr" &&
+   [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ] && check_balance "$work/tear/summary.json" 0.3 0.45; then
+  ok "preload: $(cut -c1-200 "$work/stderr")"
+else bad "preload: exit status $rc, expected 0 with the warning '$want...'"; cat "$work/stderr"; fi
+
+sed 's/0.005, 0], bottom: \[0, -0.005/0.002, 0], bottom: [0, -0.002/' "$work/tear.yaml" > "$work/mild.yaml"
+"${mpi[@]}" "$peridrive" "$work/mild.yaml" --out "$work/mild" > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ] && ! grep -q "warning" "$work/stderr" && check_balance "$work/mild/summary.json" 0 0.05 &&
+   grep -q "energy balance error .* (explicit part; whole run, quasi-static work included: " "$work/stdout"; then
+  ok "control: no warning for a preload that does not tear"
+else bad "control: exit status $rc"; cat "$work/stderr"; fi
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
