@@ -10,7 +10,10 @@
 // three packs are the whole ISA layer (about 150 lines).
 #pragma once
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <new>
+#include <vector>
 
 #if defined(__AVX2__) && defined(__FMA__)
 #define PERI_AVX2 1
@@ -21,6 +24,24 @@
 #endif
 
 namespace peri::simd {
+
+/// Allocator of cache-line aligned storage (64 bytes: an eight-lane vector never straddles two
+/// lines when its offset is a multiple of eight).
+template <class T>
+struct CacheAligned {
+  using value_type = T;
+  CacheAligned() = default;
+  template <class U>
+  CacheAligned(const CacheAligned<U>&) noexcept {}
+  T* allocate(std::size_t n) {
+    return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64}));
+  }
+  void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t{64}); }
+  template <class U>
+  bool operator==(const CacheAligned<U>&) const noexcept { return true; }
+};
+template <class T>
+using AlignedVector = std::vector<T, CacheAligned<T>>;
 
 /// 1/sqrt(y2) and sqrt(y2) in two stages (the first has the long latency; the bond loop starts it
 /// for the next bond before finishing this one). AVX-512: the 14-bit estimate r and one
@@ -165,9 +186,17 @@ struct Simd8 {
   static M ge(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_GE_OQ); }
   static M le(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_LE_OQ); }
   static unsigned bits(M m) { return m; }
+#if defined(__AVX512DQ__)
+  // Mask arithmetic as mask-register instructions (knotb, korb): written as integer operations,
+  // the compiler moved the mask to a general register and back on every bond.
+  static M with_lanes(M m, unsigned lanes) { return lanes ? _kor_mask8(m, _cvtu32_mask8(lanes)) : m; }
+  static M invert(M m) { return _knot_mask8(m); }
+#else
   static M with_lanes(M m, unsigned lanes) { return static_cast<M>(m | lanes); }
-  static V zero_where(M m, V a) { return _mm512_maskz_mov_pd(static_cast<M>(~m), a); }
-  static V fnmadd_or_zero(M m, V a, V b, V c) { return _mm512_maskz_fnmadd_pd(static_cast<M>(~m), a, b, c); }
+  static M invert(M m) { return static_cast<M>(~m); }
+#endif
+  static V zero_where(M m, V a) { return _mm512_maskz_mov_pd(invert(m), a); }
+  static V fnmadd_or_zero(M m, V a, V b, V c) { return _mm512_maskz_fnmadd_pd(invert(m), a, b, c); }
 };
 using Wide = Simd8;
 #elif defined(PERI_AVX2)

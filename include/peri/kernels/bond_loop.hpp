@@ -78,8 +78,7 @@ typename E::Bonds scalar_bond(const E& law, const BondView& v, std::int32_t i, c
   b.inv_xi = bond.inv_xi();
   b.measure = bond.measure();
   b.measure_per_xi2 = bond.measure_per_xi2();
-  if constexpr (E::kSlotValues)
-    law.template slot_values<simd::Scalar>(b.xi2, b.inv_xi, b.measure, b.measure_per_xi2, b.slot);
+  fill_slots<simd::Scalar>(law, b);
   b.dead = bond.broken() ? 1u : 0u;
   return b;
 }

@@ -21,6 +21,10 @@
 #include "peri/kernels/forces.hpp"
 
 namespace peri::fast {
+// Internal linkage in every file that instantiates the loop (laws.cpp, and a test's own law): the
+// compiler then sees every call of these templates and inlines and specializes them as it did
+// when they were one file's static functions (as weak templates, the intact boxes ran at 0.8).
+namespace {
 
 using simd::Simd4;
 using SimdWide = simd::Wide;
@@ -238,7 +242,7 @@ __attribute__((always_inline)) inline bool pipelined_slots(Next next, Start star
 // (damaged_block: the same sums, no slot evaluated twice). The first `skip` rows were written
 // already.
 template <int G, class Law>
-__attribute__((always_inline)) inline bool intact_blocks(const Law& law_of, const BondView& v, const RunSlots& run_of,
+bool intact_blocks(const Law& law_of, const BondView& v, const RunSlots& run_of,
                    const SlotSegment* segments, std::size_t nsegments, double* const* at, RowStep rows_at,
                    std::int64_t own, std::int64_t a, int skip, double* force, BondTally& tally,
                    Resume<typename Law::Pack, G>* resume = nullptr) {
@@ -578,8 +582,7 @@ void group_avx2(const Law& law_of, const C& L, const BondView& v, const std::int
     bonds.inv_xi = slots(P.inv_xi);
     bonds.measure_per_xi2 = slots(P.measure_per_xi2);
     // The law's slot constants lane by lane (the same operations as once per pattern for runs).
-    if constexpr (Law::kSlotValues)
-      law.template slot_values<S>(bonds.xi2, bonds.inv_xi, bonds.measure, bonds.measure_per_xi2, bonds.slot);
+    fill_slots<S>(law, bonds);
     bonds.dead = dead;
     const unsigned fresh = add_bond(law, bonds, f0, f1, f2, w);
     if (fresh) [[unlikely]]
@@ -874,5 +877,6 @@ void forces(const C& L, const BondView& v, const RowBlocks& rows, double* force,
   }
 }
 
+}  // namespace
 }  // namespace peri::fast
 #endif

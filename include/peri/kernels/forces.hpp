@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "peri/bonds/bonds.hpp"
+#include "peri/core/simd.hpp"
 #include "peri/partition/domain.hpp"
 #include "peri/models/law.hpp"
 
@@ -164,7 +165,7 @@ struct RowBlocks {
       BoxSlot::Kind kind;
       std::int32_t begin, end;
     };
-    std::vector<double> ring;
+    simd::AlignedVector<double> ring;
     std::vector<std::uint8_t> produced;
     std::vector<Segment> inner, edge;
     std::vector<double*> at;
@@ -182,7 +183,7 @@ struct RowBlocks {
       bool operator==(const LimitsKey& o) const { return law == o.law && key == o.key; }
     };
     LimitsKey limits_of;
-    std::vector<double> mirror;
+    simd::AlignedVector<double> mirror;
     std::vector<std::uint8_t> dead_cache, dead_known;  ///< lane bytes, and whether each entry holds them
     std::vector<std::uint32_t> live_cache;             ///< each entry's live slots (bits, live_words words)
     std::int64_t dead_stride = 0;                      ///< bytes per entry

@@ -33,7 +33,7 @@ struct OneBond {
     b.inv_xi = 1.0 / std::sqrt(xi2);
     b.measure = 1.0;
     b.measure_per_xi2 = 1.0 / xi2;
-    if constexpr (E::kSlotValues) law.template slot_values<simd::Scalar>(b.xi2, b.inv_xi, b.measure, b.measure_per_xi2, b.slot);
+    fill_slots<simd::Scalar>(law, b);
     b.dead = 0;
     p = law.front(b, y2);
   }

@@ -16,16 +16,40 @@
 
 namespace peri {
 
+/// Slots: how many of the law's per-slot constants this evaluation reads (the first ones of the
+/// law's list: a law lists those of energy calls last, and a call without energy carries none of
+/// them, nor anything its shape does not read: the loop copies a bond's lanes from slot to slot).
+/// One flat struct (no base, no member initializers), which the compiler keeps in registers.
 template <class P, int Slots>
 struct BondLanes {
   using Pack = P;
   using V = typename P::V;
   static constexpr int kSlots = Slots;
-  V d0, d1, d2;                         ///< y = x_j - x_i
+  V d0, d1, d2;                             ///< y = x_j - x_i
   V xi2, inv_xi, measure, measure_per_xi2;  ///< the pattern's slot
-  V slot[Slots > 0 ? Slots : 1];        ///< the law's per-slot constants
-  unsigned dead = 0;                    ///< bit l: lane l adds nothing
+  V slot[Slots];                            ///< the law's per-slot constants
+  unsigned dead;                            ///< bit l: lane l adds nothing
 };
+template <class P>
+struct BondLanes<P, 0> {
+  using Pack = P;
+  using V = typename P::V;
+  static constexpr int kSlots = 0;
+  V d0, d1, d2;
+  V xi2, inv_xi, measure, measure_per_xi2;
+  unsigned dead;
+};
+
+/// Sets b's slot constants (those b carries) from its reference slot, with law E's slot_values on
+/// pack Q (Scalar once per bond, or the lanes of a gathered group).
+template <class Q, class E, class B>
+inline void fill_slots(const E& law, B& b) {
+  if constexpr (B::kSlots > 0) {
+    typename Q::V all[E::kSlots];
+    law.template slot_values<Q>(b.xi2, b.inv_xi, b.measure, b.measure_per_xi2, all);
+    for (int s = 0; s < B::kSlots; ++s) b.slot[s] = all[s];
+  }
+}
 
 /// Linear critical stretch of eq. (29) and the influence function g(|xi|) of eq. (13), shared by
 /// the stretch-based laws: a bond fails when y >= lambda_0(|xi|) |xi| (eqs. 11, 22), lambda_0

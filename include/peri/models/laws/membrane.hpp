@@ -48,7 +48,7 @@ struct MembraneLaw {
     static constexpr int W = P::W;
     static constexpr bool kEnergy = Energy;
     enum { kBreak, kXiLen, kEnergyWeight, kSlots };
-    using Bonds = BondLanes<P, kSlots>;
+    using Bonds = BondLanes<P, Energy ? kSlots : Linear ? 1 : 0>;  // (a constant lambda_0 reads none)
     /// With a constant lambda_0 the failure test needs no per-slot constant (r <= lambda_0^-2).
     static constexpr bool kSlotValues = Linear || Energy;
     double c_row, crit0_s, crit_slope_s, c_energy_s, inv_horizon_s;

@@ -50,7 +50,7 @@ struct PmbLaw {
     static constexpr int W = P::W;
     static constexpr bool kEnergy = Energy;
     enum { kFloor, kBreak, kWeight, kWeightPerXi, kXiLen, kEnergyWeight, kSlots };
-    using Bonds = BondLanes<P, kSlots>;
+    using Bonds = BondLanes<P, Energy ? kSlots : kXiLen>;  // (the energy's slots last)
     /// The per-slot constants are needed in every call (weights, floor, failure test).
     static constexpr bool kSlotValues = true;
     double c_row, crit0_s, crit_slope_s, c_energy_s, inv_horizon_s;
