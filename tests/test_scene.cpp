@@ -214,7 +214,7 @@ TEST(SceneFile, DefaultSceneParses) {
   ASSERT_EQ(s.materials.size(), 1u);
   const peri::Material& rubber = s.materials[0];
   EXPECT_EQ(rubber.name, "rubber");
-  EXPECT_EQ(rubber.model, peri::ModelKind::Membrane);
+  EXPECT_EQ(rubber.model, "membrane");
   EXPECT_EQ(rubber.density, 1200.0);
   EXPECT_EQ(rubber.wave_speed, 1000.0);
   EXPECT_FALSE(rubber.bulk_modulus);

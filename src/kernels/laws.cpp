@@ -12,6 +12,7 @@
 #include "peri/models/laws/membrane_hardening.hpp"
 #include "peri/models/laws/pmb.hpp"
 #include "peri/models/model.hpp"
+#include "peri/scene/models.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri {
@@ -79,6 +80,14 @@ ElasticConstants stretch_elastic(const L& law, bool membrane_law, const BodyGeom
 
 const LawEntry* entry_named(const char* name);
 
+// Reference bond lengths are kept to 2^-46 relative: a smaller failure strain would break bonds
+// at rest.
+std::string strain_problem(double strain, const std::string& expected) {
+  if (strain >= 1e-10) return "";
+  return expected +
+         " (a smaller failure strain is below the resolution of reference bond lengths and breaks bonds at rest)";
+}
+
 constexpr const char* kMembraneStability =
     "stiffens in compression by 1 + 3/lambda^4, so snapping-back fragments need a smaller safety_factor, e.g. 0.35";
 
@@ -105,6 +114,11 @@ LawEntry membrane_entry() {
   LawEntry e = make_law_entry<MembraneLaw>(
       "membrane", "rubbery membrane micropotential, eqs. (13), (15); failure at lambda_0 (eqs. 11, 22, 29)");
   e.stability_note = kMembraneStability;
+  e.material_keys = {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening"};
+  e.critical_problem = [](double x) -> std::string {
+    if (!(x > 1)) return "the membrane model needs a critical stretch lambda_0 > 1";
+    return strain_problem(x - 1, "expected a critical stretch lambda_0 >= 1 + 1e-10");
+  };
   e.calibrate = calibrate_membrane;
   e.elastic = [](const void* c, const BodyGeometry& g, double density) {
     return stretch_elastic(*static_cast<const MembraneLaw*>(c), true, g, density);
@@ -117,6 +131,7 @@ LawEntry membrane_hardening_entry() {
   LawEntry e = make_law_entry<MembraneHardeningLaw>(
       "membrane_hardening", "the membrane micropotential with power-law hardening, eq. (16) (model membrane, key hardening)");
   e.stability_note = kMembraneStability;
+  e.scene_model = false;  // model: membrane with a hardening key
   e.calibrate = calibrate_membrane;
   // At small strain eq. (16)'s term adds c' n (n - 1)/2 eps^2 g to the membrane law's 4 c eps^2 g:
   // the moduli of a membrane law with c + c' n (n - 1) / 8.
@@ -135,6 +150,11 @@ LawEntry pmb_entry() {
   e.stability_note =
       "keeps its bond stiffness at any strain, so its bound holds throughout; look for a tool pressed in faster "
       "than the sheet can follow, or a load that moves nodes a large part of the spacing per step";
+  e.material_keys = {"influence", "critical_stretch", "critical_stretch_at_horizon"};
+  e.critical_problem = [](double x) -> std::string {
+    if (!(x > 0)) return "the pmb model needs a critical bond strain s_0 > 0";
+    return strain_problem(x, "expected a critical bond strain s_0 >= 1e-10");
+  };
   e.calibrate = [](const Material& m, const BodyGeometry& g, const std::string& where, BondLaw& out) {
     PmbLaw law;
     law.horizon = g.horizon;
@@ -161,6 +181,34 @@ std::deque<LawEntry>& table() {
   return laws;
 }
 
+MaterialModel model_of(const LawEntry& e) {
+  MaterialModel m;
+  m.name = e.name;
+  m.description = e.description;
+  m.keys = e.material_keys;
+  m.stiffness = e.stiffness_keys;
+  m.critical_problem = e.critical_problem;
+  return m;
+}
+
+// The scene's catalog: the registry's scene models, then Marder's lattice (its own loop, not a
+// bond law of the registry).
+std::deque<MaterialModel>& catalog() {
+  static std::deque<MaterialModel> models = [] {
+    std::deque<MaterialModel> c;
+    for (const LawEntry& e : table())
+      if (e.scene_model) c.push_back(model_of(e));
+    MaterialModel marder;
+    marder.name = "marder";
+    marder.description = "Marder's two- and three-body lattice law (lattice bodies), eqs. (28)-(33)";
+    marder.lattice = true;
+    marder.stiffness = {};
+    c.push_back(marder);
+    return c;
+  }();
+  return models;
+}
+
 const LawEntry* entry_named(const char* name) { return find_law(name); }
 
 }  // namespace
@@ -172,8 +220,22 @@ const LawEntry* find_law(const std::string& name) {
 }
 
 void register_law(const LawEntry& entry) {
-  if (find_law(entry.name)) throw Error("register_law: a law named '" + entry.name + "' exists already");
+  if (find_law(entry.name) || find_material_model(entry.name))
+    throw Error("register_law: a law named '" + entry.name + "' exists already");
   table().push_back(entry);
+  if (entry.scene_model) catalog().push_back(model_of(entry));
+}
+
+const MaterialModel* find_material_model(const std::string& name) {
+  for (const MaterialModel& m : catalog())
+    if (m.name == name) return &m;
+  return nullptr;
+}
+
+std::vector<std::string> material_model_names() {
+  std::vector<std::string> names;
+  for (const MaterialModel& m : catalog()) names.push_back(m.name);
+  return names;
 }
 
 std::vector<const LawEntry*> registered_laws() {

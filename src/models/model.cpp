@@ -88,19 +88,10 @@ ElasticConstants isotropic_constants(double mu_or_e, const BodyGeometry& g, doub
   return e;
 }
 
-const char* law_name(ModelKind model) {
-  switch (model) {
-    case ModelKind::Membrane: return "membrane";
-    case ModelKind::PMB: return "pmb";
-    case ModelKind::Marder: return "marder";
-  }
-  return "";
-}
-
 BondLaw calibrate(const Material& m, const BodyGeometry& g, const std::string& where) {
-  const LawEntry* entry = find_law(law_name(m.model));
+  const LawEntry* entry = find_law(m.model);
   if (!entry || !entry->calibrate)
-    throw InputError(where + ": material '" + m.name + "': model '" + law_name(m.model) + "' has no bond law");
+    throw InputError(where + ": material '" + m.name + "': model '" + m.model + "' has no bond law");
   BondLaw law;
   entry->calibrate(m, g, where, law);
   return law;

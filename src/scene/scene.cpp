@@ -17,6 +17,8 @@
 //    the line of its key, any other value at its own line.
 #include "peri/scene/scene.hpp"
 
+#include "peri/scene/models.hpp"
+
 #include <yaml-cpp/eventhandler.h>
 #include "peri/models/marder.hpp"
 
@@ -349,6 +351,12 @@ class Value {
     return unit.empty() ? std::string() : " [" + std::string(unit) + "]";
   }
 
+  /// The plain (unquoted) scalar, or nothing (a quoted string, a list, a map).
+  std::optional<std::string> word() const {
+    if (node_.IsScalar() && !quoted()) return node_.Scalar();
+    return std::nullopt;
+  }
+
  private:
   /// Quoted (or otherwise non-plain) scalars are strings, never numbers or booleans.
   bool quoted() const { return node_.Tag() == "!"; }
@@ -483,7 +491,7 @@ const Keys kSceneKeys = {
 };
 
 const Keys kMaterialKeys = {
-    {"model", true, "force law: membrane, pmb or marder"},
+    {"model", true, "force law: membrane, pmb, marder, or another registered law"},
     {"density", true, "mass density, kg/m^3"},
     {"wave_speed", false, ""},
     {"bulk_modulus", false, ""},
@@ -694,20 +702,11 @@ std::vector<Value> optional_list(const Map& top, const std::string& key, const s
   return v ? v->list(expected) : std::vector<Value>{};
 }
 
-double critical_value(const Value& v, ModelKind model) {
+// A critical value (critical_stretch, critical_stretch_at_horizon), as the model checks it.
+double critical_value(const Value& v, const MaterialModel& model) {
   const double x = v.number("a number");
-  if (model == ModelKind::Membrane && !(x > 1))
-    v.fail("the membrane model needs a critical stretch lambda_0 > 1, got " + v.got());
-  if (model == ModelKind::PMB && !(x > 0))
-    v.fail("the pmb model needs a critical bond strain s_0 > 0, got " + v.got());
-  // Reference bond lengths are kept to 2^-46 relative: a smaller failure strain would break
-  // bonds at rest.
-  const double strain = model == ModelKind::Membrane ? x - 1 : x;
-  if (strain < 1e-10)
-    v.fail(std::string(model == ModelKind::Membrane ? "expected a critical stretch lambda_0 >= 1 + 1e-10"
-                                                    : "expected a critical bond strain s_0 >= 1e-10") +
-           " (a smaller failure strain is below the resolution of reference bond lengths and breaks bonds at "
-           "rest), got " + v.got());
+  if (model.critical_problem)
+    if (const std::string problem = model.critical_problem(x); !problem.empty()) v.fail(problem + ", got " + v.got());
   return x;
 }
 
@@ -738,12 +737,25 @@ Material read_material(const std::string& name, const Value& v) {
   Material mat;
   mat.name = name;
   mat.where = m.where();
-  mat.model = m.at("model").choice<ModelKind>(
-      {{"membrane", ModelKind::Membrane}, {"pmb", ModelKind::PMB}, {"marder", ModelKind::Marder}});
+  const Value model = m.at("model");
+  const std::optional<std::string> word = model.word();
+  const MaterialModel* info = word ? find_material_model(*word) : nullptr;
+  if (!info) model.fail("expected one of: " + join(material_model_names()) + "; got " + model.got());
+  mat.model = info->name;
   mat.density = m.at("density").positive("kg/m^3");
-  if (mat.model == ModelKind::Marder) return read_marder_material(m, std::move(mat));
+  if (info->lattice) return read_marder_material(m, std::move(mat));
   for (const char* key : kMarderKeys)
-    if (auto x = m.get(key)) x->fail("only the marder model takes this key (model is " + m.at("model").string() + ")");
+    if (auto x = m.get(key)) x->fail("only the marder model takes this key (model is " + mat.model + ")");
+  for (const char* key : {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening"})
+    if (auto x = m.get(key); x && std::find(info->keys.begin(), info->keys.end(), key) == info->keys.end()) {
+      std::vector<std::string> takers;
+      for (const std::string& name : material_model_names())
+        if (const MaterialModel* other = find_material_model(name);
+            std::find(other->keys.begin(), other->keys.end(), key) != other->keys.end())
+          takers.push_back(name);
+      x->fail(std::string(key) + " is available only for the " + join(takers) + " model" +
+              (takers.size() > 1 ? "s" : "") + ", not for " + mat.model);
+    }
 
   int stiffness_given = 0;
   for (const char* key : kStiffnessKeys) stiffness_given += m.given(key) ? 1 : 0;
@@ -753,6 +765,9 @@ Material read_material(const std::string& name, const Value& v) {
                " (found " + std::to_string(stiffness_given) + ")",
            {kStiffnessKeys[0], kStiffnessKeys[1], kStiffnessKeys[2], kStiffnessKeys[3]});
   }
+  for (const char* key : kStiffnessKeys)
+    if (auto x = m.get(key); x && std::find(info->stiffness.begin(), info->stiffness.end(), key) == info->stiffness.end())
+      x->fail("the " + mat.model + " model calibrates from " + join(info->stiffness) + ", not from " + key);
   if (auto x = m.get("wave_speed")) mat.wave_speed = x->positive("m/s");
   if (auto x = m.get("bulk_modulus")) mat.bulk_modulus = x->positive("Pa");
   if (auto x = m.get("youngs_modulus")) mat.youngs_modulus = x->positive("Pa");
@@ -761,14 +776,12 @@ Material read_material(const std::string& name, const Value& v) {
   if (auto x = m.get("influence"))
     mat.influence =
         x->choice<Influence>({{"constant", Influence::Constant}, {"conical", Influence::Conical}});
-  if (auto x = m.get("critical_stretch")) mat.critical_stretch = critical_value(*x, mat.model);
+  if (auto x = m.get("critical_stretch")) mat.critical_stretch = critical_value(*x, *info);
   if (auto x = m.get("critical_stretch_at_horizon")) {
     if (!mat.critical_stretch) x->fail("requires critical_stretch (the critical value at |xi| = 0)");
-    mat.critical_stretch_at_horizon = critical_value(*x, mat.model);
+    mat.critical_stretch_at_horizon = critical_value(*x, *info);
   }
   if (auto x = m.get("hardening")) {
-    if (mat.model != ModelKind::Membrane)
-      x->fail("hardening is available only for the membrane model, not for pmb");
     const Map h(*x, &kHardeningKeys, "a map {coefficient: c, exponent: n}");
     Hardening hard;
     hard.coefficient = h.at("coefficient").non_negative("");
@@ -915,7 +928,7 @@ Body read_body(const std::string& name, const Value& v, const std::vector<Materi
   }
   const Material& mat = *std::find_if(materials.begin(), materials.end(),
                                       [&](const Material& x) { return x.name == b.material; });
-  if ((b.kind == BodyKind::Lattice) != (mat.model == ModelKind::Marder))
+  if ((b.kind == BodyKind::Lattice) != find_material_model(mat.model)->lattice)
     material.fail(b.kind == BodyKind::Lattice
                       ? "a lattice body needs a material with model: marder, got '" + b.material + "'"
                       : "material '" + b.material + "' has model: marder, which needs a body with kind: lattice");
@@ -1621,9 +1634,6 @@ std::string flow(const std::array<double, 9>& m) {
          "]";
 }
 
-const char* to_text(ModelKind k) {
-  return k == ModelKind::Membrane ? "membrane" : k == ModelKind::PMB ? "pmb" : "marder";
-}
 const char* to_text(Influence k) { return k == Influence::Constant ? "constant" : "conical"; }
 const char* to_text(BodyKind k) {
   return k == BodyKind::Membrane ? "membrane"
@@ -1669,7 +1679,7 @@ class Writer {
 
 void emit_material(Writer& w, const Material& m) {
   w.key(2, yaml_string(m.name), "");
-  w.key(4, "model", to_text(m.model));
+  w.key(4, "model", m.model);
   w.key(4, "density", m.density);
   if (m.marder) {
     w.key(4, "mooney_rivlin_a", m.marder->a);

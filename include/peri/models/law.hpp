@@ -44,6 +44,14 @@ struct LawEntry {
   /// What an unstable explicit step means for this law, completing "the <name> law (body ...) ":
   /// the instability messages' likely cause.
   std::string stability_note;
+  // The scene's view (scene/models.hpp): whether `model: <name>` selects it (a law reached through
+  // another, as hardening through the membrane's `hardening` key, is not), the material keys it
+  // takes besides density and one stiffness input, the stiffness inputs it calibrates from, and
+  // the check of its critical value (empty when acceptable, else what was expected).
+  bool scene_model = true;
+  std::vector<std::string> material_keys;
+  std::vector<std::string> stiffness_keys{"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus"};
+  std::string (*critical_problem)(double x) = nullptr;
   // One bond, per unit quadrature measure (the tangent, tests, closed-form checks):
   double (*coefficient)(const void* law, double xi2, double y2) = nullptr;  ///< f / y [N/m^7]
   double (*slope)(const void* law, double xi2, double y2) = nullptr;        ///< d(f/y)/d(y^2)

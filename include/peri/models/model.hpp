@@ -53,7 +53,4 @@ double influence_moment(int k, double delta, bool conical);
 /// mu; solids: nu = 1/4), or of a bar (fibers) from its Young's modulus `mu_or_e`.
 ElasticConstants isotropic_constants(double mu_or_e, const BodyGeometry& g, double density);
 
-/// The registry name of a scene model (membrane, pmb, marder).
-const char* law_name(ModelKind model);
-
 }  // namespace peri

@@ -14,13 +14,6 @@ namespace peri {
 
 using Vec3 = std::array<double, 3>;
 
-/// Force law of a material's bonds.
-enum class ModelKind {
-  Membrane,  ///< rubbery membrane micropotential, eqs. (13), (15); optional hardening (16)
-  PMB,       ///< prototype microelastic brittle bond: force c*s*g, s = lambda - 1
-  Marder,    ///< Marder's two- and three-body lattice law, eqs. (28)-(33) (lattice bodies only)
-};
-
 /// Influence function g(|xi|) of eq. (13).
 enum class Influence {
   Constant,  ///< g = 1
@@ -64,7 +57,7 @@ struct MarderParams {
 struct Material {
   std::string name;
   SourceLoc where;
-  ModelKind model = ModelKind::Membrane;
+  std::string model = "membrane";  ///< a material model of the catalog (scene/models.hpp): membrane, pmb, marder, ...
   double density = 0.0;  ///< rho [kg/m^3], > 0
   // Stiffness: exactly one of the four is given in the scene; the others stay empty.
   std::optional<double> wave_speed;      ///< small-strain longitudinal wave speed c_l [m/s]
