@@ -1,38 +1,19 @@
-// Every registered bond law, through its registry entry (models/law.hpp, kernels/law_kernels.hpp):
-//  - the SIMD accelerator and the portable walk give the same bits (forces, energies, flags,
-//    tallies), on a membrane grid (runs, boxes, strided and mirrored runs, the rest) and a solid
-//    block, intact and breaking;
-//  - the coefficient is the energy's gradient, the slope the coefficient's derivative, the SNES
-//    tangent's block row the derivative of the forces;
-//  - calibration: a small homogeneous strain of a finely resolved body stores the energy of the
-//    continuum with the moduli the law reports.
-// A law registered without a sample material below fails EverySampleIsRegistered.
+// Every registered bond law passes the checks of tests/law_checks.hpp (SIMD and portable loops
+// the same bits, gradient and slope, the SNES tangent's rows, calibration), each from a sample
+// material below. A law registered without a sample material fails EverySampleIsRegistered.
 #include <gtest/gtest.h>
 
-#include <cmath>
-#include <cstring>
-#include <memory>
-#include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "peri/bonds/bonds.hpp"
-#include "peri/kernels/forces.hpp"
-#include "peri/kernels/tangent.hpp"
-#include "peri/models/model.hpp"
-#include "peri/partition/domain.hpp"
-#include "peri/partition/partition.hpp"
-#include "peri/scene/scene.hpp"
+#include "law_checks.hpp"
 
 namespace peri {
 namespace {
 
-// A material of each registered law (YAML flow map), with the shapes to test it in.
-struct Sample {
-  std::string law;
-  std::string material;  ///< the law's keys; critical values break bonds at strains of about 0.5%
-  std::string linear;    ///< critical_stretch_at_horizon for eq. (29)'s linear lambda_0
-};
+using law_checks::Sample;
+
 const std::vector<Sample>& samples() {
   static const std::vector<Sample> s{
       {"membrane", "model: membrane, density: 1200, bulk_modulus: 8.0e8, critical_stretch: 1.004", "1.002"},
@@ -51,35 +32,6 @@ const Sample& sample(const std::string& law) {
   throw std::runtime_error("no sample material for law " + law);
 }
 
-std::string scene_text(const std::string& material, bool solid) {
-  const std::string body =
-      solid ? "  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.016, 0.017, 0.006], spacing: 0.001, "
-              "horizon: 0.003015, quadrature: taper}\n"
-            : "  s: {material: m, origin: [0, 0, 0], size: [0.020, 0.015], thickness: 0.0005, spacing: 0.001, "
-              "quadrature: partial_area}\n";
-  return "name: law-test\nmaterials:\n  m: {" + material + "}\nbodies:\n" + body + "stages:\n  - {name: r, steps: 1}\n";
-}
-
-// A one-body scene on one rank: nodes, the domain of all of them, the body's law.
-struct Body {
-  Nodes nodes;
-  Domain d;
-  BondLaw law;
-  std::vector<std::int32_t> rows;
-  Body(const std::string& material, bool solid) {
-    const Scene scene = parse_scene(scene_text(material, solid), "law-test");
-    nodes = discretize(scene);
-    law = calibrate(scene.materials[0], nodes.bodies[0], "law-test");
-    const CellList cells(nodes, reach(nodes.bodies[0]));
-    d = build_domain(scene, nodes, cells, partition_from_parts(std::vector<int>(nodes.size(), 0), 1), 0);
-    for (std::int32_t i = 0; i < d.owned; ++i) rows.push_back(i);
-  }
-  BondView view(const double* x, std::uint8_t* broken) const {
-    return BondView{d.X.data(), nullptr, d.volume.data(), d.bonds.offsets.data(), d.bonds.neighbor.data(),
-                    broken, &d.bonds.patterns, x, d.local()};
-  }
-};
-
 std::vector<std::string> law_names() {
   std::vector<std::string> names;
   for (const LawEntry* e : registered_laws()) names.push_back(e->name);
@@ -93,180 +45,20 @@ TEST(Laws, EverySampleIsRegistered) {
   for (const Sample& s : samples()) EXPECT_NE(find_law(s.law), nullptr) << s.law;
 }
 
-// Random displacements (strains up to about 1%: bonds break), then larger ones on the damaged
-// state; each call by the accelerator (entry.forces) and the portable walk (entry.portable_forces)
-// from the same flags: forces, energy density, flags and tallies the same bits.
 TEST_P(EveryLaw, SimdAndPortableLoopsGiveTheSameBits) {
-  const Sample& s = sample(GetParam());
-  for (int variant = 0; variant < 8; ++variant) {
-    const bool solid = variant & 1, conical = variant & 2, linear = variant & 4;
-    std::string material = s.material;
-    if (conical) material += ", influence: conical";
-    if (linear) material += ", critical_stretch_at_horizon: " + s.linear;
-    std::unique_ptr<Body> body;
-    try {
-      body = std::make_unique<Body>(material, solid);
-    } catch (const InputError&) {
-      continue;  // the law refuses this kind of body (the membrane law in a solid)
-    }
-    ASSERT_EQ(body->law.name(), GetParam());
-    const Domain& d = body->d;
-    const std::size_t n = static_cast<std::size_t>(d.local());
-    std::mt19937 rng(11 + variant);
-    std::uniform_real_distribution<double> U(-1.0, 1.0);
-    std::vector<double> u(3 * n), x(3 * n);
-    std::vector<std::uint8_t> flags_fast(d.bonds.broken.size(), 0), flags_walk(flags_fast);
-    const RowBlocks plan_fast = plan_rows(body->view(x.data(), flags_fast.data()), body->rows.data(), body->rows.size());
-    const RowBlocks plan_walk = plan_rows(body->view(x.data(), flags_walk.data()), body->rows.data(), body->rows.size());
-    std::int64_t broken = 0;
-    for (int call = 0; call < 4; ++call) {
-      const double amplitude = call < 2 ? 4e-6 : 1e-5;
-      for (double& c : u) c = amplitude * U(rng);
-      current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
-      const bool energy = call % 2 == 0;
-      std::vector<double> f_fast(3 * n, 0.0), f_walk(3 * n, 0.0), e_fast(n, 0.0), e_walk(n, 0.0);
-      BondView v_fast = body->view(x.data(), flags_fast.data()), v_walk = body->view(x.data(), flags_walk.data());
-      v_fast.energy_density = e_fast.data();
-      v_walk.energy_density = e_walk.data();
-      BondTally t_fast, t_walk;
-      const LawEntry& entry = body->law.entry();
-      entry.forces(body->law.constants(), v_fast, plan_fast, f_fast.data(), energy, t_fast);
-      entry.portable_forces(body->law.constants(), v_walk, plan_walk, f_walk.data(), energy, t_walk);
-      const std::string where = "variant " + std::to_string(variant) + " call " + std::to_string(call);
-      EXPECT_EQ(std::memcmp(f_fast.data(), f_walk.data(), f_fast.size() * sizeof(double)), 0) << where;
-      EXPECT_EQ(flags_fast, flags_walk) << where;
-      EXPECT_EQ(t_fast.newly_broken, t_walk.newly_broken) << where;
-      EXPECT_EQ(t_fast.dissipated, t_walk.dissipated) << where;
-      EXPECT_EQ(t_fast.strain_energy, t_walk.strain_energy) << where;
-      if (energy) EXPECT_EQ(e_fast, e_walk) << where;
-      broken += t_fast.newly_broken;
-    }
-    EXPECT_GT(broken, 0) << "variant " << variant << ": no bond broke, the failure path went untested";
-  }
+  law_checks::simd_and_portable_loops_give_the_same_bits(sample(GetParam()));
 }
 
-// f / y = (dw/dy) / y for intact bonds, over compression and tension, for every shape.
 TEST_P(EveryLaw, CoefficientIsTheEnergyGradientAndSlopeItsDerivative) {
-  const Sample& s = sample(GetParam());
-  for (int variant = 0; variant < 4; ++variant) {
-    std::string material = s.material;
-    if (variant & 1) material += ", influence: conical";
-    if (variant & 2) material += ", critical_stretch_at_horizon: " + s.linear;
-    const Body body(material, false);
-    const BondLaw law = body.law.intact();
-    const double delta = law.horizon();
-    for (double xi : {0.3 * delta, 0.7 * delta, 0.95 * delta})
-      for (double lambda : {0.6, 0.9, 0.999, 1.003, 1.1, 1.5, 2.5}) {
-        const double xi2 = xi * xi, y = lambda * xi, h = 1e-6 * y;
-        const double dw = (law.energy(xi2, (y + h) * (y + h)) - law.energy(xi2, (y - h) * (y - h))) / (2 * h);
-        const double k = law.coefficient(xi2, y * y);
-        EXPECT_NEAR(k * y, dw, 1e-6 * std::fabs(dw) + 1e-12 * std::fabs(law.coefficient(xi2, 4 * xi2)) * xi)
-            << "variant " << variant << " xi/delta " << xi / delta << " lambda " << lambda;
-        const double y2 = y * y, h2 = 1e-6 * y2;
-        const double dk = (law.coefficient(xi2, y2 + h2) - law.coefficient(xi2, y2 - h2)) / (2 * h2);
-        EXPECT_NEAR(law.slope(xi2, y2), dk, 1e-5 * std::fabs(dk) + 1e-9 * std::fabs(k) / y2)
-            << "variant " << variant << " xi/delta " << xi / delta << " lambda " << lambda;
-      }
-  }
+  law_checks::coefficient_is_the_energy_gradient_and_slope_its_derivative(sample(GetParam()));
 }
 
-// The SNES tangent's block row of an interior node against central differences of the force
-// densities: K_ij = -d(V_i F_i)/du_j, at a deformed state (strains about 10%, intact law).
 TEST_P(EveryLaw, TangentRowIsTheDerivativeOfTheForces) {
-  const Body body(sample(GetParam()).material, false);
-  const BondLaw law = body.law.intact();
-  const Domain& d = body.d;
-  const std::size_t n = static_cast<std::size_t>(d.local());
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> U(-1.0, 1.0);
-  std::vector<double> u(3 * n), x(3 * n);
-  for (std::size_t i = 0; i < n; ++i) {
-    u[3 * i] = 0.1 * d.X[3 * i] + 2e-5 * U(rng);
-    u[3 * i + 1] = -0.03 * d.X[3 * i + 1] + 2e-5 * U(rng);
-    u[3 * i + 2] = 2e-5 * U(rng);
-  }
-  std::vector<std::uint8_t> flags(d.bonds.broken.size(), 0);
-  const std::int32_t row = static_cast<std::int32_t>(7 * 20 + 10);  // an interior node of the 20 x 15 grid
-  auto force_of_row = [&](std::vector<double>& uu) {
-    current_positions(d.X.data(), uu.data(), 0, d.local(), d.local(), x.data());
-    std::vector<double> f(3 * n, 0.0);
-    BondTally t;
-    bond_forces(law, body.view(x.data(), flags.data()), &row, 1, f.data(), false, t);
-    return std::vector<double>{f[3 * row], f[3 * row + 1], f[3 * row + 2]};
-  };
-  current_positions(d.X.data(), u.data(), 0, d.local(), d.local(), x.data());
-  std::vector<std::int32_t> cols;
-  std::vector<double> blocks;
-  row_tangent(law, body.view(x.data(), flags.data()), row, cols, blocks);
-  const std::size_t stride = 3 * cols.size();
-  double largest = 0;
-  for (double b : blocks) largest = std::max(largest, std::fabs(b));
-  double worst = 0;
-  for (std::size_t k = 0; k < cols.size(); ++k)
-    for (int c = 0; c < 3; ++c) {
-      std::vector<double> up = u, um = u;
-      const double h = 1e-9;
-      up[3 * cols[k] + c] += h;
-      um[3 * cols[k] + c] -= h;
-      const std::vector<double> fp = force_of_row(up), fm = force_of_row(um);
-      for (int a = 0; a < 3; ++a) {
-        const double fd = -(fp[a] - fm[a]) / (2 * h) * d.volume[row];
-        worst = std::max(worst, std::fabs(blocks[a * stride + 3 * k + c] - fd));
-      }
-    }
-  EXPECT_LT(worst, 1e-6 * largest) << cols.size() << " columns";
+  law_checks::tangent_row_is_the_derivative_of_the_forces(sample(GetParam()));
 }
 
-// Energy density (eq. 5) of an interior node of a uniform grid under the homogeneous deformation
-// diag(l1, l2, l3).
-double energy_density(const BondLaw& law, const BodyGeometry& g, double l1, double l2, double l3) {
-  const double dx = g.spacing;
-  const int M = static_cast<int>(std::ceil(g.horizon / dx)) + 1;
-  const bool solid = g.kind == BodyKind::Solid;
-  const double cell = solid ? dx * dx * dx : g.cell_area * g.thickness;
-  double W = 0;
-  for (int k = solid ? -M : 0; k <= (solid ? M : 0); ++k)
-    for (int j = -M; j <= M; ++j)
-      for (int i = -M; i <= M; ++i) {
-        if (i == 0 && j == 0 && k == 0) continue;
-        const double xi[3] = {i * dx, j * dx, k * dx};
-        const double w = quadrature_weight(g, xi);
-        if (w == 0) continue;
-        const double s2 = xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2];
-        const double y2 = l1 * l1 * xi[0] * xi[0] + l2 * l2 * xi[1] * xi[1] + l3 * l3 * xi[2] * xi[2];
-        W += 0.5 * law.energy(s2, y2) * w * cell;
-      }
-  return W;
-}
-
-// Membranes: equibiaxial W = 2 K e^2 and uniaxial strain W = 3 mu e^2 / 2 (lambda = mu); solids:
-// isotropic W = 9 K e^2 / 2; each with the K and mu the law reports for the body.
 TEST_P(EveryLaw, CalibrationStoresTheContinuumEnergy) {
-  const Sample& s = sample(GetParam());
-  const double e = 1e-4;
-  for (bool solid : {false, true}) {
-    BodyGeometry g;
-    g.kind = solid ? BodyKind::Solid : BodyKind::Membrane;
-    g.horizon = 1.0;
-    g.spacing = solid ? 0.1 : 1.0 / 24;
-    g.thickness = solid ? 0.0 : 1e-3;
-    g.cell_area = g.spacing * g.spacing;
-    g.quadrature = Quadrature::PartialArea;
-    const Scene scene = parse_scene(scene_text(s.material, false), "law-test");
-    BondLaw law;
-    try {
-      law = calibrate(scene.materials[0], g, "law-test");
-    } catch (const InputError&) {
-      continue;
-    }
-    const ElasticConstants k = elastic_constants(law, g, scene.materials[0].density);
-    if (solid) {
-      EXPECT_NEAR(energy_density(law, g, 1 + e, 1 + e, 1 + e) / (4.5 * k.bulk * e * e), 1.0, 5e-3);
-    } else {
-      EXPECT_NEAR(energy_density(law, g, 1 + e, 1 + e, 1) / (2 * k.bulk * e * e), 1.0, 2e-3);
-      EXPECT_NEAR(energy_density(law, g, 1 + e, 1, 1) / (1.5 * k.mu * e * e), 1.0, 2e-3);
-    }
-  }
+  law_checks::calibration_stores_the_continuum_energy(sample(GetParam()));
 }
 
 INSTANTIATE_TEST_SUITE_P(Registered, EveryLaw, ::testing::ValuesIn(law_names()),

@@ -222,8 +222,9 @@ const LawEntry* find_law(const std::string& name) {
 void register_law(const LawEntry& entry) {
   if (find_law(entry.name) || find_material_model(entry.name))
     throw Error("register_law: a law named '" + entry.name + "' exists already");
+  std::deque<MaterialModel>& models = catalog();  // (built from the table as it is before this entry)
   table().push_back(entry);
-  if (entry.scene_model) catalog().push_back(model_of(entry));
+  if (entry.scene_model) models.push_back(model_of(entry));
 }
 
 const MaterialModel* find_material_model(const std::string& name) {

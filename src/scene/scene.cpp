@@ -1694,7 +1694,12 @@ void emit_material(Writer& w, const Material& m) {
   w.optional(4, "bulk_modulus", m.bulk_modulus);
   w.optional(4, "youngs_modulus", m.youngs_modulus);
   w.optional(4, "micromodulus", m.micromodulus);
-  w.key(4, "influence", to_text(m.influence));
+  // The shared keys the model takes (its catalog entry), resolved: influence with its default.
+  const MaterialModel* model = find_material_model(m.model);
+  const auto takes = [&](const char* key) {
+    return model && std::find(model->keys.begin(), model->keys.end(), key) != model->keys.end();
+  };
+  if (takes("influence")) w.key(4, "influence", to_text(m.influence));
   w.optional(4, "critical_stretch", m.critical_stretch);
   w.optional(4, "critical_stretch_at_horizon", m.critical_stretch_at_horizon);
   if (m.hardening) {
