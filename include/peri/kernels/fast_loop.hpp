@@ -314,7 +314,7 @@ bool intact_blocks(const Law& law_of, const BondView& v, const RunSlots& run_of,
     return whole;
   };
   // Evaluates slots [k0, k1) (Produce: storing their coefficients too); false if one breaks.
-  auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) {
+  auto evaluate = [&](std::int32_t k0, std::int32_t k1, auto produce) __attribute__((always_inline)) {
     if constexpr (G == 1) {
       return evaluate_pipelined(k0, k1, produce);
     } else {  // several blocks side by side (AVX2's two of four lanes)
