@@ -21,6 +21,7 @@
 #include "peri/io/output.hpp"
 #include "peri/io/restart.hpp"
 #include "peri/io/run_dir.hpp"
+#include "peri/scene/describe.hpp"
 #include "peri/stages/simulation.hpp"
 
 namespace {
@@ -47,6 +48,9 @@ options (a value must not be empty nor start with '-': write ./-name for such a 
                      repeatable; VALUE is YAML
   --print-scene      print the resolved scene (defaults filled in) as YAML and exit
   --dry-run          validate, print the size estimate and the derived constants, write nothing
+  --describe-keys    print every scene key with its unit, default and meaning, and exit;
+                     --format text (the default) or --format markdown (the tables of
+                     docs/user/scene-reference.md)
   --quiet            no progress lines
   --version          print the version and exit
   --help             this text
@@ -89,6 +93,8 @@ struct Args {
   std::string resume;
   std::vector<peri::Override> overrides;
   bool print_scene = false, dry_run = false, quiet = false, help = false, version = false;
+  bool describe_keys = false;
+  std::string format;  // of --describe-keys: text (default) or markdown
   std::vector<char*> petsc;  // argv for PetscInitialize
   std::string command;       // the command line, for the output directory's lock
 };
@@ -136,6 +142,9 @@ Args parse_args(int argc, char** argv) {
     else if (s == "--quiet") a.quiet = true;
     else if (s == "--print-scene") a.print_scene = true;
     else if (s == "--dry-run") a.dry_run = true;
+    else if (s == "--describe-keys") a.describe_keys = true;
+    else if (s == "--format") once(a.format, s, value(k, s));
+    else if (s.rfind("--format=", 0) == 0) once(a.format, "--format", checked("--format", s.substr(9)));
     else if (s == "--out") once(a.out, s, value(k, s));
     else if (s.rfind("--out=", 0) == 0) once(a.out, "--out", checked("--out", s.substr(6)));
     else if (s == "--resume") once(a.resume, s, value(k, s));
@@ -172,6 +181,10 @@ Args parse_args(int argc, char** argv) {
                              "' (one scene per run; PETSc options take their value right after them)");
     }
   }
+  if (!a.format.empty() && !a.describe_keys)
+    throw peri::InputError("option --format applies to --describe-keys only; see --help");
+  if (!a.format.empty() && a.format != "text" && a.format != "markdown")
+    throw peri::InputError("option --format: expected text or markdown, got '" + a.format + "'");
   return a;
 }
 
@@ -225,9 +238,14 @@ int main(int argc, char** argv) {
   int status = 0;
   try {
     if (!arg_error.empty()) throw peri::InputError(arg_error);
-    if (args.help || args.version) {
+    if (args.help || args.version || args.describe_keys) {
       if (rank == 0) {
         if (args.help) std::fputs(kUsage, stdout);
+        else if (args.describe_keys)
+          std::fputs(peri::describe_scene_keys(args.format == "markdown" ? peri::KeyFormat::Markdown
+                                                                          : peri::KeyFormat::Text)
+                         .c_str(),
+                     stdout);
         else std::printf("peridrive %s (%s), bond kernel %s\n", peri::version(), peri::git_revision(), peri::bond_kernel_isa());
       }
     } else {
