@@ -11,6 +11,7 @@
 #include "peri/models/laws/membrane.hpp"
 #include "peri/models/laws/membrane_hardening.hpp"
 #include "peri/models/laws/pmb.hpp"
+#include "peri/models/marder.hpp"
 #include "peri/models/model.hpp"
 #include "peri/scene/models.hpp"
 #include "peri/scene/scene.hpp"
@@ -203,6 +204,9 @@ std::deque<MaterialModel>& catalog() {
     marder.description = "Marder's two- and three-body lattice law (lattice bodies), eqs. (28)-(33)";
     marder.lattice = true;
     marder.stiffness = {};
+    marder.lattice_problem = [](const MarderParams& p, double spacing) {
+      return marder_parameter_problem(p.a, p.b, spacing, p.cutoff, p.fracture_separation);
+    };
     c.push_back(marder);
     return c;
   }();

@@ -12,7 +12,7 @@ hdf5_lib=$(pkg-config --libs hdf5-openmpi 2> /dev/null || echo "-L/usr/lib/x86_6
 mpi_inc=$(mpicxx --showme:compile 2> /dev/null || true)
 flags=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
        -I"$src/include" -I/usr/include/eigen3 $hdf5_inc $mpi_inc)
-"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_scene.cpp" "$src/src/scene/scene.cpp" "$src/src/core/error.cpp" \
+"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_scene.cpp" "$src"/src/scene/*.cpp "$src/src/core/error.cpp" \
   "$src/src/geometry/discretization.cpp" "$src/src/models/model.cpp" "$src/src/models/marder.cpp" \
   "$src/src/kernels/laws.cpp" -lyaml-cpp \
   -o "$out/fuzz_scene"
@@ -28,7 +28,7 @@ scene = open(src + "/drivers/scenes/slit_membrane.yaml").read()
 text = text.replace("@PERI_GIT_REVISION@", "fuzz").replace("@PROJECT_VERSION@", "fuzz")
 open(out, "w").write(text.replace("@PERI_DEFAULT_SCENE_TEXT@", scene))
 EOF_PY
-"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_override.cpp" "$src/src/scene/scene.cpp" "$src/src/core/error.cpp" \
+"$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_override.cpp" "$src"/src/scene/*.cpp "$src/src/core/error.cpp" \
   "$src/src/models/marder.cpp" "$src/src/models/model.cpp" \
   "$src/src/geometry/discretization.cpp" "$src/src/kernels/laws.cpp" "$out/build_info.cpp" -lyaml-cpp -o "$out/fuzz_override"
 echo "built $out/fuzz_scene $out/fuzz_checkpoint $out/fuzz_crossing $out/fuzz_override"

@@ -8,6 +8,8 @@
 
 namespace peri {
 
+struct MarderParams;
+
 struct MaterialModel {
   std::string name;         ///< the value of `model:`
   std::string description;  ///< one line (--describe-keys, docs)
@@ -23,6 +25,9 @@ struct MaterialModel {
   /// is acceptable, else what was expected ("the membrane model needs a critical stretch lambda_0
   /// > 1"), to which the reader adds the value it got.
   std::string (*critical_problem)(double x) = nullptr;
+  /// A lattice model's check of its parameters at a body's lattice spacing [m]: empty when
+  /// usable, else why not (the reader names the body, the material and the values).
+  std::string (*lattice_problem)(const MarderParams& p, double spacing) = nullptr;
 };
 
 /// The model of that name, or nullptr (defined by the law registry).

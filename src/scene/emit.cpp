@@ -1,0 +1,318 @@
+// The resolved scene as YAML (emit_scene): every key with its value or default, which
+// parse_scene reads back to the same Scene.
+#include <algorithm>
+#include <cstdio>
+
+#include "peri/scene/models.hpp"
+#include "schema.hpp"
+
+namespace peri {
+namespace {
+
+using namespace scene_detail;
+
+/// A string as a YAML scalar: plain when that reads back as the same string, else double-quoted.
+std::string yaml_string(const std::string& s) {
+  static const char* const reserved[] = {"true", "false", "yes",  "no",  "on",  "off",
+                                         "y",    "n",     "null", "nan", "inf", "infinity"};
+  bool plain =
+      !s.empty() && (std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_') && s.back() != ' ';
+  for (char c : s) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    if (!(std::isalnum(u) || c == '_' || c == '-' || c == '.' || c == '/' || c == ' ')) plain = false;
+  }
+  if (plain) {
+    std::string lower = s;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    for (const char* r : reserved)
+      if (lower == r) plain = false;
+  }
+  if (plain) return s;
+  std::string out = "\"";
+  for (char c : s) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      default:
+        if (u < 0x20 || u == 0x7f) {
+          static const char hex[] = "0123456789abcdef";
+          out += "\\x";
+          out += hex[u >> 4];
+          out += hex[u & 15];
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string flow(std::initializer_list<double> xs) {
+  std::vector<std::string> parts;
+  for (double x : xs) parts.push_back(format_number(x));
+  return "[" + join(parts) + "]";
+}
+
+std::string flow(const Vec3& v) { return flow({v[0], v[1], v[2]}); }
+
+std::string flow(const std::array<double, 9>& m) {
+  return "[" + flow({m[0], m[1], m[2]}) + ", " + flow({m[3], m[4], m[5]}) + ", " + flow({m[6], m[7], m[8]}) +
+         "]";
+}
+
+/// Line-oriented YAML writer: `key(indent, name, value)` writes "<indent>name: value".
+class Writer {
+ public:
+  void line(int indent, const std::string& text) {
+    out_.append(static_cast<std::size_t>(indent), ' ');
+    out_ += text;
+    out_ += '\n';
+  }
+  void key(int indent, const std::string& name, const std::string& value) {
+    line(indent, name + ":" + (value.empty() ? "" : " " + value));
+  }
+  void key(int indent, const std::string& name, double value) { key(indent, name, format_number(value)); }
+  void optional(int indent, const std::string& name, const std::optional<double>& value) {
+    if (value) key(indent, name, *value);
+  }
+  std::string str() && { return std::move(out_); }
+
+ private:
+  std::string out_;
+};
+
+void emit_material(Writer& w, const Material& m) {
+  w.key(2, yaml_string(m.name), "");
+  w.key(4, "model", m.model);
+  w.key(4, "density", m.density);
+  if (m.marder) {
+    w.key(4, "mooney_rivlin_a", m.marder->a);
+    w.key(4, "mooney_rivlin_b", m.marder->b);
+    w.key(4, "cutoff", m.marder->cutoff);
+    w.key(4, "fracture_separation", m.marder->fracture_separation);
+    w.key(4, "breaking", m.marder->reversible ? "reversible" : "irreversible");
+    if (m.marder->kelvin_viscosity > 0) w.key(4, "kelvin_viscosity", m.marder->kelvin_viscosity);
+    return;
+  }
+  w.optional(4, "wave_speed", m.wave_speed);
+  w.optional(4, "bulk_modulus", m.bulk_modulus);
+  w.optional(4, "youngs_modulus", m.youngs_modulus);
+  w.optional(4, "micromodulus", m.micromodulus);
+  // The shared keys the model takes (its catalog entry), resolved: influence with its default.
+  const MaterialModel* model = find_material_model(m.model);
+  const auto takes = [&](const char* key) {
+    return model && std::find(model->keys.begin(), model->keys.end(), key) != model->keys.end();
+  };
+  if (takes("influence")) w.key(4, "influence", to_text(m.influence));
+  w.optional(4, "critical_stretch", m.critical_stretch);
+  w.optional(4, "critical_stretch_at_horizon", m.critical_stretch_at_horizon);
+  if (m.hardening) {
+    w.key(4, "hardening",
+          "{coefficient: " + format_number(m.hardening->coefficient) +
+              ", exponent: " + format_number(m.hardening->exponent) + "}");
+  }
+}
+
+// horizon and horizon_factor exclude each other: write the one in effect.
+void emit_horizon(Writer& w, const Body& b) {
+  if (b.horizon)
+    w.key(4, "horizon", *b.horizon);
+  else
+    w.key(4, "horizon_factor", b.horizon_factor);
+}
+
+void emit_body(Writer& w, const Body& b) {
+  const bool membrane = b.kind != BodyKind::Solid;
+  w.key(2, yaml_string(b.name), "");
+  w.key(4, "kind", to_text(b.kind));
+  w.key(4, "material", yaml_string(b.material));
+  if (b.kind == BodyKind::Shell) {
+    w.key(4, "center", flow(b.origin));
+    w.key(4, "radius", b.radius);
+    w.key(4, "thickness", b.thickness);
+    w.key(4, "spacing", b.spacing);
+    emit_horizon(w, b);
+    w.key(4, "pressure", b.pressure);
+    w.key(4, "pressure_ramp_time", b.pressure_ramp_time);
+    return;
+  }
+  if (b.kind == BodyKind::Fiber) {
+    if (b.network) {
+      const FiberNetwork& n = *b.network;
+      w.key(4, "network", "");
+      w.key(6, "box", "{min: " + flow(n.min) + ", max: " + flow(n.max) + "}");
+      std::vector<std::string> fams;
+      for (const FiberFamily& f : n.families)
+        fams.push_back(std::string("{direction: ") + (f.axis == 0 ? "x" : "y") + ", count: " + std::to_string(f.count) + "}");
+      w.key(6, "families", "[" + join(fams) + "]");
+      w.key(6, "deviation", n.deviation);
+      w.key(6, "step", n.step);
+      w.key(6, "start_band", n.start_band);
+      w.key(6, "seed", std::to_string(n.seed));
+    } else {
+      std::vector<std::string> points;
+      for (const Vec3& p : b.path) points.push_back(flow(p));
+      w.key(4, "path", "[" + join(points) + "]");
+    }
+    w.key(4, "diameter", b.diameter);
+    w.key(4, "spacing", b.spacing);
+    w.key(4, "segment_length", b.segment_length);
+    emit_horizon(w, b);
+    return;
+  }
+  w.key(4, "origin", flow(b.origin));
+  w.key(4, "size", membrane ? flow({b.size[0], b.size[1]}) : flow(b.size));
+  if (membrane) w.key(4, "thickness", b.thickness);
+  w.key(4, "spacing", b.spacing);
+  if (b.breakable)
+    w.key(4, "breakable", "{min: " + flow((*b.breakable)[0]) + ", max: " + flow((*b.breakable)[1]) + "}");
+  if (b.kind == BodyKind::Lattice) return;
+  w.key(4, "grid", to_text(b.grid));
+  emit_horizon(w, b);
+  w.key(4, "quadrature", to_text(b.quadrature));
+}
+
+void emit_boundary(Writer& w, const Boundary& b) {
+  w.key(2, "- name", yaml_string(b.name));
+  std::string region = "{min: " + flow(b.region.min) + ", max: " + flow(b.region.max);
+  if (!b.region.body.empty()) region += ", body: " + yaml_string(b.region.body);
+  w.key(4, "region", region + "}");
+  w.key(4, "velocity", flow(b.velocity));
+  std::vector<std::string> comps;
+  for (int d = 0; d < 3; ++d)
+    if (b.components[d]) comps.emplace_back(1, "xyz"[d]);
+  w.key(4, "components", "[" + join(comps) + "]");
+  w.key(4, "ramp_time", b.ramp_time);
+}
+
+void emit_tool(Writer& w, const Tool& t) {
+  w.key(2, "- name", yaml_string(t.name));
+  w.key(4, "kind", t.sphere ? "sphere" : "cylinder");
+  w.key(4, "radius", t.radius);
+  w.key(4, "center", t.sphere ? flow(t.center) : flow({t.center[0], t.center[1]}));
+  w.key(4, "velocity", t.sphere ? flow(t.velocity) : flow({t.velocity[0], t.velocity[1]}));
+  w.key(4, "friction", t.friction);
+  w.key(4, "stiffness", t.stiffness);
+}
+
+std::string flow_values(const std::vector<BoundaryValue>& values) {
+  std::vector<std::string> items;
+  for (const BoundaryValue& b : values) items.push_back(yaml_string(b.boundary) + ": " + flow(b.value));
+  return "{" + join(items) + "}";
+}
+
+void emit_stage(Writer& w, const Stage& s) {
+  w.key(2, "- name", yaml_string(s.name));
+  w.key(4, "kind", to_text(s.kind));
+  if (s.kind == StageKind::QuasiStatic) {
+    w.key(4, "displacements", flow_values(s.displacements));
+    w.key(4, "displacement_gradient", flow(s.displacement_gradient));
+    w.key(4, "load_steps", std::to_string(s.load_steps));
+    w.key(4, "max_load_steps", std::to_string(s.max_load_steps));
+    w.key(4, "in_plane", to_text(s.in_plane));
+    w.key(4, "jacobian", s.matrix_free ? "matrix_free" : "assembled");
+    w.key(4, "jacobian_shift", s.jacobian_shift);
+    w.key(4, "max_break_passes", std::to_string(s.max_break_passes));
+    return;
+  }
+  if (s.kind == StageKind::Release) {
+    std::vector<std::string> names;
+    for (const std::string& c : s.cracks) names.push_back(yaml_string(c));
+    w.key(4, "cracks", "[" + join(names) + "]");
+    return;
+  }
+  // With steps given, duration is optional; 0 stands for "not given".
+  if (!(s.steps && s.duration == 0.0)) w.key(4, "duration", s.duration);
+  if (s.steps) w.key(4, "steps", std::to_string(*s.steps));
+  w.optional(4, "dt", s.dt);
+  w.key(4, "safety_factor", s.safety_factor);
+  w.key(4, "allow_unstable_dt", to_text(s.allow_unstable_dt));
+  w.key(4, "damping", s.damping);
+  if (!s.boundary_velocity.empty()) w.key(4, "boundary_velocity", flow_values(s.boundary_velocity));
+}
+
+}  // namespace
+
+std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) {
+  Writer w;
+  w.key(0, "name", yaml_string(s.name));
+  w.key(0, "description", yaml_string(s.description));
+  w.key(0, "materials", "");
+  for (const Material& m : s.materials) emit_material(w, m);
+  w.key(0, "bodies", "");
+  for (const Body& b : s.bodies) emit_body(w, b);
+  if (!s.cracks.empty()) {
+    w.key(0, "cracks", "");
+    for (const Crack& c : s.cracks) {
+      w.key(2, "- name", yaml_string(c.name));
+      w.key(4, "from", flow(c.from));
+      w.key(4, "to", flow(c.to));
+    }
+  }
+  if (!s.boundaries.empty()) {
+    w.key(0, "boundaries", "");
+    for (const Boundary& b : s.boundaries) emit_boundary(w, b);
+  }
+  if (!s.tools.empty()) {
+    w.key(0, "tools", "");
+    for (const Tool& t : s.tools) emit_tool(w, t);
+  }
+  if (s.long_range) {
+    const LongRange& lr = *s.long_range;
+    w.key(0, "long_range", "");
+    w.key(2, "length", lr.length);
+    w.key(2, "cutoff", lr.cutoff);
+    w.key(2, "exclusion", lr.exclusion);
+    w.key(2, "pairs", "");
+    for (const PairRule& r : lr.pairs)
+      w.line(4, std::string("- {between: ") + to_text(r.between) + ", alpha: " + format_number(r.alpha) +
+                    ", beta: " + format_number(r.beta) + "}");
+  }
+  const Initial& init = s.initial;
+  w.key(0, "initial", "");
+  w.key(2, "displacement_gradient", flow(init.displacement_gradient));
+  w.key(2, "velocity_gradient", flow(init.velocity_gradient));
+  w.key(2, "center", flow(init.center));
+  w.key(2, "seed",
+        "{amplitude: " + format_number(init.seed_amplitude) +
+            ", wavelength: " + flow({init.seed_wavelength_x, init.seed_wavelength_y}) + "}");
+  w.key(0, "stages", "");
+  for (const Stage& st : s.stages) emit_stage(w, st);
+  w.key(0, "stability", "");
+  w.key(2, "energy_error", s.stability.energy_error);
+  w.key(2, "motion_per_step", s.stability.motion_per_step);
+  w.key(0, "output", "");
+  w.key(2, "frames", std::to_string(s.output.frames));
+  w.key(2, "series_every", std::to_string(s.output.series_every));
+  w.key(2, "velocity", to_text(s.output.write_velocity));
+  w.key(2, "progress_seconds", s.output.progress_seconds);
+  w.key(2, "checkpoint_every_steps", std::to_string(s.output.checkpoint_every_steps));
+  w.key(2, "checkpoint_every_seconds", s.output.checkpoint_every_seconds);
+  for (const std::string& text : derived) {
+    // One comment line per line of text, so that the result stays valid YAML.
+    std::size_t start = 0;
+    for (;;) {
+      const std::size_t nl = text.find('\n', start);
+      w.line(0, "# " + text.substr(start, nl == std::string::npos ? nl : nl - start));
+      if (nl == std::string::npos) break;
+      start = nl + 1;
+    }
+  }
+  return std::move(w).str();
+}
+
+}  // namespace peri

@@ -1,0 +1,692 @@
+// The readers of the scene's sections (readers.hpp): one function per map of the schema, each
+// value validated where it is read; checks that need several sections last (read_scene).
+#include "readers.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "peri/scene/models.hpp"
+#include "schema.hpp"
+
+namespace peri::scene_detail {
+namespace {
+
+// ------------------------------------------------------------------------------------------------
+// Reading the sections
+
+/// Keeps the names of a list's entries unique.
+class UniqueNames {
+ public:
+  explicit UniqueNames(std::string what) : what_(std::move(what)) {}
+  const std::string& what() const { return what_; }
+
+  /// `name_value`: the entry's name key if given (the error is reported there), else the entry.
+  void add(const std::string& name, const std::optional<Value>& name_value, const Map& entry) {
+    const auto it = first_.find(name);
+    if (it == first_.end()) {
+      first_.emplace(name, entry.path());
+      return;
+    }
+    const std::string msg = "duplicate " + what_ + " name '" + name + "' (also used by " + it->second + ")";
+    if (name_value) name_value->fail(msg);
+    entry.fail(msg + "; give this entry a name");
+  }
+
+ private:
+  std::string what_;
+  std::map<std::string, std::string> first_;
+};
+
+/// Name of a list entry: its `name` key, or "<prefix><index>" when the entry has none (an empty
+/// prefix: the name is required).
+std::string entry_name(const Map& m, const std::string& prefix, std::size_t index, UniqueNames& names) {
+  const std::optional<Value> v = prefix.empty() ? std::optional<Value>(m.at("name")) : m.get("name");
+  const std::string name = v ? v->given_name(names.what()) : prefix + std::to_string(index);
+  names.add(name, v, m);
+  return name;
+}
+
+/// Entries of an optional list section (absent or empty value: no entries).
+std::vector<Value> optional_list(const Map& top, const std::string& key, const std::string& expected) {
+  const std::optional<Value> v = top.get(key);
+  return v ? v->list(expected) : std::vector<Value>{};
+}
+
+// A critical value (critical_stretch, critical_stretch_at_horizon), as the model checks it.
+double critical_value(const Value& v, const MaterialModel& model) {
+  const double x = v.number("a number");
+  if (model.critical_problem)
+    if (const std::string problem = model.critical_problem(x); !problem.empty()) v.fail(problem + ", got " + v.got());
+  return x;
+}
+
+/// The marder model's keys: its four constants (no peridynamic stiffness, influence, failure
+/// stretch or hardening), and the breaking mode.
+Material read_marder_material(const Map& m, Material mat) {
+  for (const char* key : {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus", "influence",
+                          "critical_stretch", "critical_stretch_at_horizon", "hardening"})
+    if (auto x = m.get(key))
+      x->fail("not used by the marder model (its stiffness is mooney_rivlin_a, mooney_rivlin_b; its failure "
+              "fracture_separation)");
+  for (const char* key : {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation"})
+    if (!m.given(key)) m.missing(key, "required by the marder model");
+  MarderParams p;
+  p.a = m.at("mooney_rivlin_a").positive("J/kg");
+  p.b = m.at("mooney_rivlin_b").number("a number");
+  p.cutoff = m.at("cutoff").positive("m");
+  p.fracture_separation = m.at("fracture_separation").positive("m");
+  if (auto x = m.get("breaking"))
+    p.reversible = x->choice<bool>({{"irreversible", false}, {"reversible", true}});
+  if (auto x = m.get("kelvin_viscosity")) p.kelvin_viscosity = x->non_negative("m^2/s");
+  mat.marder = p;
+  return mat;
+}
+
+Material read_material(const std::string& name, const Value& v) {
+  const Map m(v, &kMaterialKeys, "a map describing the material");
+  Material mat;
+  mat.name = name;
+  mat.where = m.where();
+  const Value model = m.at("model");
+  const std::optional<std::string> word = model.word();
+  const MaterialModel* info = word ? find_material_model(*word) : nullptr;
+  if (!info) model.fail("expected one of: " + join(material_model_names()) + "; got " + model.got());
+  mat.model = info->name;
+  mat.density = m.at("density").positive("kg/m^3");
+  if (info->lattice) return read_marder_material(m, std::move(mat));
+  for (const char* key : kMarderKeys)
+    if (auto x = m.get(key)) x->fail("only the marder model takes this key (model is " + mat.model + ")");
+  for (const char* key : {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening"})
+    if (auto x = m.get(key); x && std::find(info->keys.begin(), info->keys.end(), key) == info->keys.end()) {
+      std::vector<std::string> takers;
+      for (const std::string& name : material_model_names())
+        if (const MaterialModel* other = find_material_model(name);
+            std::find(other->keys.begin(), other->keys.end(), key) != other->keys.end())
+          takers.push_back(name);
+      x->fail(std::string(key) + " is available only for the " + join(takers) + " model" +
+              (takers.size() > 1 ? "s" : "") + ", not for " + mat.model);
+    }
+
+  int stiffness_given = 0;
+  for (const char* key : kStiffnessKeys) stiffness_given += m.given(key) ? 1 : 0;
+  if (stiffness_given != 1) {
+    m.fail("give exactly one of " +
+               join({kStiffnessKeys[0], kStiffnessKeys[1], kStiffnessKeys[2], kStiffnessKeys[3]}) +
+               " (found " + std::to_string(stiffness_given) + ")",
+           {kStiffnessKeys[0], kStiffnessKeys[1], kStiffnessKeys[2], kStiffnessKeys[3]});
+  }
+  for (const char* key : kStiffnessKeys)
+    if (auto x = m.get(key); x && std::find(info->stiffness.begin(), info->stiffness.end(), key) == info->stiffness.end())
+      x->fail("the " + mat.model + " model calibrates from " + join(info->stiffness) + ", not from " + key);
+  if (auto x = m.get("wave_speed")) mat.wave_speed = x->positive("m/s");
+  if (auto x = m.get("bulk_modulus")) mat.bulk_modulus = x->positive("Pa");
+  if (auto x = m.get("youngs_modulus")) mat.youngs_modulus = x->positive("Pa");
+  if (auto x = m.get("micromodulus")) mat.micromodulus = x->positive("");
+
+  if (auto x = m.get("influence"))
+    mat.influence =
+        x->choice<Influence>({{"constant", Influence::Constant}, {"conical", Influence::Conical}});
+  if (auto x = m.get("critical_stretch")) mat.critical_stretch = critical_value(*x, *info);
+  if (auto x = m.get("critical_stretch_at_horizon")) {
+    if (!mat.critical_stretch) x->fail("requires critical_stretch (the critical value at |xi| = 0)");
+    mat.critical_stretch_at_horizon = critical_value(*x, *info);
+  }
+  if (auto x = m.get("hardening")) {
+    const Map h(*x, &kHardeningKeys, "a map {coefficient: c, exponent: n}");
+    Hardening hard;
+    hard.coefficient = h.at("coefficient").non_negative("");
+    hard.exponent = h.at("exponent").number_if("a number > 1", [](double n) { return n > 1; });
+    mat.hardening = hard;
+  }
+  return mat;
+}
+
+// Horizon keys shared by peridynamic bodies: horizon_factor (m spacings) or horizon [m].
+void read_horizon(const Map& m, Body& b) {
+  if (auto x = m.get("horizon_factor")) {
+    b.horizon_factor = x->number("a number >= 1");
+    if (!(b.horizon_factor >= 1))
+      x->fail("horizon must be at least one spacing (expected >= 1), got " + x->got());
+  }
+  if (auto x = m.get("horizon")) {
+    if (m.given("horizon_factor")) x->fail("give either horizon [m] or horizon_factor, not both");
+    const double h = x->number("a number [m]");
+    if (!(h >= b.spacing))
+      x->fail("horizon must be at least one spacing (expected >= " + format_number(b.spacing) + " m), got " +
+              x->got());
+    b.horizon = h;
+  }
+}
+
+FiberNetwork read_network(const Value& v) {
+  const Map m(v, &kNetworkKeys, "a map {box, families, deviation, step, start_band, seed}");
+  FiberNetwork n;
+  n.where = m.where();
+  const Map box(m.at("box"), &kBoxKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+  n.min = box.at("min").vec3("m");
+  const Value max = box.at("max");
+  n.max = max.vec3("m");
+  for (int d = 0; d < 3; ++d)
+    if (!(n.min[d] < n.max[d]))
+      max.fail(std::string("expected min < max in every component, got ") + "xyz"[d] + ": min " +
+               format_number(n.min[d]) + ", max " + format_number(n.max[d]));
+  const Value families = m.at("families");
+  const std::vector<Value> list = families.list("a list of fiber families {direction: x or y, count}");
+  if (list.empty()) families.fail("expected at least one family {direction: x or y, count}, got an empty list");
+  for (const Value& f : list) {
+    const Map fm(f, &kFamilyKeys, "a map {direction: x or y, count}");
+    FiberFamily fam;
+    fam.where = fm.where();
+    fam.axis = fm.at("direction").choice<int>({{"x", 0}, {"y", 1}});
+    fam.count = fm.at("count").integer(1, 100000);
+    n.families.push_back(fam);
+  }
+  if (auto x = m.get("deviation")) n.deviation = x->non_negative("rad");
+  const Value step = m.at("step");
+  n.step = step.positive("m");
+  for (const FiberFamily& f : n.families)
+    if ((n.max[f.axis] - n.min[f.axis]) / n.step > 1e6)
+      step.fail("a fiber would take more than 1e6 steps of " + step.got() + " m to cross the box (" +
+                format_number(n.max[f.axis] - n.min[f.axis]) + " m along " + (f.axis == 0 ? "x" : "y") +
+                "); expected a step of at least 1e-6 of the box's extent");
+  n.start_band = 0.05 * std::min(n.max[0] - n.min[0], n.max[1] - n.min[1]);
+  if (auto x = m.get("start_band")) n.start_band = x->non_negative("m");
+  if (auto x = m.get("seed")) n.seed = x->integer(0);
+  return n;
+}
+
+// A fiber: polyline path, diameter, spacing along the path, horizon, segments (eq. 31).
+void read_fiber(const Map& m, Body& b) {
+  for (const char* key : {"origin", "size", "thickness", "grid", "quadrature", "breakable"})
+    if (auto x = m.get(key))
+      x->fail(std::string("not used by a fiber body (nodes along its path, full weights within the horizon)"));
+  double length = INFINITY;  // of the one path (a network's fibers cross its box)
+  if (auto x = m.get("network")) {
+    if (m.given("path")) x->fail("give either path (one fiber) or network (many), not both");
+    b.network = read_network(*x);
+  } else {
+    if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m (or network)");
+    const Value path = m.at("path");
+    const std::vector<Value> points = path.list("a list of at least 2 points [x, y, z], m");
+    if (points.size() < 2) path.fail("expected a list of at least 2 points [x, y, z], m, got " + path.got());
+    length = 0;
+    for (std::size_t k = 0; k < points.size(); ++k) {
+      b.path.push_back(points[k].vec3("m"));
+      if (k == 0) continue;
+      double d2 = 0;
+      for (int c = 0; c < 3; ++c) d2 += std::pow(b.path[k][c] - b.path[k - 1][c], 2);
+      if (!(d2 > 0)) points[k].fail("expected a point different from the one before it, got " + points[k].got());
+      length += std::sqrt(d2);
+    }
+  }
+  if (!m.given("diameter")) m.missing("diameter", "fiber diameter, m");
+  b.diameter = m.at("diameter").positive("m");
+  if (!m.given("spacing")) m.missing("spacing", "node spacing along the path, m");
+  const Value spacing = m.at("spacing");
+  b.spacing = spacing.positive("m");
+  if (b.spacing > length)
+    spacing.fail("spacing must not exceed the fiber's length along its path (" + format_number(length) +
+                 " m), got " + spacing.got());
+  if (auto x = m.get("segment_length")) b.segment_length = x->non_negative("m");
+  read_horizon(m, b);
+  b.quadrature = Quadrature::Full;
+}
+
+// A spherical membrane: center, radius, thickness, spacing, horizon, internal pressure (7.2).
+void read_sphere(const Map& m, Body& b) {
+  for (const char* key : {"origin", "size", "grid", "quadrature", "breakable", "path", "network", "diameter",
+                          "segment_length"})
+    if (auto x = m.get(key))
+      x->fail("not used by a sphere body (geodesic nodes on the sphere, full weights within the horizon)");
+  if (!m.given("center")) m.missing("center", "center of the sphere [x, y, z], m");
+  b.origin = m.at("center").vec3("m");
+  if (!m.given("radius")) m.missing("radius", "radius of the sphere, m");
+  b.radius = m.at("radius").positive("m");
+  if (!m.given("thickness")) m.missing("thickness", "membrane thickness, m");
+  b.thickness = m.at("thickness").positive("m");
+  if (!m.given("spacing")) m.missing("spacing", "node spacing on the sphere, m");
+  const Value spacing = m.at("spacing");
+  b.spacing = spacing.positive("m");
+  if (b.spacing > b.radius)
+    spacing.fail("spacing must not exceed the radius (" + format_number(b.radius) + " m), got " + spacing.got());
+  read_horizon(m, b);
+  if (auto x = m.get("pressure")) b.pressure = x->non_negative("Pa");
+  if (auto x = m.get("pressure_ramp_time")) b.pressure_ramp_time = x->non_negative("s");
+  b.quadrature = Quadrature::Full;
+}
+
+Body read_body(const std::string& name, const Value& v, const std::vector<Material>& materials) {
+  const Map m(v, &kBodyKeys, "a map describing the body");
+  Body b;
+  b.name = name;
+  b.where = m.where();
+  if (auto x = m.get("kind"))
+    b.kind = x->choice<BodyKind>({{"membrane", BodyKind::Membrane},
+                                  {"solid", BodyKind::Solid},
+                                  {"lattice", BodyKind::Lattice},
+                                  {"fiber", BodyKind::Fiber},
+                                  {"sphere", BodyKind::Shell}});
+  const bool membrane = b.kind != BodyKind::Solid;  // membranes and lattices are flat sheets
+
+  const Value material = m.at("material");
+  b.material = material.name();
+  if (std::none_of(materials.begin(), materials.end(),
+                   [&](const Material& mat) { return mat.name == b.material; })) {
+    std::vector<std::string> defined;
+    for (const Material& mat : materials) defined.push_back(mat.name);
+    material.fail("no material named '" + b.material + "'; defined: " + join(defined));
+  }
+  const Material& mat = *std::find_if(materials.begin(), materials.end(),
+                                      [&](const Material& x) { return x.name == b.material; });
+  if ((b.kind == BodyKind::Lattice) != find_material_model(mat.model)->lattice)
+    material.fail(b.kind == BodyKind::Lattice
+                      ? "a lattice body needs a material with model: marder, got '" + b.material + "'"
+                      : "material '" + b.material + "' has model: marder, which needs a body with kind: lattice");
+
+  for (const char* key : {"center", "radius", "pressure", "pressure_ramp_time"})
+    if (b.kind != BodyKind::Shell && m.given(key))
+      m.get(key)->fail("only a sphere body (kind: sphere) takes " + std::string(key));
+  if (b.kind == BodyKind::Fiber) {
+    read_fiber(m, b);
+    return b;
+  }
+  if (b.kind == BodyKind::Shell) {
+    read_sphere(m, b);
+    return b;
+  }
+  for (const char* key : {"path", "network", "diameter", "segment_length"})
+    if (auto x = m.get(key)) x->fail("only a fiber body (kind: fiber) takes " + std::string(key));
+  if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m");
+  if (!m.given("size")) m.missing("size", "extent [Lx, Ly] of a membrane or [Lx, Ly, Lz] of a solid, m");
+  if (!m.given("spacing")) m.missing("spacing", "grid spacing, m");
+  b.origin = m.at("origin").vec3("m");
+
+  const Value size = m.at("size");
+  if (membrane) {
+    const std::string expected = "a membrane size [Lx, Ly] (or [Lx, Ly, 0]) with Lx, Ly > 0 [m]";
+    const auto xs = size.numbers(2, 3, expected, "m");
+    if (!(xs[0] > 0 && xs[1] > 0) || (xs.size() == 3 && xs[2] != 0))
+      size.fail("expected " + expected + ", got [" + join({format_number(xs[0]), format_number(xs[1])}) +
+                (xs.size() == 3 ? ", " + format_number(xs[2]) : "") + "]");
+    b.size = {xs[0], xs[1], 0.0};
+  } else {
+    const std::string expected = "a solid size [Lx, Ly, Lz] with all entries > 0 [m]";
+    const auto xs = size.numbers(3, 3, expected, "m");
+    if (!(xs[0] > 0 && xs[1] > 0 && xs[2] > 0))
+      size.fail("expected " + expected + ", got [" +
+                join({format_number(xs[0]), format_number(xs[1]), format_number(xs[2])}) + "]");
+    b.size = {xs[0], xs[1], xs[2]};
+  }
+
+  if (membrane) {
+    if (!m.given("thickness")) m.missing("thickness", "membrane thickness, m");
+    b.thickness = m.at("thickness").positive("m");
+  } else if (auto x = m.get("thickness")) {
+    x->fail("not allowed for a solid body (only membranes have a thickness)");
+  }
+
+  const Value spacing = m.at("spacing");
+  b.spacing = spacing.positive("m");
+  double smallest = std::numeric_limits<double>::infinity();
+  for (double l : b.size)
+    if (l > 0) smallest = std::min(smallest, l);
+  if (b.spacing > smallest)
+    spacing.fail("spacing must not exceed the smallest extent of size (" + format_number(smallest) +
+                 " m), got " + spacing.got());
+
+  if (b.kind == BodyKind::Lattice) {
+    // Nearest neighbours of a triangular lattice: no grid, horizon or quadrature to choose.
+    for (const char* key : {"grid", "horizon_factor", "horizon", "quadrature"})
+      if (auto x = m.get(key)) x->fail("not used by a lattice body (triangular lattice, six nearest neighbours)");
+    const MarderParams& p = *mat.marder;
+    const MaterialModel* model = find_material_model(mat.model);
+    const std::string why = model && model->lattice_problem ? model->lattice_problem(p, b.spacing) : "";
+    if (!why.empty())
+      spacing.fail("lattice spacing " + spacing.got() + " m with material '" + b.material + "' (a = " +
+                   format_number(p.a) + ", b = " + format_number(p.b) + ", cutoff = " + format_number(p.cutoff) +
+                   ", fracture_separation = " + format_number(p.fracture_separation) + "): " + why);
+    b.grid = Grid::Hexagonal;
+    b.quadrature = Quadrature::Full;
+    if (auto x = m.get("breakable")) {
+      const Map box(*x, &kBoxKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+      const Vec3 lo = box.at("min").vec3("m");
+      const Value max = box.at("max");
+      const Vec3 hi = max.vec3("m");
+      for (int d = 0; d < 3; ++d)
+        if (lo[d] > hi[d])
+          max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+                   format_number(lo[d]) + " > max " + format_number(hi[d]));
+      b.breakable = std::array<Vec3, 2>{lo, hi};
+    }
+  } else if (auto x = m.get("breakable")) {
+    x->fail("only a lattice body takes breakable (peridynamic bonds break by their material's critical_stretch)");
+  }
+
+  if (auto x = m.get("grid")) {
+    b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
+    if (!membrane && b.grid != Grid::Square)
+      x->fail("a solid body supports only grid square, got " + x->got());
+  }
+
+  read_horizon(m, b);
+
+  if (auto x = m.get("quadrature"))
+    b.quadrature =
+        x->choice<Quadrature>({{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea},
+                               {"taper", Quadrature::Taper}});
+  return b;
+}
+
+Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {
+  const Map m(v, &kCrackKeys, "a map {name, from: [x, y, z], to: [x, y, z]}");
+  Crack c;
+  c.name = entry_name(m, "crack", index, names);
+  c.where = m.where();
+  c.from = m.at("from").vec3("m");
+  const Value to = m.at("to");
+  c.to = to.vec3("m");
+  if (c.to == c.from) to.fail("a crack needs two different end points, got to == from");
+  return c;
+}
+
+Region read_region(const Value& v, const std::vector<Body>& bodies) {
+  const Map m(v, &kRegionKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+  Region r;
+  r.where = m.where();
+  r.min = m.at("min").vec3("m");
+  const Value max = m.at("max");
+  r.max = max.vec3("m");
+  for (int d = 0; d < 3; ++d) {
+    if (r.min[d] > r.max[d]) {
+      max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+               format_number(r.min[d]) + " > max " + format_number(r.max[d]));
+    }
+  }
+  if (auto x = m.get("body")) {
+    r.body = x->name();
+    if (std::none_of(bodies.begin(), bodies.end(), [&](const Body& b) { return b.name == r.body; })) {
+      std::vector<std::string> defined;
+      for (const Body& b : bodies) defined.push_back(b.name);
+      x->fail("no body named '" + r.body + "'; defined: " + join(defined));
+    }
+  }
+  return r;
+}
+
+std::array<bool, 3> read_components(const Value& v) {
+  const std::string expected = "a non-empty list of distinct letters from x, y, z";
+  const std::vector<Value> items = v.list(expected);
+  if (items.empty()) v.fail("expected " + expected + ", got " + v.got());
+  std::array<bool, 3> on{false, false, false};
+  for (const Value& item : items) {
+    const int d = item.choice<int>({{"x", 0}, {"y", 1}, {"z", 2}});
+    if (on[d]) item.fail("component '" + item.node().Scalar() + "' is given twice; expected " + expected);
+    on[d] = true;
+  }
+  return on;
+}
+
+Boundary read_boundary(const Value& v, UniqueNames& names, const std::vector<Body>& bodies) {
+  const Map m(v, &kBoundaryKeys, "a map {name, region, velocity, components, ramp_time}");
+  Boundary b;
+  b.name = entry_name(m, "", 0, names);
+  b.where = m.where();
+  b.region = read_region(m.at("region"), bodies);
+  if (auto x = m.get("velocity")) b.velocity = x->vec3("m/s");
+  if (auto x = m.get("components")) b.components = read_components(*x);
+  if (auto x = m.get("ramp_time")) b.ramp_time = x->non_negative("s");
+  return b;
+}
+
+Tool read_tool(const Value& v, UniqueNames& names) {
+  const Map m(v, &kToolKeys, "a map {name, kind, radius, center, velocity, friction, stiffness}");
+  Tool t;
+  t.name = entry_name(m, "", 0, names);
+  t.where = m.where();
+  t.sphere = m.at("kind").choice<bool>({{"cylinder", false}, {"sphere", true}});
+  t.radius = m.at("radius").positive("m");
+  if (t.sphere) {
+    t.center = m.at("center").vec3("m");
+    if (auto x = m.get("velocity")) t.velocity = x->vec3("m/s");
+  } else {
+    const auto c = m.at("center").vec2("m");
+    t.center = {c[0], c[1], 0.0};
+    if (auto x = m.get("velocity")) {
+      const auto u = x->vec2("m/s");
+      t.velocity = {u[0], u[1], 0.0};
+    }
+  }
+  if (auto x = m.get("friction")) t.friction = x->non_negative("");
+  // The stable step shrinks by sqrt(1 + stiffness): 1e6 already makes it a thousandth.
+  if (auto x = m.get("stiffness"))
+    t.stiffness = x->number_if("a number in (0, 1e6]", [](double k) { return k > 0 && k <= 1e6; });
+  return t;
+}
+
+Initial read_initial(const Value& v) {
+  const Map m(v, &kInitialKeys, "a map {displacement_gradient, velocity_gradient, center, seed}");
+  Initial init;
+  if (auto x = m.get("displacement_gradient")) init.displacement_gradient = x->matrix3("");
+  if (auto x = m.get("velocity_gradient")) init.velocity_gradient = x->matrix3("1/s");
+  if (auto x = m.get("center")) init.center = x->vec3("m");
+  if (auto x = m.get("seed")) {
+    const Map seed(*x, &kSeedKeys, "a map {amplitude: A, wavelength: [Lx, Ly]}");
+    init.seed_amplitude = seed.at("amplitude").non_negative("m");
+    if (auto w = seed.get("wavelength")) {
+      const std::string expected = "a list of 2 non-negative numbers [Lx, Ly] [m]";
+      const auto xs = w->numbers(2, 2, expected, "m");
+      if (!(xs[0] >= 0 && xs[1] >= 0))
+        w->fail("expected " + expected + ", got [" + join({format_number(xs[0]), format_number(xs[1])}) +
+                "]");
+      init.seed_wavelength_x = xs[0];
+      init.seed_wavelength_y = xs[1];
+    }
+  }
+  return init;
+}
+
+/// {boundary name: [x, y, z]} with every name an entry of `boundaries`.
+std::vector<BoundaryValue> read_boundary_values(const Value& v, const std::vector<Boundary>& boundaries,
+                                                std::string_view unit) {
+  const Map m(v, nullptr, "a map of boundary name to [x, y, z]");
+  std::vector<BoundaryValue> out;
+  for (const auto& [name, value] : m.items()) {
+    bool known = false;
+    for (const Boundary& b : boundaries) known |= b.name == name;
+    if (!known) {
+      std::vector<std::string> defined;
+      for (const Boundary& b : boundaries) defined.push_back(b.name);
+      value.fail("no boundary named '" + name + "'; defined: " + (defined.empty() ? "none" : join(defined)));
+    }
+    out.push_back({name, value.vec3(unit)});
+  }
+  return out;
+}
+
+Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const std::vector<Boundary>& boundaries,
+                 const std::vector<Crack>& cracks) {
+  const Map m(v, &kStageKeys, "a map describing the stage");
+  Stage s;
+  s.name = entry_name(m, "stage", index, names);
+  s.where = m.where();
+  if (auto x = m.get("kind"))
+    s.kind = x->choice<StageKind>({{"dynamic", StageKind::Dynamic},
+                                   {"quasistatic", StageKind::QuasiStatic},
+                                   {"release", StageKind::Release}});
+  for (const auto& [key, kind] : kStageKeyKind)
+    if (kind != s.kind)
+      if (auto x = m.get(key))
+        x->fail(std::string("this key belongs to ") + to_text(kind) + " stages; this stage is " + to_text(s.kind));
+  if (s.kind == StageKind::QuasiStatic) {
+    if (auto x = m.get("displacements")) s.displacements = read_boundary_values(*x, boundaries, "m");
+    if (auto x = m.get("displacement_gradient")) s.displacement_gradient = x->matrix3("");
+    if (auto x = m.get("load_steps")) s.load_steps = x->integer(1, 1000000);
+    if (auto x = m.get("max_load_steps")) s.max_load_steps = x->integer(1, 100000000);
+    if (s.max_load_steps < s.load_steps)
+      m.at("max_load_steps").fail("expected an integer >= load_steps (" + std::to_string(s.load_steps) + "), got " +
+                                  std::to_string(s.max_load_steps));
+    if (auto x = m.get("in_plane")) s.in_plane = x->boolean();
+    if (auto x = m.get("jacobian"))
+      s.matrix_free = x->choice<bool>({{"assembled", false}, {"matrix_free", true}});
+    if (auto x = m.get("jacobian_shift"))
+      s.jacobian_shift = x->number_if("a number in [0, 1)", [](double f) { return f >= 0 && f < 1; });
+    if (auto x = m.get("max_break_passes")) s.max_break_passes = x->integer(1, 1000000);
+    return s;
+  }
+  if (s.kind == StageKind::Release) {
+    const Value list = m.at("cracks");
+    const std::string expected = "a non-empty list of crack names";
+    const auto items = list.list(expected);
+    if (items.empty()) list.fail("expected " + expected + ", got an empty list");
+    for (const Value& item : items) {
+      const std::string name = item.name();
+      bool known = false;
+      for (const Crack& c : cracks) known |= c.name == name;
+      if (!known) {
+        std::vector<std::string> defined;
+        for (const Crack& c : cracks) defined.push_back(c.name);
+        item.fail("no crack named '" + name + "'; defined: " + (defined.empty() ? "none" : join(defined)));
+      }
+      if (std::find(s.cracks.begin(), s.cracks.end(), name) != s.cracks.end())
+        item.fail("crack '" + name + "' is named twice");
+      s.cracks.push_back(name);
+    }
+    return s;
+  }
+  if (auto x = m.get("damping")) s.damping = x->non_negative("1/s");
+  if (auto x = m.get("boundary_velocity")) s.boundary_velocity = read_boundary_values(*x, boundaries, "m/s");
+  if (auto x = m.get("steps")) s.steps = x->integer(1, kMaxStageSteps);
+  if (auto x = m.get("duration")) {
+    if (s.steps)
+      x->fail("give either duration or steps, not both (stage '" + s.name + "' has steps: " +
+              std::to_string(*s.steps) + " and duration: " + x->got() + ")");
+    s.duration = x->positive("s");
+  } else if (!s.steps) {
+    m.missing("duration", "simulated time, s; or give steps");
+  }
+  if (auto x = m.get("dt")) s.dt = x->positive("s");
+  if (auto x = m.get("safety_factor"))
+    s.safety_factor = x->number_if("a number in (0, 1]", [](double f) { return f > 0 && f <= 1; });
+  if (auto x = m.get("allow_unstable_dt")) s.allow_unstable_dt = x->boolean();
+  return s;
+}
+
+Output read_output(const Value& v) {
+  const Map m(v, &kOutputKeys,
+              "a map {frames, series_every, velocity, progress_seconds, checkpoint_every_steps, "
+              "checkpoint_every_seconds}");
+  Output out;
+  constexpr long int_max = std::numeric_limits<int>::max();
+  if (auto x = m.get("frames")) out.frames = static_cast<int>(x->integer(1, int_max));
+  if (auto x = m.get("series_every")) out.series_every = static_cast<int>(x->integer(1, int_max));
+  if (auto x = m.get("velocity")) out.write_velocity = x->boolean();
+  if (auto x = m.get("progress_seconds")) out.progress_seconds = x->non_negative("s");
+  if (auto x = m.get("checkpoint_every_steps")) out.checkpoint_every_steps = x->integer(0);
+  if (auto x = m.get("checkpoint_every_seconds")) out.checkpoint_every_seconds = x->non_negative("s");
+  return out;
+}
+
+}  // namespace
+LongRange read_long_range(const Value& v, const std::vector<Body>& bodies) {
+  const Map m(v, &kLongRangeKeys, "a map {length, cutoff, exclusion, pairs}");
+  LongRange lr;
+  lr.where = m.where();
+  if (std::none_of(bodies.begin(), bodies.end(), [](const Body& b) { return b.kind == BodyKind::Fiber; }))
+    v.fail("long-range forces act between fiber nodes (eqs. 32-36); the scene has no body with kind: fiber");
+  lr.length = m.at("length").positive("m");
+  lr.cutoff = m.at("cutoff").positive("m");
+  // Default: the largest fiber horizon (bonded neighbours do not also interact at long range).
+  for (const Body& b : bodies)
+    if (b.kind == BodyKind::Fiber) lr.exclusion = std::max(lr.exclusion, b.horizon_value());
+  if (auto x = m.get("exclusion")) lr.exclusion = x->non_negative("m");
+  const Value pairs = m.at("pairs");
+  const std::vector<Value> rules = pairs.list("a list of pair rules {between, alpha, beta}");
+  if (rules.empty()) pairs.fail("expected at least one pair rule {between, alpha, beta}, got an empty list");
+  for (const Value& r : rules) {
+    const Map rm(r, &kPairRuleKeys, "a map {between, alpha, beta}");
+    PairRule rule;
+    rule.where = rm.where();
+    rule.between = rm.at("between").choice<PairKind>({{"adjacent_segments", PairKind::AdjacentSegments},
+                                                      {"distant_segments", PairKind::DistantSegments},
+                                                      {"other_fibers", PairKind::OtherFibers}});
+    rule.alpha = rm.at("alpha").non_negative("J/m^6");
+    rule.beta = rm.at("beta").number("a number [J/m^6] (negative: a repulsive 1/y^6 tail)");
+    lr.pairs.push_back(rule);
+  }
+  return lr;
+}
+
+Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& file) {
+  const Map top(Value(ctx, root, ""), &kSceneKeys, "a map");
+  Scene s;
+  s.file = file;
+  s.name = top.at("name").given_name("scene");
+  if (auto x = top.get("description")) s.description = x->string();
+
+  const Map materials(top.at("materials"), nullptr, "a map of material name to material");
+  if (materials.empty()) top.at("materials").fail("expected at least one material, got an empty map");
+  materials.check_key_names("material");
+  for (const auto& [name, v] : materials.items()) s.materials.push_back(read_material(name, v));
+
+  const Map bodies(top.at("bodies"), nullptr, "a map of body name to body");
+  if (bodies.empty()) top.at("bodies").fail("expected at least one body, got an empty map");
+  bodies.check_key_names("body");
+  for (const auto& [name, v] : bodies.items()) s.bodies.push_back(read_body(name, v, s.materials));
+
+  UniqueNames crack_names("crack");
+  const auto cracks = optional_list(top, "cracks", "a list of cracks");
+  for (std::size_t i = 0; i < cracks.size(); ++i) s.cracks.push_back(read_crack(cracks[i], i, crack_names));
+
+  UniqueNames boundary_names("boundary");
+  for (const Value& v : optional_list(top, "boundaries", "a list of boundaries"))
+    s.boundaries.push_back(read_boundary(v, boundary_names, s.bodies));
+
+  UniqueNames tool_names("tool");
+  const auto tools = optional_list(top, "tools", "a list of tools");
+  for (const Value& v : tools) s.tools.push_back(read_tool(v, tool_names));
+
+  if (auto x = top.get("long_range")) s.long_range = read_long_range(*x, s.bodies);
+
+  if (auto x = top.get("initial")) s.initial = read_initial(*x);
+
+  const Value stages_value = top.at("stages");
+  const auto stages = stages_value.list("a list of stages");
+  if (stages.empty()) stages_value.fail("expected at least one stage, got an empty list");
+  UniqueNames stage_names("stage");
+  for (std::size_t i = 0; i < stages.size(); ++i)
+    s.stages.push_back(read_stage(stages[i], i, stage_names, s.boundaries, s.cracks));
+  std::map<std::string, std::string> released;  // crack -> stage releasing it
+  for (std::size_t i = 0; i < s.stages.size(); ++i)
+    for (const std::string& c : s.stages[i].cracks)
+      if (!released.emplace(c, s.stages[i].name).second)
+        stages[i].fail("crack '" + c + "' is already released by stage '" + released[c] + "'");
+  bool dynamic = false;
+  for (const Stage& st : s.stages) dynamic |= st.kind == StageKind::Dynamic;
+  if (!dynamic) stages_value.fail("expected at least one stage of kind dynamic");
+  for (std::size_t i = 0; i < s.stages.size() && !s.tools.empty(); ++i)
+    if (s.stages[i].kind == StageKind::QuasiStatic)
+      stages[i].fail("a quasistatic stage in a scene with tools; tools act in dynamic stages only (tools: '" +
+                     s.tools.front().name + "')");
+
+  const bool pressurized = std::any_of(s.bodies.begin(), s.bodies.end(), [](const Body& b) { return b.pressure > 0; });
+  for (std::size_t i = 0; i < s.stages.size() && pressurized; ++i)
+    if (s.stages[i].kind == StageKind::QuasiStatic)
+      stages[i].fail("a quasistatic stage in a scene with a pressurized sphere; the pressure acts in dynamic stages "
+                     "only (the quasi-static residual holds the bonds alone)");
+  for (std::size_t i = 0; i < s.stages.size() && s.long_range; ++i)
+    if (s.stages[i].kind == StageKind::QuasiStatic)
+      stages[i].fail("a quasistatic stage in a scene with long_range; long-range forces act in dynamic stages "
+                     "only (the quasi-static tangent holds the bonds alone)");
+
+  if (auto x = top.get("stability")) {
+    const Map m(*x, &kStabilityKeys, "a map {energy_error, motion_per_step}");
+    if (auto e = m.get("energy_error")) s.stability.energy_error = e->non_negative("");
+    if (auto e = m.get("motion_per_step")) s.stability.motion_per_step = e->non_negative("");
+  }
+
+  if (auto x = top.get("output")) s.output = read_output(*x);
+  return s;
+}
+
+}  // namespace peri::scene_detail

@@ -1,0 +1,13 @@
+// The readers of the scene's sections: from the located YAML tree (overrides applied) to the
+// Scene structs, every value validated where it is read (located_yaml.hpp's conventions).
+#pragma once
+#include <string>
+
+#include "located_yaml.hpp"
+
+namespace peri::scene_detail {
+
+/// The scene in `root`, validated.
+Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& file);
+
+}  // namespace peri::scene_detail

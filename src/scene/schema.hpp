@@ -1,0 +1,381 @@
+// The scene's schema: every map's keys (name, required, the "missing required key" message) with
+// their documentation (unit, default, meaning), the names of the enums' values, and the key
+// tables as documentation (scene/describe.hpp: --describe-keys, docs/user/scene-reference.md).
+//
+// Each key's documentation is for --describe-keys and docs/user/scene-reference.md: a key added
+// here without a meaning makes --describe-keys fail, and one whose documentation differs from the
+// reference page fails the ctest scene_reference.
+#pragma once
+#include <map>
+#include <string>
+
+#include "located_yaml.hpp"
+
+namespace peri::scene_detail {
+
+/// The text of an enum's value, as the scene writes it.
+const char* to_text(Influence k);
+const char* to_text(BodyKind k);
+const char* to_text(PairKind k);
+const char* to_text(Grid k);
+const char* to_text(Quadrature k);
+const char* to_text(StageKind k);
+const char* to_text(bool b);
+
+/// Prefix of the default names of a list's unnamed entries ("crack0", "stage1"); empty when the
+/// entries have no default name.
+std::string default_name_prefix(const std::string& list_path);
+
+// Each key: name, required, what (the "missing required key" message), and its documentation for
+// --describe-keys and docs/user/scene-reference.md (scene/describe.hpp): unit, default (what an
+// absent key means; empty: no value) and meaning. A key added here without a meaning makes
+// --describe-keys fail, and one whose documentation differs from the reference page fails the
+// ctest scene_reference.
+
+inline const Keys kSceneKeys = {
+    {.name = "name", .required = true, .what = "scene name, 1 to 64 characters of A-Z a-z 0-9 _ - not starting with -",
+     .doc = "the scene's name, 1 to 64 characters of A-Z a-z 0-9 _ -, not starting with -; the default output "
+            "directory is `out/<name>`"},
+    {.name = "description", .fallback = "empty", .doc = "free text"},
+    {.name = "materials", .required = true, .what = "map of material name to material",
+     .doc = "map of material name to material (`materials.<name>`); at least one"},
+    {.name = "bodies", .required = true, .what = "map of body name to body",
+     .doc = "map of body name to body (`bodies.<name>`); at least one"},
+    {.name = "cracks", .fallback = "none", .doc = "list of straight pre-cracks (`cracks[i]`)"},
+    {.name = "boundaries", .fallback = "none",
+     .doc = "list of regions with prescribed velocity components, clamps included (`boundaries[i]`)"},
+    {.name = "tools", .fallback = "none", .doc = "list of rigid tools acting by contact (`tools[i]`)"},
+    {.name = "long_range", .doc = "long-range pair forces between fiber nodes (`long_range`)"},
+    {.name = "initial", .fallback = "at rest, undeformed", .doc = "the state before the first stage (`initial`)"},
+    {.name = "stages", .required = true, .what = "list of stages, at least one",
+     .doc = "list of stages run in order (`stages[i]`); at least one of kind dynamic"},
+    {.name = "stability", .fallback = "the defaults below", .doc = "instability detectors of dynamic stages (`stability`)"},
+    {.name = "output", .fallback = "the defaults below", .doc = "what is written and how often (`output`)"},
+};
+
+inline const Keys kMaterialKeys = {
+    {.name = "model", .required = true, .what = "force law: membrane, pmb, marder, or another registered law",
+     .doc = "the material model, one of the values of model listed with this section; it decides which other "
+            "keys the material takes"},
+    {.name = "density", .required = true, .what = "mass density, kg/m^3", .unit = "kg/m^3",
+     .doc = "rho > 0; of the sheet's material for membranes, spheres and lattices (mass per area: rho h)"},
+    {.name = "wave_speed", .unit = "m/s", .fallback = "one of four",
+     .doc = "stiffness, exactly one of wave_speed, bulk_modulus, youngs_modulus, micromodulus: the small-strain "
+            "longitudinal wave speed c_l > 0 (membranes, spheres, solids: mu = rho c_l^2 / 3; fibers: the bar "
+            "speed, E = rho c_l^2)"},
+    {.name = "bulk_modulus", .unit = "Pa", .fallback = "one of four",
+     .doc = "K > 0: the in-plane modulus 2 mu of membranes and spheres, the 3D modulus 5 mu / 3 of solids, read "
+            "as the bar modulus E for fibers"},
+    {.name = "youngs_modulus", .unit = "Pa", .fallback = "one of four",
+     .doc = "E > 0: 8 mu / 3 for membranes and spheres, 5 mu / 2 for solids, E itself for fibers"},
+    {.name = "micromodulus", .unit = "J/m^6, N/m^6", .fallback = "one of four",
+     .doc = "the micromodulus c > 0 itself (membrane law J/m^6, pmb N/m^6)"},
+    {.name = "influence", .fallback = "constant",
+     .doc = "g(xi) of eq. (13): `constant` (g = 1) or `conical` (g = 1 - xi/delta)"},
+    {.name = "critical_stretch", .fallback = "none: bonds never break",
+     .doc = "membrane: the stretch lambda_0 >= 1 + 1e-10 at which a bond breaks (eqs. 11, 22); pmb: the critical "
+            "bond strain s_0 >= 1e-10 (a bond breaks at s = lambda - 1 >= s_0; the papers' \"critical stretch\" "
+            "0.1, 0.03, 0.3 of examples 7.3-7.6 is this strain)"},
+    {.name = "critical_stretch_at_horizon", .fallback = "= critical_stretch",
+     .doc = "Lambda_delta of eq. (29): the critical value at xi = delta, critical_stretch being the one at xi = 0, "
+            "linear in between; needs critical_stretch; the same limits"},
+    {.name = "hardening", .fallback = "none",
+     .doc = "power-law hardening of eq. (16), `{coefficient: c', exponent: n}` (`materials.<name>.hardening`); runs "
+            "in the portable bond loop"},
+    {.name = "mooney_rivlin_a", .unit = "J/kg", .fallback = "required",
+     .doc = "a of W/rho = a [J1 + b J2] (Marder eq. 6), > 0"},
+    {.name = "mooney_rivlin_b", .fallback = "required",
+     .doc = "b; with the body's spacing Delta and the cutoff u_s: b < 2 and -2 Delta/u_s < b < Delta/u_s (the "
+            "unstretched lattice is stable)"},
+    {.name = "cutoff", .unit = "m", .fallback = "required", .doc = "u_s of Marder eqs. (31), (32), > 0"},
+    {.name = "fracture_separation", .unit = "m", .fallback = "required",
+     .doc = "u_c of Marder eqs. (31), (32), > Delta + u_s (checked at the body's spacing)"},
+    {.name = "breaking", .fallback = "irreversible",
+     .doc = "`irreversible`: a bond reaching u_c is cut for good with its three-body terms, and the energy removed "
+            "is booked as dissipated; `reversible`: the paper's functional as written (f constant beyond u_c, h "
+            "smooth; bonds act again below u_c; pre-cracks stay cut)"},
+    {.name = "kelvin_viscosity", .unit = "m^2/s", .fallback = "0 (none)",
+     .doc = "kinematic viscosity nu >= 0 of Kelvin dashpots on the intact bonds, force eta (e_ij . (v_j - v_i)) "
+            "e_ij with eta = 8 m nu / (3 Delta^2); their work is booked as dissipated energy"},
+};
+
+inline constexpr const char* kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking",
+                                   "kelvin_viscosity"};
+
+inline const Keys kHardeningKeys = {
+    {.name = "coefficient", .required = true, .what = "hardening coefficient c', >= 0", .unit = "J/m^6",
+     .doc = "c' >= 0 of the added energy c' (lambda^n - n lambda + n - 1) g (eq. 16, written so that the "
+            "reference state is stress-free)"},
+    {.name = "exponent", .required = true, .what = "hardening exponent n, > 1", .doc = "n > 1"},
+};
+
+inline const Keys kBodyKeys = {
+    {.name = "kind", .fallback = "membrane",
+     .doc = "`membrane` (a flat sheet at z = origin z), `solid` (a box of simple-cubic points; pmb materials), "
+            "`lattice` (Marder's triangular lattice; marder materials), `fiber` (nodes along a path, or a "
+            "generated network) or `sphere` (a spherical membrane on a geodesic grid); a key of another kind is "
+            "refused, naming the kind that takes it"},
+    {.name = "material", .required = true, .what = "name of a material",
+     .doc = "name of an entry of materials; a lattice body needs a marder material and a marder material a "
+            "lattice body"},
+    {.name = "origin", .unit = "m", .fallback = "required (membrane, solid, lattice)",
+     .doc = "membrane, solid, lattice: the lower corner [x, y, z]"},
+    {.name = "size", .unit = "m", .fallback = "required (membrane, solid, lattice)",
+     .doc = "membrane, lattice: [Lx, Ly] (or [Lx, Ly, 0]), Lx, Ly > 0; solid: [Lx, Ly, Lz], all > 0"},
+    {.name = "thickness", .unit = "m", .fallback = "required (membrane, lattice, sphere)",
+     .doc = "h > 0 (a node's measure is its area times h; a lattice node's mass is density h (sqrt(3)/2) "
+            "Delta^2); refused for solids"},
+    {.name = "spacing", .unit = "m", .fallback = "required",
+     .doc = "dx > 0, at most the smallest extent of size (fiber: the path's length; sphere: the radius). Grid "
+            "nodes sit at origin + (i + 1/2) dx; a lattice's Delta; a fiber's nodes are round(L / spacing) equal "
+            "arc steps apart; a sphere's geodesic grid has about this spacing"},
+    {.name = "grid", .fallback = "square",
+     .doc = "membrane: `square` or `hexagonal` (rows along x, dx apart, rows sqrt(3)/2 dx apart); solid: `square` "
+            "only"},
+    {.name = "horizon_factor", .fallback = "3",
+     .doc = "m of delta = m dx, >= 1; not with horizon; not for lattices"},
+    {.name = "horizon", .unit = "m", .fallback = "horizon_factor x spacing",
+     .doc = "delta itself, >= spacing; not with horizon_factor; not for lattices"},
+    {.name = "quadrature", .fallback = "partial_area",
+     .doc = "membrane, solid: the weight of a neighbour inside the horizon: `partial_area` (the exact part of its "
+            "cell inside the horizon; second order), `full` (whole cells with xi <= delta) or `taper` (whole "
+            "cells, the last dx/2 before delta tapered linearly to 1/2, as LAMMPS PERI does); fibers and spheres "
+            "take full weights"},
+    {.name = "breakable", .unit = "m", .fallback = "everywhere",
+     .doc = "lattice: `{min: [x, y, z], max: [x, y, z]}`, only bonds with both ends inside this box (reference "
+            "positions) may break (`bodies.<name>.breakable`)"},
+    {.name = "path", .unit = "m", .fallback = "required (fiber) unless network",
+     .doc = "fiber: a polyline [[x, y, z], ...] of at least 2 points, each different from the one before; n = "
+            "round(L / spacing) nodes at the centres of n equal arc-length steps ds = L / n, measure A ds"},
+    {.name = "network",
+     .doc = "fiber, instead of path: many fibers generated in a box, bonded wherever they pass within the horizon "
+            "(cross-links) (`bodies.<name>.network`)"},
+    {.name = "diameter", .unit = "m", .fallback = "required (fiber)", .doc = "fiber: d > 0; cross-section A = pi d^2 / 4"},
+    {.name = "segment_length", .unit = "m", .fallback = "0 (one segment)",
+     .doc = "fiber: >= 0; node k lies in segment floor((k + 1/2) ds / segment_length), which long_range rules tell "
+            "apart"},
+    {.name = "center", .unit = "m", .fallback = "required (sphere)", .doc = "sphere: the centre [x, y, z]"},
+    {.name = "radius", .unit = "m", .fallback = "required (sphere)",
+     .doc = "sphere: R > 0; n = round(1.107 R / spacing) splits each icosahedron face into n^2 triangles, 10 n^2 + "
+            "2 nodes; a node's area is a third of its triangles', scaled to 4 pi R^2 in all"},
+    {.name = "pressure", .unit = "Pa", .fallback = "0",
+     .doc = "sphere: internal pressure p >= 0, a follower load (each geodesic triangle carries p times its current "
+            "area vector, a third to each corner whose bonds to the other two are intact); its work is external "
+            "work; wall stress p R / (2 h) at most 100 in-plane bulk moduli; refuses quasistatic stages"},
+    {.name = "pressure_ramp_time", .unit = "s", .fallback = "0",
+     .doc = "sphere: the pressure rises linearly from 0 over this time, >= 0"},
+};
+
+inline const Keys kNetworkKeys = {
+    {.name = "box", .required = true, .what = "box {min: [x, y, z], max: [x, y, z]} the fibers fill, m",
+     .doc = "the box the fibers cross, `{min: [x, y, z], max: [x, y, z]}` (`bodies.<name>.network.box`)"},
+    {.name = "families", .required = true, .what = "list of fiber families {direction: x or y, count}",
+     .doc = "non-empty list of fiber families (`bodies.<name>.network.families[i]`)"},
+    {.name = "deviation", .unit = "rad", .fallback = "0.15",
+     .doc = "standard deviation >= 0 of the Gaussian angles (in the plane and out of it) between a step's "
+            "direction and its family's; steps are mirrored back at the box's side faces"},
+    {.name = "step", .required = true, .what = "path length between direction draws, m", .unit = "m",
+     .doc = "path length between direction draws, > 0; at most 1e6 steps across the box along each family's "
+            "direction"},
+    {.name = "start_band", .unit = "m", .fallback = "5% of the box's smaller x, y extent",
+     .doc = ">= 0: each fiber starts at a uniformly random point within this distance of the box's low face normal "
+            "to its family's direction, anywhere across the other two, and walks to the far face"},
+    {.name = "seed", .fallback = "1",
+     .doc = "integer >= 0; the same seed gives the same paths on every rank (splitmix64 and Box-Muller; on another "
+            "platform up to its libm's log and cos)"},
+};
+
+inline const Keys kFamilyKeys = {
+    {.name = "direction", .required = true, .what = "x or y", .doc = "`x` or `y`: the direction the family's fibers cross the box"},
+    {.name = "count", .required = true, .what = "number of fibers, >= 1", .doc = "number of fibers, an integer in 1 .. 100000"},
+};
+
+inline const Keys kLongRangeKeys = {
+    {.name = "length", .required = true, .what = "a of w2 = alpha (a/y)^12 - beta (a/y)^6, m", .unit = "m",
+     .doc = "a > 0 of w2(y) = alpha (a/y)^12 - beta (a/y)^6 (eqs. 32-36) on the current distance y"},
+    {.name = "cutoff", .required = true, .what = "largest interacting distance, m", .unit = "m",
+     .doc = "largest current distance of an interacting pair, > 0; the energy booked is w2(y) - w2(cutoff); "
+            "refused at setup when it takes in more than 5000 pairs per node or 2e8 in all at the reference "
+            "positions"},
+    {.name = "exclusion", .unit = "m", .fallback = "the largest fiber horizon",
+     .doc = ">= 0: pairs closer than this in the reference configuration (neighbours in one continuous body) do "
+            "not interact"},
+    {.name = "pairs", .required = true, .what = "list of pair rules {between, alpha, beta}",
+     .doc = "non-empty list of rules (`long_range.pairs[i]`); the first rule of a pair's kind applies, nodes of one "
+            "segment never interact, a pair no rule names does not interact"},
+};
+
+inline const Keys kPairRuleKeys = {
+    {.name = "between", .required = true, .what = "adjacent_segments, distant_segments or other_fibers",
+     .doc = "`adjacent_segments` (one fiber, segments k and k +- 1), `distant_segments` (one fiber, segments two or "
+            "more apart) or `other_fibers` (different fiber bodies, or different fibers of one network)"},
+    {.name = "alpha", .required = true, .what = "coefficient of (a/y)^12, J/m^6", .unit = "J/m^6",
+     .doc = "coefficient of (a/y)^12, >= 0"},
+    {.name = "beta", .required = true, .what = "coefficient of (a/y)^6, J/m^6 (negative: repulsive tail)",
+     .unit = "J/m^6", .doc = "coefficient of (a/y)^6, any sign (negative: a repulsive 1/y^6 tail)"},
+};
+
+inline const Keys kBoxKeys = {
+    {.name = "min", .required = true, .what = "lower corner [x, y, z], m", .unit = "m", .doc = "lower corner [x, y, z]"},
+    {.name = "max", .required = true, .what = "upper corner [x, y, z], m", .unit = "m",
+     .doc = "upper corner [x, y, z], >= min in every component (> min for a network's box)"},
+};
+
+inline const Keys kCrackKeys = {
+    {.name = "name", .fallback = "crack<i>", .doc = "the crack's name, which release stages use"},
+    {.name = "from", .required = true, .what = "start point [x, y, z], m", .unit = "m", .doc = "one end [x, y, z]"},
+    {.name = "to", .required = true, .what = "end point [x, y, z], m", .unit = "m",
+     .doc = "the other end [x, y, z], different from from. At the start every bond of a membrane, lattice, fiber "
+            "or sphere whose reference segment meets the slit in the xy plane is broken (solids are not cut), "
+            "unless a release stage names the crack"},
+};
+
+inline const Keys kBoundaryKeys = {
+    {.name = "name", .required = true, .what = "boundary name, unique", .doc = "unique; stages name boundaries by it"},
+    {.name = "region", .required = true, .what = "box {min: [x, y, z], max: [x, y, z]}",
+     .doc = "the nodes it holds (`boundaries[i].region`); a node in several regions follows the last boundary "
+            "listed"},
+    {.name = "velocity", .unit = "m/s", .fallback = "[0, 0, 0] (a clamp)",
+     .doc = "prescribed velocity [vx, vy, vz] of the selected components"},
+    {.name = "components", .fallback = "[x, y, z]",
+     .doc = "non-empty list of distinct letters from x, y, z: the components prescribed; the others move freely"},
+    {.name = "ramp_time", .unit = "s", .fallback = "0", .doc = "the velocity rises linearly from 0 over this time, >= 0"},
+};
+
+inline const Keys kToolKeys = {
+    {.name = "name", .required = true, .what = "tool name, unique", .doc = "unique; names the tool's columns in series.csv"},
+    {.name = "kind", .required = true, .what = "tool kind: cylinder or sphere",
+     .doc = "`cylinder` (a rigid cylinder of infinite length, axis along z) or `sphere` (a rigid sphere); tools act "
+            "on every node by a penalty force with Coulomb friction, in dynamic stages (a scene with tools refuses "
+            "quasistatic stages), and must start clear of the bodies"},
+    {.name = "radius", .required = true, .what = "cylinder radius, m", .unit = "m", .doc = "> 0"},
+    {.name = "center", .required = true, .what = "axis position [x, y] at t = 0, m", .unit = "m",
+     .doc = "cylinder: axis position [x, y] at t = 0; sphere: centre [x, y, z] at t = 0"},
+    {.name = "velocity", .unit = "m/s", .fallback = "at rest",
+     .doc = "constant velocity: cylinder [vx, vy], sphere [vx, vy, vz]"},
+    {.name = "friction", .fallback = "0",
+     .doc = "Coulomb coefficient mu >= 0; friction opposes sliding over the tool's surface, along a cylinder's "
+            "axis too"},
+    {.name = "stiffness", .fallback = "0.5",
+     .doc = "penalty stiffness relative to the stiffest node's bond stiffness, in (0, 1e6]; the stable step of a "
+            "scene with tools is divided by sqrt(1 + largest stiffness)"},
+};
+
+inline const Keys kRegionKeys = {
+    {.name = "min", .required = true, .what = "lower corner [x, y, z], m", .unit = "m", .doc = "lower corner [x, y, z]"},
+    {.name = "max", .required = true, .what = "upper corner [x, y, z], m", .unit = "m",
+     .doc = "upper corner [x, y, z], >= min in every component; the region holds the nodes whose reference "
+            "position lies in the closed box, at least one"},
+    {.name = "body", .fallback = "every body", .doc = "name of a body: only its nodes"},
+};
+
+inline const Keys kInitialKeys = {
+    {.name = "displacement_gradient", .fallback = "zeros",
+     .doc = "3 x 3 matrix G, rows as lists: u = G (X - center) (`[[0, 0, 0], [0, 0.08, 0], [0, 0, 0]]` stretches y "
+            "by 8%); may move a node by at most 100 times its body's extent"},
+    {.name = "velocity_gradient", .unit = "1/s", .fallback = "zeros", .doc = "3 x 3 matrix L: v = L (X - center)"},
+    {.name = "center", .unit = "m", .fallback = "[0, 0, 0]", .doc = "the fixed point of both fields"},
+    {.name = "seed", .fallback = "none",
+     .doc = "an out-of-plane seed `{amplitude, wavelength}` (`initial.seed`)"},
+};
+
+inline const Keys kSeedKeys = {
+    {.name = "amplitude", .required = true, .what = "seed amplitude, m", .unit = "m",
+     .doc = "A >= 0 of u_z += A sin(2 pi x / Lx) sin(2 pi y / Ly) at the reference position (x, y)"},
+    {.name = "wavelength", .unit = "m", .fallback = "[0, 0]",
+     .doc = "[Lx, Ly], each >= 0; a wavelength of 0 drops its factor"},
+};
+
+inline const Keys kStageKeys = {
+    {.name = "name", .fallback = "stage<i>", .doc = "the stage's name"},
+    {.name = "kind", .fallback = "dynamic",
+     .doc = "`dynamic` (explicit velocity Verlet), `quasistatic` (static equilibrium by PETSc SNES; no time passes) "
+            "or `release` (break the bonds crossing named cracks; no time passes); a key of another kind is "
+            "refused"},
+    {.name = "duration", .unit = "s", .fallback = "required unless steps",
+     .doc = "simulated time > 0, covered exactly by n = ceil(duration / dt) steps of duration / n"},
+    {.name = "steps", .fallback = "none",
+     .doc = "instead of duration: the number of steps, an integer in 1 .. 1e9, each of dt (through --set one "
+            "replaces the other given in the file)"},
+    {.name = "dt", .unit = "s", .fallback = "safety_factor x the stable bound",
+     .doc = "time step > 0; refused above the stable bound (the message gives it) unless allow_unstable_dt; "
+            "duration / dt at most 1e9"},
+    {.name = "safety_factor", .fallback = "0.7", .doc = "in (0, 1]: dt = safety_factor x the stable bound"},
+    {.name = "allow_unstable_dt", .fallback = "false",
+     .doc = "run a dt above the stable bound anyway (the stability detectors still watch)"},
+    {.name = "damping", .unit = "1/s", .fallback = "0",
+     .doc = "mass-proportional viscous damping alpha >= 0 (force density -rho alpha v), alpha dt / 2 <= 1; its "
+            "work is booked as dissipated energy"},
+    {.name = "boundary_velocity", .unit = "m/s", .fallback = "the boundaries' own",
+     .doc = "`{boundary: [vx, vy, vz], ...}`: a constant velocity of named boundaries during the stage, replacing "
+            "their velocity and ramp_time"},
+    {.name = "displacements", .unit = "m", .fallback = "none",
+     .doc = "`{boundary: [dx, dy, dz], ...}`: displacement of named boundaries (their prescribed components) "
+            "reached at the stage's end, added to where they are at its start; unnamed boundaries stay put"},
+    {.name = "displacement_gradient", .fallback = "zeros",
+     .doc = "3 x 3 matrix H: prescribed components also move by H (X - initial.center) over the stage "
+            "(homogeneous loading of boundary bands)"},
+    {.name = "load_steps", .fallback = "10",
+     .doc = "initial number of load increments, an integer in 1 .. 1e6; a diverged increment is halved, one of at "
+            "most 4 Newton iterations grows 1.5 x"},
+    {.name = "max_load_steps", .fallback = "1000",
+     .doc = "increments, cut-backs included, before the stage fails (exit status 3); an integer in 1 .. 1e8, at "
+            "least load_steps"},
+    {.name = "in_plane", .fallback = "true",
+     .doc = "hold membranes' out-of-plane components where they are (a flat membrane has no out-of-plane "
+            "stiffness at zero tension)"},
+    {.name = "jacobian", .fallback = "assembled",
+     .doc = "`assembled` (the bond tangent, block size 3) or `matrix_free` (finite-difference Newton-Krylov, no "
+            "preconditioner)"},
+    {.name = "jacobian_shift", .fallback = "1e-8",
+     .doc = "in [0, 1): shift of the tangent's diagonal relative to the mean nodal stiffness; the residual is "
+            "unchanged, so converged states are exact equilibria"},
+    {.name = "max_break_passes", .fallback = "100",
+     .doc = "re-equilibrations of one increment while bonds keep breaking, an integer in 1 .. 1e6"},
+    {.name = "cracks", .fallback = "required",
+     .doc = "non-empty list of names of cracks entries, each released by one stage only; they are not broken at "
+            "the start: this stage breaks every intact bond crossing them in the current state and books each "
+            "bond's energy as dissipated"},
+};
+
+
+/// Stage keys that only one kind of stage accepts.
+inline const std::map<std::string, StageKind> kStageKeyKind = {
+    {"duration", StageKind::Dynamic},         {"steps", StageKind::Dynamic},
+    {"dt", StageKind::Dynamic},               {"safety_factor", StageKind::Dynamic},
+    {"allow_unstable_dt", StageKind::Dynamic}, {"damping", StageKind::Dynamic},
+    {"boundary_velocity", StageKind::Dynamic}, {"displacements", StageKind::QuasiStatic},
+    {"displacement_gradient", StageKind::QuasiStatic},
+    {"load_steps", StageKind::QuasiStatic},   {"max_load_steps", StageKind::QuasiStatic},
+    {"in_plane", StageKind::QuasiStatic},     {"jacobian", StageKind::QuasiStatic},
+    {"jacobian_shift", StageKind::QuasiStatic}, {"max_break_passes", StageKind::QuasiStatic},
+    {"cracks", StageKind::Release},
+};
+
+inline const Keys kStabilityKeys = {
+    {.name = "energy_error", .fallback = "0.05",
+     .doc = ">= 0: stop a dynamic stage when the energy balance error |E - E0| exceeds this fraction of the run's "
+            "largest energy term (at least the energy of a 1e-10 strain of every body); 0: off"},
+    {.name = "motion_per_step", .fallback = "1",
+     .doc = ">= 0: stop when a node with intact bonds moves more than this many grid spacings in one step; 0: off"},
+};
+
+inline const Keys kOutputKeys = {
+    {.name = "frames", .fallback = "20",
+     .doc = "HDF5 frames over the whole run, first and last step included; an integer >= 1 (more than the steps + "
+            "1 writes every step, with a warning)"},
+    {.name = "series_every", .unit = "steps", .fallback = "10",
+     .doc = "a series.csv row (and a crack-tip sample) every N steps, an integer >= 1"},
+    {.name = "velocity", .fallback = "true", .doc = "write the velocity field into the frames"},
+    {.name = "progress_seconds", .unit = "s", .fallback = "2",
+     .doc = "wall time between progress lines, >= 0 (0: at every check)"},
+    {.name = "checkpoint_every_steps", .unit = "steps", .fallback = "0 (off)",
+     .doc = "write checkpoint.h5 every N steps, an integer >= 0"},
+    {.name = "checkpoint_every_seconds", .unit = "s", .fallback = "900",
+     .doc = "write checkpoint.h5 when this much wall time has passed since the last one (rank 0's clock, checked "
+            "every 20 steps), >= 0; 0: off"},
+};
+
+inline constexpr const char* kStiffnessKeys[] = {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus"};
+
+}  // namespace peri::scene_detail
