@@ -7,6 +7,9 @@
 
 namespace peri::scene_detail {
 
+/// Body `name` of the scene (bodies.<name>), with the materials read before it (read_body.cpp).
+Body read_body(const std::string& name, const Value& v, const std::vector<Material>& materials);
+
 /// The scene in `root`, validated.
 Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& file);
 
