@@ -65,8 +65,8 @@ void markdown_models(std::ostringstream& out, const std::vector<ModelDoc>& model
   for (const ModelDoc& m : models) {
     std::vector<std::string> keys;
     for (const std::string& k : m.stiffness) keys.push_back("`" + k + "`");
-    out << "| `" << m.name << "` | " << cell(m.meaning) << " | " << (keys.empty() ? "its own keys" : join(keys))
-        << " |\n";
+    out << "| `" << m.name << "` | " << cell(m.meaning) << " | "
+        << (keys.empty() ? "its own keys" : join(keys)) << " |\n";
   }
   out << "\n";
 }
@@ -99,13 +99,14 @@ std::string describe_scene_keys(KeyFormat format) {
       if (s.path == "materials.<name>" && s.condition.empty()) markdown_models(out, models);
       out << "| key | unit | default | meaning |\n| --- | --- | --- | --- |\n";
       for (const KeyDoc& k : s.keys)
-        out << "| `" << k.name << "` | " << cell(k.unit) << " | " << cell(default_of(k)) << " | " << cell(k.meaning)
-            << " |\n";
+        out << "| `" << k.name << "` | " << cell(k.unit) << " | " << cell(default_of(k)) << " | "
+            << cell(k.meaning) << " |\n";
       out << "\n";
     } else {
       out << "\n" << title_of(s, false) << "\n";
       for (const KeyDoc& k : s.keys) {
-        out << "  " << k.name << (k.unit.empty() ? "" : " [" + k.unit + "]") << " = " << default_of(k) << "\n";
+        out << "  " << k.name << (k.unit.empty() ? "" : " [" + k.unit + "]") << " = " << default_of(k)
+            << "\n";
         out << wrapped(k.meaning, 6);
       }
       if (s.path == "materials.<name>" && s.condition.empty()) text_models(out, models);
