@@ -12,7 +12,7 @@ largest part's owned bonds, ghosts and neighbour parts). Model of one explicit s
   overlap:      T(P) = max(T_comp, T_halo) + T_coll   (interior bonds computed while the halo flies)
   efficiency    E(P) = t_bond * ordered_bonds / (P * T(P))
 
-t_bond is the measured cost of one ordered bond update on one core (full step, README Benchmarks);
+t_bond is the measured cost of one ordered bond update on one core (full step, docs/performance.md);
 latency and bandwidth describe one rank's link (defaults: 2 us, 5 GB/s, an InfiniBand-class
 network shared by the cores of a node). Memory bandwidth contention inside a node, OS noise and
 the serial partitioner are not modelled; the partitioner is reported separately (metis_seconds).

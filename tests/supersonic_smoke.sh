@@ -2,7 +2,7 @@
 # The supersonic-rubber scene at a coarse resolution (Delta = 1 mm, 1.2 ms, same u_s / Delta and
 # u_c / Delta), on 2 ranks, end to end: run, crack-tip measurement, picture. The crack from the seed
 # must outrun the longitudinal waves: 1.1 < v/c_l < 1.5 (the lattice's long-wave c_l ahead of the
-# tip; measured 1.22 here, 1.25 in the full scene; README "The supersonic crack").
+# tip; measured 1.22 here, 1.25 in the full scene; docs/examples/supersonic-rubber.md).
 # usage: supersonic_smoke.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -eu
 peridrive=$1 src=$2 mpiexec=$3

@@ -360,7 +360,7 @@ TEST(MarderParameters, RefusedWithAReason) {
 
 TEST(MarderParameters, ReferenceLatticeStabilityBoundIsSharp) {
   // The bound -2 Delta/u_s < b < Delta/u_s comes from the energy of homogeneous strains of the
-  // unstretched lattice (README): just inside it a small shear / dilatation raises the energy,
+  // unstretched lattice (docs/theory/marder.md): just inside it a small shear / dilatation raises the energy,
   // just outside it lowers it.
   const double D = kDelta, us = 0.05 * D, uc = 3 * D;
   const std::uint8_t active[6] = {1, 1, 1, 1, 1, 1};
@@ -493,7 +493,7 @@ double time_of_flight(const MarderLaw& law, double l1, double l2, int component)
 TEST(MarderWaves, TimeOfFlightMatchesMooneyRivlin) {
   // All bonds in the Mooney-Rivlin range (Delta + u_s < u, h(u) = 1 within 2e-9); 300 x 4
   // periodic nodes, Gaussian pulse of width 8 Delta and amplitude 1e-3 Delta. b = 0.3: larger b
-  // makes the stretched lattice unstable at short wavelengths (README "Marder lattice").
+  // makes the stretched lattice unstable at short wavelengths (docs/theory/marder.md).
   const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false);
   for (const auto& [l1, l2] : std::vector<std::pair<double, double>>{{1.1, 1.5}, {1.2, 2.0}}) {
     const WaveSpeeds mr = mooney_rivlin_wave_speeds(law.a, law.b, l1, l2);

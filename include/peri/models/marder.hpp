@@ -31,7 +31,7 @@ struct MarderLaw {
   bool reversible = false;  ///< bonds heal when u < u_c again (the paper's pure functional)
   /// Kelvin (Kelvin-Voigt) dashpot of every intact bond [kg/s]: force on i from bond ij
   /// eta (e_ij . (v_j - v_i)) e_ij, e_ij the current bond direction. eta = 8 m nu / (3 Delta^2)
-  /// for the material's kinematic viscosity nu (README "Kelvin dissipation"); 0: no dashpots.
+  /// for the material's kinematic viscosity nu (docs/theory/marder.md); 0: no dashpots.
   double dashpot = 0;
 
   /// Constant of f that makes the reference lattice energy zero: the "+4" of eqs. (23), (24),
@@ -78,7 +78,7 @@ constexpr int kMarderMaxNeighbours = 6;
 /// u_s <= 0; u_c <= Delta + u_s (bonds would break before reaching the Mooney-Rivlin range);
 /// b >= 2 (the stretched sheet has no shear stiffness: c_s^2 = a (1 - b/2) <= 0); and b outside
 /// (-2 Delta/u_s, Delta/u_s), where the unstretched lattice (cutoff branch of eq. 31) is
-/// unstable to a homogeneous shear or dilatation (derived in README "Marder lattice").
+/// unstable to a homogeneous shear or dilatation (derived in docs/theory/marder.md).
 std::string marder_parameter_problem(double a, double b, double delta, double us, double uc);
 
 /// Constants for a lattice of spacing Delta whose nodes have mass m.
@@ -142,7 +142,7 @@ constexpr std::uint8_t kMarderUnbreakable = 8;
 /// six neighbours of the largest pair stiffness reachable below u_c (cutoff branch at Delta + u_s
 /// or quartic branch at u_c, both rows of a bond) plus bounds of the three-body curvature over
 /// the pairs a bond takes part in, including the switch h near u_c (see marder.cpp). With
-/// dashpots (force from the half-step velocity, see README "Kelvin dissipation") the step also
+/// dashpots (force from the half-step velocity, see docs/theory/marder.md) the step also
 /// satisfies (omega dt / 2)^2 + gamma dt / 2 <= 1 with omega = 2 / (undamped bound) and
 /// gamma = 24 eta / m the largest damping rate.
 double marder_stable_time_step(const MarderLaw& law);
@@ -150,7 +150,7 @@ double marder_stable_time_step(const MarderLaw& law);
 /// Small-amplitude wave speeds of the Mooney-Rivlin sheet W/rho = a [J1 + b J2] about the
 /// homogeneous stretch diag(lambda_along, lambda_across), for propagation along the first axis,
 /// in the reference frame (reference distance per time; multiply by lambda_along for the lab
-/// frame). Derived in README "Marder lattice":
+/// frame). Derived in docs/theory/marder.md:
 ///   c_l^2 = a [1 + (b/2)(lambda_across^2 - 1)],   c_s^2 = a (1 - b/2).
 struct WaveSpeeds {
   double longitudinal = 0, shear = 0;
