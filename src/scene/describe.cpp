@@ -87,7 +87,7 @@ std::string describe_scene_keys(KeyFormat format) {
     for (const KeyDoc& k : s.keys)
       if (k.meaning.empty())
         throw Error("scene key '" + (s.path.empty() ? k.name : s.path + "." + k.name) +
-                    "' has no meaning in the schema (src/scene/scene.cpp); document it there");
+                    "' has no meaning in the schema (src/scene/schema.hpp); document it there");
   const std::vector<ModelDoc> models = scene_model_docs();
   const bool markdown = format == KeyFormat::Markdown;
   std::ostringstream out;

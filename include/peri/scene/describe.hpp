@@ -1,5 +1,5 @@
 // The scene's keys as documentation, from the reader's own schema: every key of every map the
-// reader accepts (src/scene/scene.cpp's key tables) with its unit, default and meaning, and the
+// reader accepts (the key tables of src/scene/schema.hpp) with its unit, default and meaning, and the
 // material models of the law registry's catalog (scene/models.hpp). `peridrive --describe-keys
 // [--format markdown|text]` prints it; the Markdown form is the generated part of
 // docs/user/scene-reference.md, which the ctest `scene_reference` compares with it.
@@ -35,7 +35,7 @@ struct ModelDoc {
 };
 
 /// Every map of a scene, in the order of a scene file (defined beside the key tables, in
-/// src/scene/scene.cpp).
+/// src/scene/schema.cpp).
 std::vector<KeySection> scene_key_sections();
 /// The material models the reader accepts, in the catalog's order.
 std::vector<ModelDoc> scene_model_docs();
