@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "peri/core/hdf5.hpp"
 #include "peri/state/state.hpp"
 
 namespace peri {
@@ -56,13 +57,13 @@ class FrameWriter {
   /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
   /// that replaces it (false if it cannot be opened at all). Collective.
   bool salvage(const std::string& path, hid_t fapl, std::int64_t resume_step, const std::string& resolved_scene);
-  hid_t create(const std::string& path, hid_t fapl, const std::string& resolved_scene);  // with the mesh
+  H5Id create(const std::string& path, hid_t fapl, const std::string& resolved_scene);  // with the mesh
 
   std::string dir_, stem_;
   const Domain& domain_;
   State& state_;
   bool write_velocity_;
-  hid_t file_ = -1;
+  H5Id file_;
   std::vector<double> work_;
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
