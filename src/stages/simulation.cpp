@@ -14,6 +14,7 @@
 #include <type_traits>
 
 #include "peri/core/build_info.hpp"
+#include "peri/core/json.hpp"
 #include "peri/io/checkpoint.hpp"
 #include "peri/core/resources.hpp"
 #include "peri/io/restart.hpp"
@@ -25,7 +26,6 @@ namespace peri {
 namespace {
 
 constexpr int kCheckEvery = 20;  // steps between collective health/progress checks
-constexpr int kTipColumns = 4;   // crack tip tracks with their own columns in series.csv
 
 // Velocity ramp: v(t) = v_target * ramp(t); its integral P(t) gives exact prescribed displacements.
 double ramp(double t, double tr) { return tr > 0 ? std::min(t / tr, 1.0) : 1.0; }
@@ -60,30 +60,6 @@ const Events& events() {
 std::string fmt(double v) {
   std::ostringstream s;
   s << std::setprecision(6) << v;
-  return s.str();
-}
-
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char ch : text) {
-    if (ch == '"' || ch == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (static_cast<unsigned char>(ch) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned char>(ch));
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out + "\"";
-}
-
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream s;
-  s << std::setprecision(12) << v;
   return s.str();
 }
 
@@ -192,8 +168,6 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
                         : calibrate(m, nodes_.bodies[b], scene_.bodies[b].where.str() + ": bodies." + scene_.bodies[b].name));
     density_.push_back(m.density);
     intact_laws_.push_back(laws_.back().empty() ? BondLaw{} : laws_.back().intact());
-    const double limit = scene_.stability.motion_per_step * scene_.bodies[b].spacing;
-    motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
   }
   check_node_masses();
   stop_point();
@@ -227,6 +201,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     }
   }
   mark_memory("domain");
+  health_.emplace(scene_, domain_, laws_, comm_);
   bc_.assign(domain_.owned, -1);
   {
     std::vector<int> bc_natural(nodes_.size(), -1);  // later regions win where they overlap
@@ -284,15 +259,12 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       free_runs_.push_back({i, i + 1, domain_.body[i]});
   }
   {
-    // Energy of a uniform strain of 1e-10 in every body, sum m c_l^2 x 1e-20: the smallest energy
-    // the balance is judged against (a body at rest holds only round-off, ~1e-21 J).
+    // The smallest energy the balance is judged against: m c_l^2 x 1e-20 summed over the nodes.
     std::vector<double> wave2(nb);
     for (std::size_t b = 0; b < nb; ++b)
       wave2[b] = marder_[b] ? marder_[b]->a
                             : std::pow(elastic_constants(laws_[b], nodes_.bodies[b], density_[b]).c_longitudinal, 2);
-    double local = 0;
-    for (std::int32_t i = 0; i < domain_.owned; ++i) local += mass_[i] * wave2[domain_.body[i]] * 1e-20;
-    MPI_Allreduce(&local, &energy_floor_, 1, MPI_DOUBLE, MPI_SUM, comm_);
+    energy_floor_ = energy_floor(mass_, domain_.body.data(), wave2, comm_);
   }
   force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
   position_stride_ = position_plane_stride(domain_.local());
@@ -465,7 +437,18 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   summary_.derived.push_back({"ordered_bonds", double(summary_.ordered_bonds)});
   resolved_ = emit_scene(scene_, derived_lines());
   if (options_.restart) check_restart(*options_.restart);
-  setup_crack_tips();
+  tips_ = CrackTipMonitor::create(scene_, laws_, nodes_.bodies, density_,
+                                  scene_.output.series_every * *std::max_element(stage_dt_.begin(), stage_dt_.end()),
+                                  domain_, comm_);
+  if (tips_) {
+    summary_.crack_tracking = true;
+    summary_.rayleigh_wave_speed = tips_->rayleigh_wave_speed();
+    summary_.crack_speed_window = tips_->window();
+    // The tip history continues across restarts; the tips themselves are recomputed from damage.
+    add_checkpoint_extra(
+        "crack_tip_tracks", [this] { return tips_->save(); },
+        [this](const std::vector<double>* flat) { tips_->restore(flat); });
+  }
   mark_memory("setup");
   PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
@@ -486,12 +469,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
                                             scene_.output.write_velocity, resume_step);
     std::string tip_columns;
-    if (tracker_) {
-      tip_columns = "crack_tips";
-      for (int k = 0; k < kTipColumns; ++k)
-        for (const char* c : {"_x", "_y", "_speed"}) tip_columns += ",tip" + std::to_string(k) + c;
+    if (tips_) {
+      tip_columns = tips_->series_columns();
       if (rank_ == 0) {
-        const std::string path = options_.out_dir + "/tips.csv", header = "step,time,track,x,y,z,path_length,speed\n";
+        const std::string path = options_.out_dir + "/tips.csv", header = CrackTipMonitor::kCsvHeader;
         const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
         tips_csv_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
         if (!*tips_csv_) throw Error("cannot write '" + path + "'");
@@ -602,9 +583,9 @@ void Simulation::compute_forces(bool with_energy, bool intact) {
     LocalArray u(state_->displacement());
     t.strain_energy += add_long_range_forces(u.data(), with_energy);
   }
-  tally_.dissipated += t.dissipated;
-  tally_.newly_broken += t.newly_broken;
-  tally_.strain_energy = t.strain_energy;
+  ledger_.bonds.dissipated += t.dissipated;
+  ledger_.bonds.newly_broken += t.newly_broken;
+  ledger_.bonds.strain_energy = t.strain_energy;
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
 }
 
@@ -740,7 +721,8 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   std::int32_t unstable_row = -1;
   double unstable_moved2 = 0;
   auto check_motion = [&](std::int32_t i, double moved2) {
-    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0 && (unstable_row < 0 || i < unstable_row) &&
+    if (!(moved2 <= health_->motion_limit2(domain_.body[i])) && health_->unstable_node() < 0 &&
+        (unstable_row < 0 || i < unstable_row) &&
         has_intact_bond(i)) {
       unstable_row = i;
       unstable_moved2 = moved2;
@@ -782,7 +764,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
     // checked node by node.
     for (const FreeRun& r : free_runs_) {
       const double ir = inv_density_[r.begin];
-      const double v2_third = motion_limit2_[r.body] / (3 * dt * dt) * (1 - 1e-12);
+      const double v2_third = health_->motion_limit2(r.body) / (3 * dt * dt) * (1 - 1e-12);
       const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
       double* __restrict vr = v + k0;
       double* __restrict ur = u + k0;
@@ -809,10 +791,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   } else {
     for (std::int32_t i = 0; i < domain_.owned; ++i) kick_drift_node(i);
   }
-  if (unstable_row >= 0) {
-    unstable_node_ = domain_.natural[unstable_row];
-    unstable_motion_ = std::sqrt(unstable_moved2);
-  }
+  if (unstable_row >= 0) health_->note_unstable(domain_.natural[unstable_row], std::sqrt(unstable_moved2));
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
@@ -840,7 +819,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
         // minus the work of the internal force along the prescribed path (trapezoidal).
         const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
         const double fi = 0.5 * (force_[k] + prev_force_bc_[kb]) * domain_.volume[i];
-        external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
+        ledger_.external_work += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
       } else {
         kick(i, k);
       }
@@ -861,10 +840,10 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   // Friction: the force found at t + dt acts between v(t + dt/2) and v(t + 3dt/2), whose mean is
   // the velocity just computed.
   for (std::size_t k = 0; k < tools_.size(); ++k)
-    damping_work_ -= friction_work(tools_[k], tool_contact_[k], dt, v, domain_.volume.data());
+    ledger_.damping_work -= friction_work(tools_[k], tool_contact_[k], dt, v, domain_.volume.data());
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  if (damping_ > 0) damping_work_ += 0.5 * damping_ * dt * damped;
-  if (kelvin) damping_work_ += 0.5 * dt * viscous;
+  if (damping_ > 0) ledger_.damping_work += 0.5 * damping_ * dt * damped;
+  if (kelvin) ledger_.damping_work += 0.5 * dt * viscous;
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
   time_ = t1;
   ++step_;
@@ -944,7 +923,7 @@ void Simulation::add_pressure_forces(double t, bool book) {
       }
     }
     load.started = true;
-    external_work_ += work;
+    ledger_.external_work += work;
   }
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
 }
@@ -959,11 +938,11 @@ void Simulation::add_tool_forces(double t, bool book) {
     ContactTally c;
     cylinder_contact(tool, t, dt_, positions_.data(), position_stride_, v, domain_.volume.data(), inv_density_.data(), domain_.owned,
                      force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
-    tally_.strain_energy += c.energy;
+    ledger_.bonds.strain_energy += c.energy;
     // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
     if (book)
       for (int d = 0; d < 3; ++d)
-        external_work_ += 0.5 * dt_ * (tool_contact_[k].force[d] + c.force[d]) * tool.velocity[d];
+        ledger_.external_work += 0.5 * dt_ * (tool_contact_[k].force[d] + c.force[d]) * tool.velocity[d];
     tool_contact_[k] = std::move(c);
   }
   resumed_friction_.reset();
@@ -973,15 +952,8 @@ void Simulation::add_tool_forces(double t, bool book) {
 
 double Simulation::kinetic_energy() {
   settle_kick();
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  double ke = 0;
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    ke += 0.5 * mass_[i] * (v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  double total = 0;
-  MPI_Allreduce(&ke, &total, 1, MPI_DOUBLE, MPI_SUM, comm_);
-  return total;
+  const VecArrayRead v(state_->velocity());
+  return peri::kinetic_energy(v.data(), mass_, comm_);
 }
 
 EnergyRow Simulation::energies() {
@@ -1003,48 +975,30 @@ EnergyRow Simulation::energies() {
 }
 
 double Simulation::energy_balance_error(const EnergyRow& row) const {
-  return energy_balance_error(row, summary_.initial_total_energy);
-}
-
-double Simulation::energy_balance_error(const EnergyRow& row, double e0) const {
-  const double scale = std::max({std::fabs(row.kinetic) + std::fabs(row.strain) + std::fabs(row.dissipated),
-                                 std::fabs(row.external_work), std::fabs(e0), energy_floor_, 1e-300});
-  return std::fabs(row.total() - e0) / scale;
+  return peri::energy_balance_error(row, summary_.initial_total_energy, energy_floor_);
 }
 
 EnergyRow Simulation::reduce_energies(double local_strain) {
-  double local[4] = {local_strain, tally_.dissipated + damping_work_, external_work_, double(tally_.newly_broken)};
-  double global[4];
-  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, comm_);
-  EnergyRow row;
-  row.step = step_;
-  row.time = time_;
-  row.kinetic = kinetic_energy();
-  row.strain = global[0];
-  row.dissipated = global[1];
-  row.external_work = global[2];
-  row.broken_bonds = std::llround(global[3]) / 2;  // ordered bonds -> bonds
-  return row;
+  const double kinetic = kinetic_energy();
+  return peri::reduce_energies(ledger_, local_strain, kinetic, step_, time_, comm_);
 }
 
 void Simulation::write_series_row() {
-  const EnergyRow row = reduce_energies(tally_.strain_energy);
+  const EnergyRow row = reduce_energies(ledger_.bonds.strain_energy);
   // Energy growth detector (after the first row, which sets the reference).
-  const double tolerance = scene_.stability.energy_error;
-  if (tolerance > 0 && step_ > 0) {
-    const double e0 = summary_.initial_total_energy;
-    const double error = energy_balance_error(row);
-    if (!(error <= tolerance)) {
-      std::ostringstream msg;
-      msg << "energy balance error " << fmt(error) << " at step " << step_ << " (t = " << fmt(time_)
-          << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
-          << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt_)
-          << " s, stable bound " << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(-1)
-          << "), or boundary motion too violent for the resolution";
-      throw RuntimeFailure(msg.str());
+  if (step_ > 0)
+    health_->check_energy(row, energy_balance_error(row), summary_.initial_total_energy, dt_, summary_.dt_stable);
+  std::string extra;
+  if (tips_) {
+    extra = tips_->sample(row, [this] {
+      update_damage();
+      return damage_.data();
+    });
+    if (tips_csv_) {
+      *tips_csv_ << tips_->csv_rows(row);
+      tips_csv_->flush();
     }
   }
-  std::string extra = tracker_ ? track_crack_tips(row) : std::string();
   if (!tools_.empty()) {
     // Each tool's axis position and total force on the nodes (the reaction on the tool is its negative).
     std::vector<double> local(3 * tools_.size()), total(3 * tools_.size());
@@ -1066,147 +1020,11 @@ void Simulation::write_series_row() {
   summary_.final_energy = row;
 }
 
-std::array<double, 3> Simulation::reference_position(std::int64_t natural) {
-  double local[3] = {0, 0, 0}, x[3];
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    if (domain_.natural[i] == natural)
-      for (int c = 0; c < 3; ++c) local[c] = domain_.X[3 * static_cast<std::size_t>(i) + c];
-  MPI_Allreduce(local, x, 3, MPI_DOUBLE, MPI_SUM, comm_);  // one rank owns it
-  return {x[0], x[1], x[2]};
-}
-
 void Simulation::mark_memory(const char* phase) {
   const ProcessMemory m = process_memory();
   double local[2] = {m.peak, m.current}, sum[2];
   MPI_Allreduce(local, sum, 2, MPI_DOUBLE, MPI_SUM, comm_);
   summary_.memory.push_back({phase, sum[0], sum[1]});
-}
-
-void Simulation::setup_crack_tips() {
-  // Tracking runs when some membrane material breaks (crack tips are paths in a sheet; solid
-  // bodies have crack surfaces and are not tracked). Lengths from the breaking bodies
-  // (crack_tips.hpp): link 2 dx, tip separation 2 delta, window 10 delta / c_l, jumps up to
-  // 2 delta + 2 c_l x the time between samples. Seeds: the pre-cracks' midpoints.
-  double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
-  tip_bodies_.assign(laws_.size(), false);
-  for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (!laws_[b].breaks() || nodes_.bodies[b].kind != BodyKind::Membrane) continue;  // flat sheets only
-    tip_bodies_[b] = true;
-    const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
-    dx = std::max(dx, nodes_.bodies[b].spacing);
-    delta = std::max(delta, laws_[b].horizon());
-    c_l = std::min(c_l, e.c_longitudinal);
-    c_r = std::min(c_r, e.c_rayleigh);
-  }
-  if (!(delta > 0)) return;
-  CrackTipSettings s;
-  s.link_distance = 2 * dx;
-  s.tip_separation = 2 * delta;
-  const double sample = scene_.output.series_every * *std::max_element(stage_dt_.begin(), stage_dt_.end());
-  tracker_ = std::make_unique<CrackTipTracker>(s, 10 * delta / c_l, s.tip_separation + 2 * c_l * sample);
-  for (const Crack& c : scene_.cracks)
-    for (int k = 0; k < 3; ++k) tip_seeds_.push_back(0.5 * (c.from[k] + c.to[k]));
-  summary_.crack_tracking = true;
-  summary_.rayleigh_wave_speed = c_r;
-  summary_.crack_speed_window = tracker_->window();
-  // The tip history continues across restarts; the tips themselves are recomputed from damage.
-  add_checkpoint_extra(
-      "crack_tip_tracks", [this] { return tracker_->save(); },
-      [this](const std::vector<double>* flat) {
-        if (flat) tracker_->restore(*flat);
-        tips_broken_at_ = -1;
-      });
-}
-
-std::string Simulation::track_crack_tips(const EnergyRow& row) {
-  const auto t0 = std::chrono::steady_clock::now();
-  // The damage field changes only when bonds break: otherwise the last tips stand.
-  if (row.broken_bonds != tips_broken_at_) {
-    tips_broken_at_ = row.broken_bonds;
-    update_damage();
-    std::vector<std::int64_t> ids;
-    std::vector<double> X;
-    for (std::int32_t i = 0; i < domain_.owned; ++i)
-      if (tip_bodies_[domain_.body[i]] && damage_[i] >= tracker_->settings().damage_threshold) {
-        ids.push_back(domain_.natural[i]);
-        X.insert(X.end(), &domain_.X[3 * i], &domain_.X[3 * i] + 3);
-      }
-    // Every rank gathers the (few) damaged nodes, sorts them by natural id, finds the same tips.
-    const int n = static_cast<int>(ids.size());
-    std::vector<int> counts(ranks_), displs(ranks_, 0), counts3(ranks_), displs3(ranks_, 0);
-    MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
-    for (int r = 0; r < ranks_; ++r) {
-      if (r > 0) displs[r] = displs[r - 1] + counts[r - 1];
-      counts3[r] = 3 * counts[r];
-      displs3[r] = 3 * displs[r];
-    }
-    const int total = displs.back() + counts.back();
-    std::vector<std::int64_t> all_ids(total);
-    std::vector<double> all_X(3 * static_cast<std::size_t>(total));
-    MPI_Allgatherv(ids.data(), n, MPI_INT64_T, all_ids.data(), counts.data(), displs.data(), MPI_INT64_T, comm_);
-    MPI_Allgatherv(X.data(), 3 * n, MPI_DOUBLE, all_X.data(), counts3.data(), displs3.data(), MPI_DOUBLE, comm_);
-    std::vector<int> order(total);
-    for (int k = 0; k < total; ++k) order[k] = k;
-    std::sort(order.begin(), order.end(), [&](int a, int b) { return all_ids[a] < all_ids[b]; });
-    std::vector<std::int64_t> sorted_ids(total);
-    std::vector<double> sorted_X(3 * static_cast<std::size_t>(total));
-    for (int k = 0; k < total; ++k) {
-      sorted_ids[k] = all_ids[order[k]];
-      for (int c = 0; c < 3; ++c) sorted_X[3 * k + c] = all_X[3 * order[k] + c];
-    }
-    last_tips_ = find_crack_tips(sorted_ids, sorted_X, tip_seeds_, tracker_->settings());
-  }
-  tracker_->update(row.time, last_tips_);
-  // Series columns: tip count, then position and speed of tracks 0..kTipColumns-1 if sampled now.
-  std::ostringstream out;
-  out << std::setprecision(12) << last_tips_.size();
-  for (int k = 0; k < kTipColumns; ++k) {
-    const CrackTrack* t = k < static_cast<int>(tracker_->tracks().size()) ? &tracker_->tracks()[k] : nullptr;
-    if (t && t->active && t->time.back() == row.time) {
-      out << ',' << t->position.back()[0] << ',' << t->position.back()[1] << ',';
-      if (std::isfinite(t->speed.back())) out << t->speed.back();
-    } else {
-      out << ",,,";
-    }
-  }
-  if (tips_csv_) {
-    for (const CrackTrack& t : tracker_->tracks()) {
-      if (!t.active || t.time.back() != row.time) continue;
-      *tips_csv_ << row.step << ',' << row.time << ',' << t.id << ',' << t.position.back()[0] << ','
-                 << t.position.back()[1] << ',' << t.position.back()[2] << ',' << t.path_length.back() << ',';
-      if (std::isfinite(t.speed.back())) *tips_csv_ << t.speed.back();
-      *tips_csv_ << '\n';
-    }
-    tips_csv_->flush();
-  }
-  summary_.crack_tip_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return out.str();
-}
-
-void Simulation::summarize_crack_tips() {
-  summary_.max_crack_speed = tracker_->max_speed();
-  summary_.mean_crack_speed = tracker_->mean_speed();
-  std::ostringstream j;
-  j << "[";
-  for (const CrackTrack& t : tracker_->tracks()) {
-    const auto& p = t.position.back();
-    const auto& p0 = t.position.front();
-    double vmax = 0;
-    for (double v : t.speed)
-      if (std::isfinite(v)) vmax = std::max(vmax, v);
-    const auto steady = tracker_->steady_part(t);
-    j << (t.id ? "," : "") << "\n    {\"track\": " << t.id << ", \"active\": " << (t.active ? "true" : "false")
-      << ", \"position\": [" << json_number(p[0]) << ", " << json_number(p[1]) << ", " << json_number(p[2]) << "]"
-      << ", \"path_length\": " << json_number(t.path_length.back())
-      << ", \"speed\": " << json_number(t.speed.back()) << ", \"max_speed\": " << json_number(vmax)
-      << ", \"first_time\": " << json_number(t.time.front()) << ", \"last_time\": " << json_number(t.time.back())
-      << ", \"first_position\": [" << json_number(p0[0]) << ", " << json_number(p0[1]) << ", "
-      << json_number(p0[2]) << "]"
-      << ", \"steady_from\": " << json_number(steady[0]) << ", \"steady_to\": " << json_number(steady[1])
-      << ", \"steady_mean_speed\": " << json_number(steady[2] / (steady[1] - steady[0])) << "}";
-  }
-  j << (tracker_->tracks().empty() ? "]" : "\n  ]");
-  summary_.crack_tips_json = j.str();
 }
 
 void Simulation::update_energy_density() {
@@ -1253,62 +1071,16 @@ void Simulation::write_frame() {
 
 void Simulation::check_health(std::int64_t step, double time) {
   settle_kick();
-  // Collective: first non-finite node (natural id) and the broken-bond count.
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  long long bad = std::numeric_limits<long long>::max();
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    bool ok = true;
-    for (int c = 0; c < 3; ++c) ok &= std::isfinite(u[3 * i + c]) && std::isfinite(v[3 * i + c]);
-    if (!ok) bad = std::min<long long>(bad, domain_.natural[i]);
-  }
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  const long long none = std::numeric_limits<long long>::max();
-  long long local[2] = {bad, unstable_node_ >= 0 ? unstable_node_ : none}, global[2];
-  MPI_Allreduce(local, global, 2, MPI_LONG_LONG, MPI_MIN, comm_);
-  const long long bad_global = global[0];
-  if (global[1] != none && bad_global == none) {
-    const long long node = global[1];
-    double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
-    MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
-    const std::array<double, 3> X = reference_position(node);
-    int body = -1, body_any = -1;  // of the node, from the rank that owns it
-    for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
-      if (domain_.natural[i] == node) body = domain_.body[i];
-    MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
-    std::ostringstream msg;
-    msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
-        << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
-        << ") moved " << fmt(moved_max) << " m in one step, more than stability.motion_per_step = "
-        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
-    if (dt_ > summary_.dt_stable)
-      msg << "the time step " << fmt(dt_) << " s is above the stable bound " << fmt(summary_.dt_stable)
-          << " s (accepted because of allow_unstable_dt)";
-    else
-      msg << "the time step " << fmt(dt_) << " s is too large for the current state (stable bound "
-          << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(body_any)
-          << "), or a boundary velocity too violent for the resolution";
-    msg << ". Positions and velocities are still finite; nothing non-finite was written";
-    throw RuntimeFailure(msg.str());
-  }
-  if (bad_global != none) {
-    const std::array<double, 3> X = reference_position(bad_global);
-    std::ostringstream msg;
-    msg << "non-finite displacement or velocity at step " << step << " (t = " << fmt(time)
-        << " s), node " << bad_global << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1])
-        << ", " << fmt(X[2]) << "); likely cause: time step " << fmt(dt_) << " s above the stable bound "
-        << fmt(summary_.dt_stable) << " s, or a boundary velocity too violent for the resolution";
-    throw RuntimeFailure(msg.str());
+  {
+    const VecArrayRead u(state_->displacement()), v(state_->velocity());
+    health_->check(step, time, u.data(), v.data(), dt_, summary_.dt_stable);
   }
   if (options_.quiet) return;
   const auto now = std::chrono::steady_clock::now();
   int print = rank_ == 0 && std::chrono::duration<double>(now - last_progress_).count() >= scene_.output.progress_seconds;
   MPI_Bcast(&print, 1, MPI_INT, 0, comm_);
   if (!print) return;
-  long long broken_local = tally_.newly_broken, broken = 0;
+  long long broken_local = ledger_.bonds.newly_broken, broken = 0;
   MPI_Reduce(&broken_local, &broken, 1, MPI_LONG_LONG, MPI_SUM, 0, comm_);
   if (rank_ == 0) {
     const double elapsed = std::chrono::duration<double>(now - loop_start_).count();
@@ -1467,8 +1239,8 @@ void Simulation::run_release(const Stage& stage) {
     }
   }
   flags_changed();
-  tally_.dissipated += energy;
-  tally_.newly_broken += released;
+  ledger_.bonds.dissipated += energy;
+  ledger_.bonds.newly_broken += released;
   long long global = 0, local = released;
   MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, comm_);
   summary_.precrack_bonds += global / 2;
@@ -1528,7 +1300,7 @@ void Simulation::run_quasistatic(const Stage& stage) {
     std::fflush(stdout);
   }
   QuasiStaticStats stats = loader->run(*this, constrained, increment, !options_.quiet);
-  external_work_ += stats.external_work;
+  ledger_.external_work += stats.external_work;
   // Equilibrium: at rest.
   PERI_PETSC(VecSet(state_->velocity(), 0.0));
   const EnergyRow after = energies();
@@ -1600,9 +1372,9 @@ void Simulation::add_tangent(Mat J) {
 }
 
 std::int64_t Simulation::break_bonds() {
-  const std::int64_t before = tally_.newly_broken;
+  const std::int64_t before = ledger_.bonds.newly_broken;
   compute_forces(false);
-  long long local = tally_.newly_broken - before, global = 0;
+  long long local = ledger_.bonds.newly_broken - before, global = 0;
   MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, comm_);
   return global / 2;
 }
@@ -1616,8 +1388,14 @@ void Simulation::finish() {
   summary_.simulated_time = time_;
   summary_.frames = frames_ ? frames_->frames() : 0;
   summary_.energy_balance_error = energy_balance_error(summary_.final_energy);
-  summary_.run_energy_balance_error = energy_balance_error(summary_.final_energy, summary_.run_initial_total_energy);
-  if (tracker_) summarize_crack_tips();
+  summary_.run_energy_balance_error =
+      peri::energy_balance_error(summary_.final_energy, summary_.run_initial_total_energy, energy_floor_);
+  if (tips_) {
+    summary_.max_crack_speed = tips_->max_speed();
+    summary_.mean_crack_speed = tips_->mean_speed();
+    summary_.crack_tips_json = tips_->tracks_json();
+    summary_.crack_tip_seconds = tips_->seconds();
+  }
   // Timings of the slowest rank: the job's figures.
   double times[4] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
                      summary_.crack_tip_seconds}, tmax[4];
@@ -1692,24 +1470,8 @@ std::vector<std::pair<std::int64_t, std::int64_t>> Simulation::broken_bonds() {
 }
 
 std::array<double, 6> Simulation::momentum() {
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  std::array<double, 6> p{}, total{};
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const double m = mass_[i];
-    const double x[3] = {domain_.X[3 * i] + u[3 * i], domain_.X[3 * i + 1] + u[3 * i + 1], domain_.X[3 * i + 2] + u[3 * i + 2]};
-    const double* w = &v[3 * i];
-    for (int c = 0; c < 3; ++c) p[c] += m * w[c];
-    p[3] += m * (x[1] * w[2] - x[2] * w[1]);
-    p[4] += m * (x[2] * w[0] - x[0] * w[2]);
-    p[5] += m * (x[0] * w[1] - x[1] * w[0]);
-  }
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  MPI_Allreduce(p.data(), total.data(), 6, MPI_DOUBLE, MPI_SUM, comm_);
-  return total;
+  const VecArrayRead u(state_->displacement()), v(state_->velocity());
+  return peri::momentum(domain_.X.data(), u.data(), v.data(), mass_, comm_);
 }
 
 }  // namespace peri
@@ -1760,10 +1522,10 @@ Checkpoint Simulation::make_checkpoint() {
   c.newly_broken.resize(root ? ranks_ : 0);
   c.owner_hash.resize(root ? ranks_ : 0);
   const std::uint64_t own = ownership_hash(domain_);
-  MPI_Gather(&tally_.dissipated, 1, MPI_DOUBLE, c.dissipated.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&damping_work_, 1, MPI_DOUBLE, c.damping_work.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&external_work_, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&tally_.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm_);
+  MPI_Gather(&ledger_.bonds.dissipated, 1, MPI_DOUBLE, c.dissipated.data(), 1, MPI_DOUBLE, 0, comm_);
+  MPI_Gather(&ledger_.damping_work, 1, MPI_DOUBLE, c.damping_work.data(), 1, MPI_DOUBLE, 0, comm_);
+  MPI_Gather(&ledger_.external_work, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm_);
+  MPI_Gather(&ledger_.bonds.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm_);
   MPI_Gather(&own, 1, MPI_UINT64_T, c.owner_hash.data(), 1, MPI_UINT64_T, 0, comm_);
   const double* u;
   const double* v;
@@ -1906,20 +1668,20 @@ void Simulation::restore(const Checkpoint& c) {
   int same = c.ranks == ranks_ && c.owner_hash[rank_] == ownership_hash(domain_), all_same = 0;
   MPI_Allreduce(&same, &all_same, 1, MPI_INT, MPI_MIN, comm_);
   if (all_same) {
-    tally_.dissipated = c.dissipated[rank_];
-    damping_work_ = c.damping_work[rank_];
-    external_work_ = c.external_work[rank_];
-    tally_.newly_broken = c.newly_broken[rank_];
+    ledger_.bonds.dissipated = c.dissipated[rank_];
+    ledger_.damping_work = c.damping_work[rank_];
+    ledger_.external_work = c.external_work[rank_];
+    ledger_.bonds.newly_broken = c.newly_broken[rank_];
   } else {
-    tally_ = BondTally{};
-    damping_work_ = 0;
-    external_work_ = 0;
+    ledger_.bonds = BondTally{};
+    ledger_.damping_work = 0;
+    ledger_.external_work = 0;
     if (rank_ == 0)
       for (int r = 0; r < c.ranks; ++r) {
-        tally_.dissipated += c.dissipated[r];
-        damping_work_ += c.damping_work[r];
-        external_work_ += c.external_work[r];
-        tally_.newly_broken += c.newly_broken[r];
+        ledger_.bonds.dissipated += c.dissipated[r];
+        ledger_.damping_work += c.damping_work[r];
+        ledger_.external_work += c.external_work[r];
+        ledger_.bonds.newly_broken += c.newly_broken[r];
       }
   }
   restore_summary_extras(c);
@@ -1938,7 +1700,7 @@ void Simulation::restore(const Checkpoint& c) {
   compute_forces(true);
   add_tool_forces(time_, false);
   add_pressure_forces(time_, false);
-  summary_.final_energy = reduce_energies(tally_.strain_energy);
+  summary_.final_energy = reduce_energies(ledger_.bonds.strain_energy);
   while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
   last_checkpoint_step_ = step_;
   if (rank_ == 0 && !options_.quiet) {

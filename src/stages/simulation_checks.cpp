@@ -341,30 +341,4 @@ void Simulation::check_initial_state() {
   }
 }
 
-std::string Simulation::law_note(int body) const {
-  // Each law once, with the bodies that use it (in the order first met).
-  std::vector<std::pair<std::string, std::vector<std::string>>> laws;  // law name, bodies
-  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
-    if (body >= 0 && static_cast<int>(b) != body) continue;
-    const std::string name = marder_[b] ? "marder" : laws_[b].name();
-    auto it = std::find_if(laws.begin(), laws.end(), [&](const auto& l) { return l.first == name; });
-    if (it == laws.end()) it = laws.insert(laws.end(), {name, {}});
-    it->second.push_back("'" + scene_.bodies[b].name + "'");
-  }
-  std::string out;
-  for (const auto& [law, names] : laws) {
-    std::string bodies = names[0];
-    for (std::size_t k = 1; k < names.size(); ++k) bodies += ", " + names[k];
-    if (!out.empty()) out += "; ";
-    if (law == "marder")
-      out += "the marder lattice law (body " + bodies +
-             ") has its bound from the two- and three-body stiffness over the bond lengths it allows; a lattice "
-             "driven beyond them (bonds compressed past the cutoff u_s, dashpots on fast motion) needs a smaller "
-             "safety_factor";
-    else
-      out += "the " + law + " law (body " + bodies + ") " + find_law(law)->stability_note;
-  }
-  return out;
-}
-
 }  // namespace peri

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "peri/core/hdf5.hpp"
+#include "peri/diagnostics/energies.hpp"
 #include "peri/state/state.hpp"
 
 namespace peri {
@@ -21,15 +22,6 @@ void make_output_dir(const std::string& dir, MPI_Comm comm);
 
 /// Write a small text file atomically (temporary name, then rename). Rank 0 only.
 void write_text_file(const std::string& path, const std::string& text);
-
-/// Series row: what the CSV holds at one step.
-struct EnergyRow {
-  std::int64_t step = 0;
-  double time = 0;
-  double kinetic = 0, strain = 0, external_work = 0, dissipated = 0;
-  std::int64_t broken_bonds = 0;  ///< bonds (not ordered pairs) broken so far
-  double total() const { return kinetic + strain + dissipated - external_work; }
-};
 
 class FrameWriter {
  public:

@@ -14,7 +14,9 @@
 #include <vector>
 
 #include "peri/loads/contact.hpp"
-#include "peri/diagnostics/crack_tips.hpp"
+#include "peri/diagnostics/crack_tip_monitor.hpp"
+#include "peri/diagnostics/energies.hpp"
+#include "peri/diagnostics/health.hpp"
 #include "peri/kernels/forces.hpp"
 #include "peri/models/long_range.hpp"
 #include "peri/models/marder.hpp"
@@ -123,7 +125,7 @@ class Simulation : public EquilibriumModel {
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
   /// Crack tip histories (identical on every rank); nullptr when no material breaks.
-  const CrackTipTracker* crack_tips() const { return tracker_.get(); }
+  const CrackTipTracker* crack_tips() const { return tips_ ? &tips_->tracker() : nullptr; }
 
   /// The run's state as a checkpoint, complete on rank 0 (collective).
   Checkpoint make_checkpoint();
@@ -164,7 +166,6 @@ class Simulation : public EquilibriumModel {
   void check_stable_step(const std::vector<double>& dt_body);  // per body, collective
   void check_stage(std::size_t stage, double dt) const;  // step count, damping
   void check_initial_state();                     // initial conditions, boundaries, tools (collective)
-  std::string law_note(int body) const;           // how body's law behaves near the stable bound (-1: all)
   void write_frame();
   void write_series_row();
   /// Adds the tools' contact forces at time `t` to force_ (after compute_forces: positions_ of
@@ -196,10 +197,9 @@ class Simulation : public EquilibriumModel {
   double kinetic_energy();
   void update_damage();                          // damage_ of every owned node from the flags
   BondView bond_view();                          // bond arrays of this rank (u filled by caller)
-  /// |total - initial total| over the run's energy scale (at least energy_floor_); from the
-  /// total `e0` (the explicit part's initial total when not given).
+  /// |total - initial total| over the run's energy scale (at least energy_floor_), from the
+  /// explicit part's initial total.
   double energy_balance_error(const EnergyRow& row) const;
-  double energy_balance_error(const EnergyRow& row, double e0) const;
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
   void check_restart(const Checkpoint& c);        // InputError unless c continues this scene
   void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
@@ -212,11 +212,7 @@ class Simulation : public EquilibriumModel {
   void lattice_reduce();
   double lattice_energy(const BondView& view);
   void lattice_derived(std::size_t body);
-  void setup_crack_tips();                       // tracker settings from the scene (constructor)
   void mark_memory(const char* phase);           // summary_.memory row (collective)
-  std::array<double, 3> reference_position(std::int64_t natural);  // of any node (collective)
-  std::string track_crack_tips(const EnergyRow& row);  // one tip sample; returns the series columns
-  void summarize_crack_tips();                   // summary fields from the tracker (finish)
 
   Scene scene_;
   MPI_Comm comm_;
@@ -256,10 +252,6 @@ class Simulation : public EquilibriumModel {
   };
   std::vector<ActiveBoundary> active_bc_;  // per boundary, in the current stage
   double damping_ = 0;                     // current stage's viscous damping [1/s]
-  double damping_work_ = 0;                // this rank's energy removed by damping [J]
-  std::vector<double> motion_limit2_;      // per body: (motion_per_step * spacing)^2
-  long long unstable_node_ = -1;           // natural id of a node that moved too far in one step
-  double unstable_motion_ = 0;
   bool stage_started_ = false;
   std::vector<double> density_;         // per body
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
@@ -288,8 +280,8 @@ class Simulation : public EquilibriumModel {
   std::vector<double> stage_dt_;
   std::int64_t total_steps_ = 0, step_ = 0;
   double time_ = 0, dt_ = 0;
-  BondTally tally_;            // this rank's cumulative dissipation / breaks; strain of last call
-  double external_work_ = 0;   // this rank's share
+  EnergyLedger ledger_;        // this rank's energy accounts (diagnostics/energies.hpp)
+  std::optional<HealthCheck> health_;  // after the domain
   std::vector<std::int64_t> frame_steps_;
   std::size_t next_frame_ = 0;
   std::size_t stage_ = 0;           // current stage
@@ -299,11 +291,7 @@ class Simulation : public EquilibriumModel {
   double output_seconds_at_loop_start_ = 0;  ///< output time spent before the loop (the first frame)
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;
-  std::unique_ptr<CrackTipTracker> tracker_;
-  std::vector<bool> tip_bodies_;  // per body: its crack tips are tracked (breaking membranes)
-  std::vector<double> tip_seeds_;          // pre-crack midpoints
-  std::int64_t tips_broken_at_ = -1;       // broken-bond count of the last tip sample
-  std::vector<CrackTip> last_tips_;
+  std::unique_ptr<CrackTipMonitor> tips_;    // nullptr: no material breaks
   std::unique_ptr<std::ofstream> tips_csv_;  // rank 0
   std::string resolved_;
   RunSummary summary_;
