@@ -27,13 +27,6 @@ namespace {
 
 constexpr int kCheckEvery = 20;  // steps between collective health/progress checks
 
-// Velocity ramp: v(t) = v_target * ramp(t); its integral P(t) gives exact prescribed displacements.
-double ramp(double t, double tr) { return tr > 0 ? std::min(t / tr, 1.0) : 1.0; }
-double ramp_integral(double t, double tr) {
-  if (tr <= 0) return t;
-  return t < tr ? 0.5 * t * t / tr : t - 0.5 * tr;
-}
-
 struct Events {
   PetscLogEvent setup, nodes, partition, bonds, plans, forces, halo, update, output;
   Events() {
@@ -202,15 +195,15 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
   mark_memory("domain");
   health_.emplace(scene_, domain_, laws_, comm_);
-  bc_.assign(domain_.owned, -1);
   {
-    std::vector<int> bc_natural(nodes_.size(), -1);  // later regions win where they overlap
+    std::vector<int> bc_natural(nodes_.size(), -1), bc(domain_.owned);  // later regions win where they overlap
     for (std::size_t b = 0; b < bc_nodes.size(); ++b)
       for (std::int64_t i : bc_nodes[b]) bc_natural[i] = static_cast<int>(b);
-    for (std::int32_t i = 0; i < domain_.owned; ++i) bc_[i] = bc_natural[domain_.natural[i]];
+    for (std::int32_t i = 0; i < domain_.owned; ++i) bc[i] = bc_natural[domain_.natural[i]];
+    boundaries_.emplace(scene_, std::move(bc));
   }
   if (scene_.long_range) long_range_setup();
-  pressure_setup();
+  auto pressure = std::make_unique<Pressure>(scene_, nodes_.bodies, domain_);
   // The global node arrays and maps end here: every rank keeps its own nodes (owned and ghosts)
   // in domain_, which is all that the stages, output, checkpoints and crack tips read.
   decltype(bc_nodes)().swap(bc_nodes);
@@ -248,10 +241,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // The Verlet update's streams: runs of owned nodes of one body without a boundary (at most 64
   // nodes, so that a run failing the quick motion check is rechecked cheaply), and the others.
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    if (bc_[i] >= 0) {
-      bc_rows_.push_back(i);
-      continue;
-    }
+    if (boundaries_->of(i) >= 0) continue;
     FreeRun* last = free_runs_.empty() ? nullptr : &free_runs_.back();
     if (last && last->end == i && last->body == domain_.body[i] && i - last->begin < 64)
       last->end = i + 1;
@@ -270,15 +260,6 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   position_stride_ = position_plane_stride(domain_.local());
   positions_.assign(3 * static_cast<std::size_t>(position_stride_), 0.0);
   damage_.assign(domain_.owned, 0.0);
-  // Boundary nodes' per-step figures (increment, old velocity, force at the start of the step)
-  // are kept for those nodes only: slot s of bc_slot_ for node i, 3 components each.
-  bc_slot_.assign(domain_.owned, -1);
-  std::int32_t bc_count = 0;
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    if (bc_[i] >= 0) bc_slot_[i] = bc_count++;
-  du_bc_.assign(3 * static_cast<std::size_t>(bc_count), 0.0);
-  v_old_bc_ = du_bc_;
-  prev_force_bc_ = du_bc_;
 
   // Stable time step (collective, per body, then the smallest) and each stage's step.
   BondView view = bond_view();
@@ -293,59 +274,19 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
   }
   check_stable_step(dt_body);
-  // Tools: a penalty stiffness per unit mass of `stiffness` times the stiffest node's bond
-  // stiffness (2 rho / dt_bound^2 at the bound), so that the bound with contact is at least
-  // dt_bound / sqrt(1 + stiffness).
-  double stiffest_tool = 0;
-  bool friction = false;
-  for (const Tool& t : scene_.tools) {
-    RigidTool c;
-    c.sphere = t.sphere;
-    c.radius = t.radius;
-    for (int d = 0; d < 3; ++d) {  // a cylinder's z components are 0
-      c.center[d] = t.center[d];
-      c.velocity[d] = t.velocity[d];
-    }
-    c.friction = t.friction;
-    c.stiffness = t.stiffness * 2.0 / (summary_.dt_stable * summary_.dt_stable);
-    tools_.push_back(c);
-    stiffest_tool = std::max(stiffest_tool, t.stiffness);
-    friction |= t.friction > 0;
-  }
-  tool_contact_.assign(tools_.size(), ContactTally{});
-  if (friction)  // (natural id, tool, force) of every friction force, gathered to rank 0
+  // Tools, whose penalty stiffness lowers the stable step, then the pressure: the loads in the
+  // order their forces add up.
+  auto tools = std::make_unique<Tools>(scene_, summary_.dt_stable, *state_, domain_, inv_density_, comm_);
+  summary_.dt_stable = tools->stable_step(summary_.dt_stable);
+  if (tools->friction())  // (natural id, tool, force) of every friction force, gathered to rank 0
     add_checkpoint_extra(
-        "tool_friction",
-        [this] {
-          std::vector<double> local;
-          for (std::size_t k = 0; k < tool_contact_.size(); ++k)
-            for (const NodeFriction& nf : tool_contact_[k].friction)
-              local.insert(local.end(), {double(domain_.natural[nf.node]), double(k), nf.force[0], nf.force[1],
-                                         nf.force[2]});
-          const int n = static_cast<int>(local.size());
-          std::vector<int> counts(ranks_), displs(ranks_, 0);
-          MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm_);
-          for (int r = 1; r < ranks_; ++r) displs[r] = displs[r - 1] + counts[r - 1];
-          std::vector<double> all(rank_ == 0 ? displs.back() + counts.back() : 0);
-          MPI_Gatherv(local.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm_);
-          return all;
-        },
-        [this](const std::vector<double>* flat) {
-          if (!flat) return;
-          std::unordered_map<std::int64_t, std::int32_t> local;
-          for (std::int32_t i = 0; i < domain_.owned; ++i) local.emplace(domain_.natural[i], i);
-          resumed_friction_.emplace(tools_.size());
-          for (std::size_t e = 0; e + 5 <= flat->size(); e += 5) {
-            const auto it = local.find(static_cast<std::int64_t>((*flat)[e]));
-            const auto k = static_cast<std::size_t>((*flat)[e + 1]);
-            if (it == local.end() || k >= tools_.size()) continue;
-            (*resumed_friction_)[k].push_back({it->second, {(*flat)[e + 2], (*flat)[e + 3], (*flat)[e + 4]}});
-          }
-          for (auto& list : *resumed_friction_)
-            std::sort(list.begin(), list.end(), [](const NodeFriction& a, const NodeFriction& b) { return a.node < b.node; });
-        });
-  summary_.dt_stable /= std::sqrt(1.0 + stiffest_tool);
-  for (const Boundary& b : scene_.boundaries) active_bc_.push_back({b.velocity, b.ramp_time});
+        "tool_friction", [this] { return tools_->save_friction(); },
+        [this](const std::vector<double>* flat) { tools_->restore_friction(flat); });
+  if (!tools->empty()) {
+    tools_ = tools.get();
+    loads_.push_back(std::move(tools));
+  }
+  if (!pressure->empty()) loads_.push_back(std::move(pressure));
   for (std::size_t s = 0; s < scene_.stages.size(); ++s) {
     const Stage& st = scene_.stages[s];
     if (st.kind != StageKind::Dynamic) {  // no time passes
@@ -479,9 +420,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
         *tips_csv_ << kept << std::setprecision(12);
       }
     }
-    for (const Tool& t : scene_.tools)  // a sphere's centre moves in z too
-      for (const char* c : {"_x", "_y", t.sphere ? "_z" : nullptr, "_force_x", "_force_y", "_force_z"})
-        if (c) tip_columns += (tip_columns.empty() ? "" : ",") + t.name + c;
+    if (tools_) tip_columns += (tip_columns.empty() ? "" : ",") + tools_->series_columns();
     series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -530,12 +469,8 @@ void Simulation::apply_initial_conditions() {
       if (ic.seed_wavelength_y > 0) s *= std::sin(2 * pi * domain_.X[3 * i + 1] / ic.seed_wavelength_y);
       u[3 * i + 2] += s;
     }
-    if (bc_[i] >= 0) {
-      const Boundary& b = scene_.boundaries[bc_[i]];
-      for (int c = 0; c < 3; ++c)
-        if (b.components[c]) v[3 * i + c] = b.velocity[c] * ramp(0.0, b.ramp_time);
-    }
   }
+  boundaries_->apply_initial(v);
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
 }
@@ -696,8 +631,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   double* v;
   PERI_PETSC(VecGetArray(state_->displacement(), &u));
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  std::vector<double>& du_bc = du_bc_;  // read only where written below (prescribed components)
-  std::vector<double>& v_old_bc = v_old_bc_;
+  Boundaries& boundaries = *boundaries_;
   double damped = 0;  // energy removed by damping: alpha m v.v dt, trapezoidal in time
   // Energy removed by lattice dashpots: the kick by the dashpot force F_d over dt/2 changes the
   // kinetic energy by F_d . (v_before + v_after)/2 dt/2 (exactly the share of F_d in
@@ -729,7 +663,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
     }
   };
   auto kick_drift_node = [&](std::int32_t i) {
-    const int bi = bc_[i];
+    const int bi = boundaries.of(i);
     const std::size_t k0 = 3 * static_cast<std::size_t>(i);
     double moved2 = 0;
     if (bi < 0) {  // most nodes: no per-component boundary test
@@ -737,15 +671,8 @@ void Simulation::step(bool with_energy, bool defer_kick) {
     }
     for (int c = 0; c < 3 && bi >= 0; ++c) {
       const std::size_t k = k0 + c;
-      if (scene_.boundaries[bi].components[c]) {
-        const ActiveBoundary& b = active_bc_[bi];
-        const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
-        v_old_bc[kb] = v[k];
-        du_bc[kb] = b.velocity[c] * (ramp_integral(t1, b.ramp_time) - ramp_integral(t0, b.ramp_time));
-        prev_force_bc_[kb] = force_[k];
-        u[k] += du_bc[kb];
-        v[k] = b.velocity[c] * ramp(t1, b.ramp_time);
-        moved2 += du_bc[kb] * du_bc[kb];
+      if (boundaries.prescribes(bi, c)) {
+        moved2 += boundaries.drift(i, bi, c, k, t0, t1, u, v, force_.data());
       } else {
         moved2 += kick_drift(i, k);
       }
@@ -787,7 +714,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
           check_motion(i, dt * dt * v[k] * v[k] + dt * dt * v[k + 1] * v[k + 1] + dt * dt * v[k + 2] * v[k + 2]);
         }
     }
-    for (std::int32_t i : bc_rows_) kick_drift_node(i);
+    for (std::int32_t i : boundaries.rows()) kick_drift_node(i);
   } else {
     for (std::int32_t i = 0; i < domain_.owned; ++i) kick_drift_node(i);
   }
@@ -798,8 +725,7 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
   // "Kelvin dissipation").
   compute_forces(with_energy);
-  add_tool_forces(t1, true);
-  add_pressure_forces(t1, true);
+  add_load_forces(t1, true);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
   PERI_PETSC(VecGetArray(state_->velocity(), &v));
   // Free component k of node i: second half kick.
@@ -810,16 +736,12 @@ void Simulation::step(bool with_energy, bool defer_kick) {
     if (damped_run) damped += mass_[i] * v[k] * v[k];
   };
   auto kick_node = [&](std::int32_t i) {
-    const int bi = bc_[i];
+    const int bi = boundaries.of(i);
     const std::size_t k0 = 3 * static_cast<std::size_t>(i);
     for (int c = 0; c < 3; ++c) {
       const std::size_t k = k0 + c;
-      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
-        // Work of the reaction that enforces the motion: change of the node's kinetic energy
-        // minus the work of the internal force along the prescribed path (trapezoidal).
-        const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
-        const double fi = 0.5 * (force_[k] + prev_force_bc_[kb]) * domain_.volume[i];
-        ledger_.external_work += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
+      if (bi >= 0 && boundaries.prescribes(bi, c)) {
+        ledger_.external_work += boundaries.reaction_work(i, c, k, v, force_.data(), domain_.volume[i], mass_[i]);
       } else {
         kick(i, k);
       }
@@ -828,19 +750,17 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   if (streaming) {
     // The free nodes' second half kick: now, or (defer_kick, no tool reading v below) in the next
     // step's first pass, which then reads and writes velocity once for both kicks.
-    if (defer_kick && tools_.empty()) {
+    if (defer_kick && !tools_) {
       kick_pending_ = true;
     } else {
       second_kick_free(v, dt);
     }
-    for (std::int32_t i : bc_rows_) kick_node(i);
+    for (std::int32_t i : boundaries.rows()) kick_node(i);
   } else {
     for (std::int32_t i = 0; i < domain_.owned; ++i) kick_node(i);
   }
-  // Friction: the force found at t + dt acts between v(t + dt/2) and v(t + 3dt/2), whose mean is
-  // the velocity just computed.
-  for (std::size_t k = 0; k < tools_.size(); ++k)
-    ledger_.damping_work -= friction_work(tools_[k], tool_contact_[k], dt, v, domain_.volume.data());
+  // The loads' work that needs the velocity just computed (friction).
+  for (const auto& load : loads_) load->end_step(dt, v, ledger_);
   PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
   if (damping_ > 0) ledger_.damping_work += 0.5 * damping_ * dt * damped;
   if (kelvin) ledger_.damping_work += 0.5 * dt * viscous;
@@ -849,104 +769,11 @@ void Simulation::step(bool with_energy, bool defer_kick) {
   ++step_;
 }
 
-void Simulation::pressure_setup() {
-  std::unordered_map<std::int64_t, std::int32_t> local;  // natural -> local, nodes of loaded spheres
-  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
-    const Body& body = scene_.bodies[b];
-    if (body.kind != BodyKind::Shell || !(body.pressure > 0)) continue;
-    if (local.empty())
-      for (std::int32_t l = 0; l < domain_.local(); ++l) local.emplace(domain_.natural[l], l);
-    const BodyGeometry& g = nodes_.bodies[b];
-    std::vector<std::vector<std::pair<std::int32_t, std::int32_t>>> corners(domain_.owned);
-    for (const auto& t : g.triangles)
-      for (int k = 0; k < 3; ++k) {
-        const auto i = local.find(t[k]);
-        if (i == local.end() || i->second >= domain_.owned) continue;
-        const auto a = local.find(t[(k + 1) % 3]), c = local.find(t[(k + 2) % 3]);
-        if (a == local.end() || c == local.end()) continue;  // a corner beyond the halo: no share
-        corners[i->second].push_back({a->second, c->second});
-      }
-    PressureLoad load;
-    load.pressure = body.pressure;
-    load.ramp = body.pressure_ramp_time;
-    auto bond_to = [&](std::int32_t i, std::int32_t j) -> std::int64_t {
-      for (std::int64_t q = domain_.bonds.offsets[i]; q < domain_.bonds.offsets[i + 1]; ++q)
-        if (domain_.bonds.neighbor[q] == j) return q;
-      return -1;
-    };
-    for (std::int32_t i = 0; i < domain_.owned; ++i) {
-      if (corners[i].empty()) continue;
-      load.node.push_back(i);
-      for (const auto& [a, c] : corners[i]) {
-        load.others.push_back({a, c});
-        load.bonds.push_back({bond_to(i, a), bond_to(i, c)});
-      }
-      load.begin.push_back(static_cast<std::int64_t>(load.others.size()));
-    }
-    load.force_prev.assign(3 * load.node.size(), 0.0);
-    load.x_prev.assign(3 * load.node.size(), 0.0);
-    pressure_.push_back(std::move(load));
-  }
-}
-
-void Simulation::add_pressure_forces(double t, bool book) {
-  if (pressure_.empty()) return;
+void Simulation::add_load_forces(double t, bool book) {
+  if (loads_.empty()) return;
   PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  const double* x = positions_.data();
-  const std::int64_t s = position_stride_;
-  auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
-  auto intact = [&](std::int64_t q) { return q < 0 || !(domain_.bonds.broken[q] & 1); };
-  for (PressureLoad& load : pressure_) {
-    const double p = load.pressure * (load.ramp > 0 ? std::min(t / load.ramp, 1.0) : 1.0);
-    double work = 0;
-    for (std::size_t m = 0; m < load.node.size(); ++m) {
-      const std::int32_t i = load.node[m];
-      double f[3] = {0, 0, 0};
-      for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
-        if (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1])) continue;
-        const std::int32_t a = load.others[e][0], c = load.others[e][1];
-        const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
-        const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
-        // p times the triangle's area vector (1/2 e1 x e2), a third to this corner.
-        const double k = p / 6.0;
-        f[0] += k * (e1[1] * e2[2] - e1[2] * e2[1]);
-        f[1] += k * (e1[2] * e2[0] - e1[0] * e2[2]);
-        f[2] += k * (e1[0] * e2[1] - e1[1] * e2[0]);
-      }
-      const double inv_volume = 1.0 / domain_.volume[i];
-      for (int c = 0; c < 3; ++c) {
-        force_[3 * static_cast<std::size_t>(i) + c] += f[c] * inv_volume;
-        const double xc = pos(i, c);
-        if (book && load.started) work += 0.5 * (load.force_prev[3 * m + c] + f[c]) * (xc - load.x_prev[3 * m + c]);
-        load.force_prev[3 * m + c] = f[c];
-        load.x_prev[3 * m + c] = xc;
-      }
-    }
-    load.started = true;
-    ledger_.external_work += work;
-  }
-  PetscLogEventEnd(events().update, 0, 0, 0, 0);
-}
-
-void Simulation::add_tool_forces(double t, bool book) {
-  if (tools_.empty()) return;
-  PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  for (std::size_t k = 0; k < tools_.size(); ++k) {
-    const RigidCylinder& tool = tools_[k];
-    ContactTally c;
-    cylinder_contact(tool, t, dt_, positions_.data(), position_stride_, v, domain_.volume.data(), inv_density_.data(), domain_.owned,
-                     force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
-    ledger_.bonds.strain_energy += c.energy;
-    // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
-    if (book)
-      for (int d = 0; d < 3; ++d)
-        ledger_.external_work += 0.5 * dt_ * (tool_contact_[k].force[d] + c.force[d]) * tool.velocity[d];
-    tool_contact_[k] = std::move(c);
-  }
-  resumed_friction_.reset();
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
+  const LoadTarget target{positions_.data(), position_stride_, force_.data(), dt_};
+  for (const auto& load : loads_) load->add_forces(t, target, book, ledger_);
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
 }
 
@@ -999,23 +826,7 @@ void Simulation::write_series_row() {
       tips_csv_->flush();
     }
   }
-  if (!tools_.empty()) {
-    // Each tool's axis position and total force on the nodes (the reaction on the tool is its negative).
-    std::vector<double> local(3 * tools_.size()), total(3 * tools_.size());
-    for (std::size_t k = 0; k < tools_.size(); ++k)
-      for (int d = 0; d < 3; ++d) local[3 * k + d] = tool_contact_[k].force[d];
-    MPI_Allreduce(local.data(), total.data(), static_cast<int>(total.size()), MPI_DOUBLE, MPI_SUM, comm_);
-    std::ostringstream values;
-    values << std::setprecision(12);
-    for (std::size_t k = 0; k < tools_.size(); ++k) {
-      const RigidCylinder& t = tools_[k];
-      values << (extra.empty() && k == 0 ? "" : ",") << t.center[0] + t.velocity[0] * time_ << ','
-             << t.center[1] + t.velocity[1] * time_ << ',';
-      if (t.sphere) values << t.center[2] + t.velocity[2] * time_ << ',';
-      values << total[3 * k] << ',' << total[3 * k + 1] << ',' << total[3 * k + 2];
-    }
-    extra += values.str();
-  }
+  if (tools_) extra += tools_->series_values(time_, !extra.empty());
   if (series_) series_->write(row, extra);
   summary_.final_energy = row;
 }
@@ -1112,8 +923,7 @@ void Simulation::begin() {
     ++stage_;
   }
   compute_forces(true);
-  add_tool_forces(time_, false);
-  add_pressure_forces(time_, false);
+  add_load_forces(time_, false);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
   // Without a leading preload the whole run's balance starts here too (run_quasistatic sets it
@@ -1149,11 +959,7 @@ void Simulation::start_stage() {
   }
   dt_ = stage_dt_[stage_];
   damping_ = st.damping;
-  for (std::size_t b = 0; b < scene_.boundaries.size(); ++b)
-    active_bc_[b] = {scene_.boundaries[b].velocity, scene_.boundaries[b].ramp_time};
-  for (const BoundaryValue& bv : st.boundary_velocity)
-    for (std::size_t b = 0; b < scene_.boundaries.size(); ++b)
-      if (scene_.boundaries[b].name == bv.boundary) active_bc_[b] = {bv.value, 0.0};
+  boundaries_->start_stage(st);
 }
 
 std::int64_t Simulation::advance(std::int64_t n) {
@@ -1165,8 +971,7 @@ std::int64_t Simulation::advance(std::int64_t n) {
       start_stage();
       ++stage_;
       compute_forces(true);
-      add_tool_forces(time_, false);
-      add_pressure_forces(time_, false);
+      add_load_forces(time_, false);
       write_series_row();
       if (scene_.stages[stage_ - 1].kind == StageKind::QuasiStatic)
         summary_.initial_total_energy = summary_.final_energy.total();
@@ -1277,21 +1082,11 @@ void Simulation::run_quasistatic(const Stage& stage) {
   const std::size_t n = 3 * static_cast<std::size_t>(domain_.owned);
   std::vector<std::uint8_t> constrained(n, 0);
   std::vector<double> increment(n, 0.0);
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const int bi = bc_[i];
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
-        constrained[k] = 1;
-        for (const BoundaryValue& bv : stage.displacements)
-          if (bv.boundary == scene_.boundaries[bi].name) increment[k] = bv.value[c];
-        for (int d = 0; d < 3; ++d)
-          increment[k] += stage.displacement_gradient[3 * c + d] * (domain_.X[3 * i + d] - scene_.initial.center[d]);
-      }
-      // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
-      if (c == 2 && stage.in_plane && scene_.bodies[domain_.body[i]].kind == BodyKind::Membrane) constrained[k] = 1;
-    }
-  }
+  boundaries_->quasistatic_targets(stage, domain_, constrained, increment);
+  // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
+  if (stage.in_plane)
+    for (std::int32_t i = 0; i < domain_.owned; ++i)
+      if (scene_.bodies[domain_.body[i]].kind == BodyKind::Membrane) constrained[3 * static_cast<std::size_t>(i) + 2] = 1;
   const EnergyRow before = energies();
   if (step_ == 0 && summary_.quasistatic.empty()) summary_.run_initial_total_energy = before.total();
   std::unique_ptr<QuasiStaticLoader> loader = make_loader(stage);
@@ -1698,8 +1493,7 @@ void Simulation::restore(const Checkpoint& c) {
   // Forces at the restored positions, computed as the uninterrupted run did at the end of this
   // step; every bond past its critical stretch there is already broken, so none breaks now.
   compute_forces(true);
-  add_tool_forces(time_, false);
-  add_pressure_forces(time_, false);
+  add_load_forces(time_, false);
   summary_.final_energy = reduce_energies(ledger_.bonds.strain_energy);
   while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
   last_checkpoint_step_ = step_;

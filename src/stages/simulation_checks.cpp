@@ -234,8 +234,9 @@ void Simulation::check_initial_state() {
         for (int c = 0; c < 3; ++c) affine[a] += ic.displacement_gradient[3 * a + c] * (X[c] - ic.center[c]);
       u_max[b] = std::max(u_max[b], std::hypot(ui[0], ui[1], ui[2]));
       affine_max[b] = std::max(affine_max[b], std::hypot(affine[0], affine[1], affine[2]));
-      if (bc_[i] < 0) v_max[b] = std::max(v_max[b], std::hypot(vi[0], vi[1], vi[2]));
-      else neg_spacing[bc_[i]] = std::max(neg_spacing[bc_[i]], -nodes_.bodies[b].spacing);
+      const int bc = boundaries_->of(i);
+      if (bc < 0) v_max[b] = std::max(v_max[b], std::hypot(vi[0], vi[1], vi[2]));
+      else neg_spacing[bc] = std::max(neg_spacing[bc], -nodes_.bodies[b].spacing);
       for (int c = 0; c < 3; ++c) {
         lo_neg[3 * b + c] = std::max(lo_neg[3 * b + c], -X[c]);
         hi[3 * b + c] = std::max(hi[3 * b + c], X[c]);

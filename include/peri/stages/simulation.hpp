@@ -13,7 +13,9 @@
 #include <utility>
 #include <vector>
 
-#include "peri/loads/contact.hpp"
+#include "peri/loads/boundaries.hpp"
+#include "peri/loads/pressure.hpp"
+#include "peri/loads/tools.hpp"
 #include "peri/diagnostics/crack_tip_monitor.hpp"
 #include "peri/diagnostics/energies.hpp"
 #include "peri/diagnostics/health.hpp"
@@ -168,27 +170,9 @@ class Simulation : public EquilibriumModel {
   void check_initial_state();                     // initial conditions, boundaries, tools (collective)
   void write_frame();
   void write_series_row();
-  /// Adds the tools' contact forces at time `t` to force_ (after compute_forces: positions_ of
-  /// the owned nodes current, the velocity Vec at the half step when `book`); with `book`, the
-  /// tools' work (trapezoidal in time) goes to external_work_. The contact's penalty energy is
-  /// added to tally_.strain_energy. Friction is booked by step() after the second half kick.
-  void add_tool_forces(double t, bool book);
-  /// Internal pressure of sphere bodies (example 7.2), a follower load: each geodesic triangle
-  /// carries p(t) times its current area vector, a third to each corner whose bonds to the
-  /// other two corners are intact (a torn triangle holds no gas). book: its work since the last
-  /// call (trapezoidal: the mean of the two forces times the displacement) goes to external_work_.
-  void add_pressure_forces(double t, bool book);
-  struct PressureLoad {
-    double pressure = 0, ramp = 0;
-    std::vector<std::int32_t> node;                 // owned loaded nodes (local)
-    std::vector<std::int64_t> begin{0};             // per loaded node, into the lists below
-    std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
-    std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to them (-1: none)
-    std::vector<double> force_prev, x_prev;         // per loaded node: last force [N], position
-    bool started = false;
-  };
-  std::vector<PressureLoad> pressure_;
-  void pressure_setup();
+  /// Adds the loads' forces at time `t` to force_ (after compute_forces: positions_ of the owned
+  /// nodes current); with `book`, their work goes to the ledger.
+  void add_load_forces(double t, bool book);
   std::vector<double> energy_density_;  // owned: strain energy per unit volume (frames)
   // Whether energy_density_ holds the bond energies of the current state: written by the bond
   // loop in energy calls (compute_forces), so a frame needs no separate pass over the bonds.
@@ -246,11 +230,6 @@ class Simulation : public EquilibriumModel {
   bool has_kelvin_ = false;                 // some lattice body has bond dashpots (velocity halo)
   std::vector<double> viscous_;             // dashpot force densities, 3 * local (owned rows written)
   std::vector<BondLaw> intact_laws_;    // same, never breaking (quasi-static residuals, tangents)
-  struct ActiveBoundary {
-    Vec3 velocity{0, 0, 0};
-    double ramp_time = 0;
-  };
-  std::vector<ActiveBoundary> active_bc_;  // per boundary, in the current stage
   double damping_ = 0;                     // current stage's viscous damping [1/s]
   bool stage_started_ = false;
   std::vector<double> density_;         // per body
@@ -261,20 +240,15 @@ class Simulation : public EquilibriumModel {
   double energy_floor_ = 0;                 // smallest energy scale of the balance (sum m c_l^2 1e-20)
   std::vector<double> positions_;           // current positions X + u, planes x, y, z of local() each (bond kernel input)
   std::int64_t position_stride_ = 0;        // doubles from one plane of positions_ to the next (position_plane_stride)
-  std::vector<RigidCylinder> tools_;        // scene tools, stiffness per unit mass
-  std::vector<ContactTally> tool_contact_;  // per tool: this rank's contact at time_ (forces, friction)
-  std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
-  std::vector<int> bc_;                     // per owned node: boundary index or -1
+  std::optional<Boundaries> boundaries_;    // prescribed motion (after the domain)
+  std::vector<std::unique_ptr<Load>> loads_;  // forces beside the bonds', in the order they add up
+  Tools* tools_ = nullptr;                  // the tools among them (series columns), if any
   struct FreeRun {                          // owned nodes [begin, end) of one body, no boundary
     std::int32_t begin, end;
     int body;
   };
   std::vector<FreeRun> free_runs_;          // Verlet update streams (step(), without damping or dashpots)
-  std::vector<std::int32_t> bc_rows_;       // owned nodes with a boundary
   bool kick_pending_ = false;               // free runs' second half kick deferred (step(); dt_, force_)
-  std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
-  std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step
-                                                          // increment, old velocity, old force
   std::vector<double> damage_;
   std::vector<std::int64_t> stage_steps_;
   std::vector<double> stage_dt_;
