@@ -58,83 +58,6 @@ std::string fmt(double v) {
 
 }  // namespace
 
-std::string RunSummary::to_json() const {
-  // Rates over the steps this process timed (a resumed run: those after its checkpoint).
-  const double updates = step_seconds > 0 ? double(ordered_bonds) * double(steps_timed) / step_seconds : 0;
-  double qs_error = 0;
-  for (double e : quasistatic_work_error) qs_error = std::max(qs_error, e);
-  std::ostringstream j;
-  j << "{\n"
-    << "  \"peridrive_version\": " << json_string(version()) << ",\n"
-    << "  \"git_revision\": " << json_string(git_revision()) << ",\n"
-    << "  \"nodes\": " << nodes << ",\n"
-    << "  \"bonds\": " << ordered_bonds / 2 << ",\n"
-    << "  \"ordered_bonds\": " << ordered_bonds << ",\n"
-    << "  \"ranks\": " << ranks << ",\n"
-    << "  \"bond_kernel\": " << json_string(bond_kernel_isa()) << ",\n"
-    << "  \"dt\": " << json_number(dt) << ",\n"
-    << "  \"dt_stable\": " << json_number(dt_stable) << ",\n"
-    << "  \"steps\": " << steps << ",\n"
-    << "  \"steps_timed\": " << steps_timed << ",\n"
-    << "  \"simulated_time\": " << json_number(simulated_time) << ",\n"
-    << "  \"frames\": " << frames << ",\n"
-    << "  \"wall_seconds\": " << json_number(wall_seconds) << ",\n"
-    << "  \"setup_seconds\": " << json_number(setup_seconds) << ",\n"
-    << "  \"step_seconds\": " << json_number(step_seconds) << ",\n"
-    << "  \"output_seconds\": " << json_number(output_seconds) << ",\n"
-    << "  \"bond_updates_per_second\": " << json_number(updates) << ",\n"
-    << "  \"bond_updates_per_second_per_rank\": " << json_number(updates / ranks) << ",\n"
-    << "  \"bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
-    << "  \"partition_seconds\": " << json_number(partition_seconds) << ",\n"
-    << "  \"edge_cut\": " << edge_cut << ",\n"
-    << "  \"partition_method\": " << json_string(partition_method) << ",\n"
-    << "  \"partition_balance\": " << json_number(partition_balance) << ",\n"
-    << "  \"memory\": [";
-  for (std::size_t k = 0; k < memory.size(); ++k)
-    j << (k ? ", " : "") << "{\"phase\": " << json_string(memory[k].phase) << ", \"peak_bytes\": "
-      << json_number(memory[k].peak) << ", \"rss_bytes\": " << json_number(memory[k].current)
-      << ", \"peak_bytes_per_bond\": " << json_number(ordered_bonds > 0 ? memory[k].peak / double(ordered_bonds) : 0)
-      << "}";
-  j << "],\n"
-    << "  \"precrack_bonds\": " << precrack_bonds << ",\n"
-    << "  \"broken_bonds\": " << final_energy.broken_bonds << ",\n"
-    << "  \"final\": {\"kinetic_energy\": " << json_number(final_energy.kinetic)
-    << ", \"strain_energy\": " << json_number(final_energy.strain)
-    << ", \"external_work\": " << json_number(final_energy.external_work)
-    << ", \"dissipated_energy\": " << json_number(final_energy.dissipated)
-    << ", \"total_energy\": " << json_number(final_energy.total()) << "},\n"
-    << "  \"initial_total_energy\": " << json_number(initial_total_energy) << ",\n"
-    << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n"
-    << "  \"run_initial_total_energy\": " << json_number(run_initial_total_energy) << ",\n"
-    << "  \"run_energy_balance_error\": " << json_number(run_energy_balance_error) << ",\n"
-    << "  \"quasistatic_work_error\": " << json_number(qs_error) << ",\n";
-  if (crack_tracking)
-    j << "  \"crack_tips\": " << crack_tips_json << ",\n"
-      << "  \"max_crack_speed\": " << json_number(max_crack_speed) << ",\n"
-      << "  \"mean_crack_speed\": " << json_number(mean_crack_speed) << ",\n"
-      << "  \"crack_speed_window\": " << json_number(crack_speed_window) << ",\n"
-      << "  \"crack_tip_seconds\": " << json_number(crack_tip_seconds) << ",\n"
-      << "  \"rayleigh_wave_speed\": " << json_number(rayleigh_wave_speed) << ",\n"
-      << "  \"max_crack_speed_over_rayleigh\": " << json_number(max_crack_speed / rayleigh_wave_speed) << ",\n"
-      << "  \"mean_crack_speed_over_rayleigh\": " << json_number(mean_crack_speed / rayleigh_wave_speed) << ",\n";
-  j << "  \"quasistatic\": [";
-  for (std::size_t k = 0; k < quasistatic.size(); ++k) {
-    const QuasiStaticStats& q = quasistatic[k].second;
-    j << (k ? ", " : "") << "{\"stage\": " << json_string(quasistatic[k].first) << ", \"increments\": " << q.increments.size()
-      << ", \"cutbacks\": " << q.cutbacks << ", \"newton_iterations\": " << q.newton_iterations
-      << ", \"linear_iterations\": " << q.linear_iterations << ", \"broken_bonds\": " << q.broken
-      << ", \"seconds\": " << json_number(q.seconds) << ", \"support_work\": " << json_number(q.external_work)
-      << ", \"work_error\": " << json_number(k < quasistatic_work_error.size() ? quasistatic_work_error[k] : NAN)
-      << "}";
-  }
-  j << "],\n"
-    << "  \"derived\": {";
-  for (std::size_t k = 0; k < derived.size(); ++k)
-    j << (k ? ", " : "") << json_string(derived[k].first) << ": " << json_number(derived[k].second);
-  j << "}\n}\n";
-  return j.str();
-}
-
 Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     : scene_(scene), comm_(comm), options_(std::move(options)) {
   start_ = std::chrono::steady_clock::now();
@@ -311,13 +234,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     total_steps_ += stage_steps_.back();
   }
   check_initial_state();
-  // More frames than steps would repeat steps: one per step at most (the same frames are written).
-  const int frames = static_cast<int>(std::clamp<std::int64_t>(scene_.output.frames, 1, total_steps_ + 1));
-  if (frames < scene_.output.frames && rank_ == 0)
-    std::fprintf(stderr, "peridrive: warning: output.frames: %d frames asked for a run of %lld steps; writing %d, "
-                 "one per step\n", scene_.output.frames, static_cast<long long>(total_steps_), frames);
-  for (int k = 0; k < frames; ++k)
-    frame_steps_.push_back(frames == 1 ? total_steps_ : std::llround(double(k) * total_steps_ / (frames - 1)));
+  output_.emplace(scene_.output, total_steps_, rank_);
 
   // Summary figures known now.
   std::int64_t local_bonds = domain_.bonds.size(), local_pre = domain_.initially_broken;
@@ -377,7 +294,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   }
   summary_.derived.push_back({"ordered_bonds", double(summary_.ordered_bonds)});
   resolved_ = emit_scene(scene_, derived_lines());
-  if (options_.restart) check_restart(*options_.restart);
+  if (options_.restart)
+    check_restart(*options_.restart, scene_, domain_.global_nodes, summary_.ordered_bonds, stage_steps_);
   tips_ = CrackTipMonitor::create(scene_, laws_, nodes_.bodies, density_,
                                   scene_.output.series_every * *std::max_element(stage_dt_.begin(), stage_dt_.end()),
                                   domain_, comm_);
@@ -396,32 +314,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
   // Output last: nothing is written unless every check above passed.
   stop_point();
   if (!options_.out_dir.empty()) {
-    make_output_dir(options_.out_dir, comm_);
-    const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
-    if (rank_ == 0) {
-      // A previous run's completion marker must not vouch for this one until it finishes; a fresh
-      // run leaves nothing of an earlier one (checkpoints, tips, temporaries) to be mixed with its own.
-      const std::vector<std::string> stale =
-          resume_step >= 0 ? std::vector<std::string>{"summary.json", "FAILED"} : run_file_names();
-      for (const std::string& name : stale) std::remove((options_.out_dir + "/" + name).c_str());
-      write_text_file(options_.out_dir + "/scene.resolved.yaml", resolved_);
-    }
-    MPI_Barrier(comm_);
-    frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
-                                            scene_.output.write_velocity, resume_step);
-    std::string tip_columns;
-    if (tips_) {
-      tip_columns = tips_->series_columns();
-      if (rank_ == 0) {
-        const std::string path = options_.out_dir + "/tips.csv", header = CrackTipMonitor::kCsvHeader;
-        const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
-        tips_csv_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
-        if (!*tips_csv_) throw Error("cannot write '" + path + "'");
-        *tips_csv_ << kept << std::setprecision(12);
-      }
-    }
-    if (tools_) tip_columns += (tip_columns.empty() ? "" : ",") + tools_->series_columns();
-    series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
+    std::string columns = tips_ ? tips_->series_columns() : std::string();
+    if (tools_) columns += (columns.empty() ? "" : ",") + tools_->series_columns();
+    output_->open(options_.out_dir, domain_, *state_, resolved_, scene_.output.write_velocity,
+                  options_.restart ? options_.restart->step : -1, columns, tips_ != nullptr, comm_);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
@@ -434,16 +330,7 @@ BondView Simulation::bond_view() {
                   positions_.data(), position_stride_, domain_.bonds.row_broken.data()};
 }
 
-std::vector<std::string> Simulation::derived_lines() const {
-  std::vector<std::string> lines;
-  lines.push_back(std::string("derived by peridrive ") + version() + " (" + git_revision() + "):");
-  for (const auto& [k, v] : summary_.derived) {
-    std::ostringstream s;
-    s << k << " = " << std::setprecision(10) << v;
-    lines.push_back(s.str());
-  }
-  return lines;
-}
+std::vector<std::string> Simulation::derived_lines() const { return peri::derived_lines(summary_); }
 
 void Simulation::apply_initial_conditions() {
   const Initial& ic = scene_.initial;
@@ -821,22 +708,14 @@ void Simulation::write_series_row() {
       update_damage();
       return damage_.data();
     });
-    if (tips_csv_) {
-      *tips_csv_ << tips_->csv_rows(row);
-      tips_csv_->flush();
-    }
+    output_->write_tips(tips_->csv_rows(row));
   }
   if (tools_) extra += tools_->series_values(time_, !extra.empty());
-  if (series_) series_->write(row, extra);
+  output_->write_series(row, extra);
   summary_.final_energy = row;
 }
 
-void Simulation::mark_memory(const char* phase) {
-  const ProcessMemory m = process_memory();
-  double local[2] = {m.peak, m.current}, sum[2];
-  MPI_Allreduce(local, sum, 2, MPI_DOUBLE, MPI_SUM, comm_);
-  summary_.memory.push_back({phase, sum[0], sum[1]});
-}
+void Simulation::mark_memory(const char* phase) { peri::mark_memory(summary_, phase, comm_); }
 
 void Simulation::update_energy_density() {
   // Bonds (lattice bodies: 0, their energy is kept per bond direction, not per node), then the
@@ -873,7 +752,7 @@ void Simulation::write_frame() {
   const double* v;
   PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
   PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  frames_->write(step_, time_, u, v, damage_.data(), energy_density_.data());
+  output_->write_frame(step_, time_, u, v, damage_.data(), energy_density_.data());
   PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
   PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
   summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -907,11 +786,11 @@ void Simulation::check_health(std::int64_t step, double time) {
 void Simulation::run() {
   begin();
   advance(total_steps_);
-  if (!stopped_) finish();
+  if (!cadence_.stopped()) finish();
 }
 
 void Simulation::begin() {
-  last_checkpoint_ = std::chrono::steady_clock::now();
+  cadence_.start(options_.restart ? options_.restart->step : -1);
   if (options_.restart) {
     restore(*options_.restart);
     return;
@@ -929,10 +808,7 @@ void Simulation::begin() {
   // Without a leading preload the whole run's balance starts here too (run_quasistatic sets it
   // before the first preload's work).
   if (summary_.quasistatic.empty()) summary_.run_initial_total_energy = summary_.initial_total_energy;
-  if (frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) {
-    write_frame();
-    while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) ++next_frame_;
-  }
+  if (output_->frame_due(0)) write_frame();
   if (rank_ == 0 && !options_.quiet) {
     std::printf("[peridrive] %lld nodes, %lld bonds, %d rank%s; dt = %.4g s (stable bound %.4g s), %lld steps; bond kernel %s\n",
                 static_cast<long long>(summary_.nodes), static_cast<long long>(summary_.ordered_bonds / 2),
@@ -964,7 +840,7 @@ void Simulation::start_stage() {
 
 std::int64_t Simulation::advance(std::int64_t n) {
   std::int64_t taken = 0;
-  while (stage_ < scene_.stages.size() && !stopped_) {
+  while (stage_ < scene_.stages.size() && !cadence_.stopped()) {
     if (scene_.stages[stage_].kind != StageKind::Dynamic) {
       // A later stage that takes no time: run it, and restart the energy balance after a
       // quasi-static one (it removes kinetic energy by construction).
@@ -990,20 +866,17 @@ std::int64_t Simulation::advance(std::int64_t n) {
     if (taken >= n) break;
     const bool series = (step_ + 1) % scene_.output.series_every == 0 || step_ + 1 == total_steps_;
     // A frame's step is an energy call too: the bond loop then writes the energy density.
-    const bool frame_next = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_ + 1;
+    const bool frame_next = output_->frame_due(step_ + 1);
     step(series || frame_next, true);
     ++stage_step_;
     ++taken;
-    const bool frame = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_;
+    const bool frame = output_->frame_due(step_);
     // Nothing is written before the state is checked: no non-finite value reaches a file.
     // (Each reader of the velocity applies a deferred kick first: settle_kick().)
     if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
     if (series) write_series_row();
-    if (frame) {
-      write_frame();
-      while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
-    }
-    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
+    if (frame) write_frame();
+    if (cadence_.due(step_, step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
   }
   settle_kick();  // v(t) whole when the call returns
   return taken;
@@ -1181,7 +1054,7 @@ void Simulation::finish() {
   summary_.steps_timed = step_ - loop_start_step_;
   summary_.wall_seconds = std::chrono::duration<double>(t_end - start_).count();
   summary_.simulated_time = time_;
-  summary_.frames = frames_ ? frames_->frames() : 0;
+  summary_.frames = output_->frames();
   summary_.energy_balance_error = energy_balance_error(summary_.final_energy);
   summary_.run_energy_balance_error =
       peri::energy_balance_error(summary_.final_energy, summary_.run_initial_total_energy, energy_floor_);
@@ -1200,8 +1073,7 @@ void Simulation::finish() {
   summary_.output_seconds = tmax[1];
   summary_.wall_seconds = tmax[2];
   mark_memory("end");
-  if (!options_.out_dir.empty() && rank_ == 0)
-    write_text_file(options_.out_dir + "/summary.json", summary_.to_json());
+  output_->write_summary(summary_.to_json());
 }
 
 std::vector<double> Simulation::gather_natural(const double* owned, int bs) {
@@ -1278,80 +1150,12 @@ namespace peri {
 
 void Simulation::add_checkpoint_extra(std::string name, std::function<std::vector<double>()> save,
                                       std::function<void(const std::vector<double>*)> restore) {
-  extras_.push_back({std::move(name), std::move(save), std::move(restore)});
-}
-
-bool Simulation::checkpoint_due(bool poll) {
-  const Output& o = scene_.output;
-  bool due = o.checkpoint_every_steps > 0 && step_ % o.checkpoint_every_steps == 0;
-  if (poll) {
-    // One collective verdict: a signal on any rank stops all; rank 0's clock decides the cadence.
-    const double since = std::chrono::duration<double>(std::chrono::steady_clock::now() - last_checkpoint_).count();
-    int local[2] = {stop_signal() != 0, rank_ == 0 && o.checkpoint_every_seconds > 0 && since >= o.checkpoint_every_seconds};
-    int global[2];
-    MPI_Allreduce(local, global, 2, MPI_INT, MPI_MAX, comm_);
-    stopped_ = global[0] != 0;
-    due = due || global[0] || global[1];
-  }
-  return due && !options_.out_dir.empty() && step_ != last_checkpoint_step_;
+  extras_.add(std::move(name), std::move(save), std::move(restore));
 }
 
 Checkpoint Simulation::make_checkpoint() {
-  Checkpoint c;
-  c.peridrive_version = version();
-  c.git_revision = git_revision();
-  c.scene = emit_scene(scene_);
-  c.scene_hash = fnv1a64(c.scene.data(), c.scene.size());
-  c.nodes = domain_.global_nodes;
-  c.ordered_bonds = summary_.ordered_bonds;
-  c.step = step_;
-  c.time = time_;
-  c.stage = static_cast<std::int64_t>(stage_);
-  c.stage_step = stage_step_;
-  c.initial_total_energy = summary_.initial_total_energy;
-  c.ranks = ranks_;
-  const bool root = rank_ == 0;
-  c.dissipated.resize(root ? ranks_ : 0);
-  c.damping_work.resize(root ? ranks_ : 0);
-  c.external_work.resize(root ? ranks_ : 0);
-  c.newly_broken.resize(root ? ranks_ : 0);
-  c.owner_hash.resize(root ? ranks_ : 0);
-  const std::uint64_t own = ownership_hash(domain_);
-  MPI_Gather(&ledger_.bonds.dissipated, 1, MPI_DOUBLE, c.dissipated.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&ledger_.damping_work, 1, MPI_DOUBLE, c.damping_work.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&ledger_.external_work, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&ledger_.bonds.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm_);
-  MPI_Gather(&own, 1, MPI_UINT64_T, c.owner_hash.data(), 1, MPI_UINT64_T, 0, comm_);
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  c.displacement = gather_natural_to_root(*state_, domain_, u, 3, comm_);
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  c.velocity = gather_natural_to_root(*state_, domain_, v, 3, comm_);
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  c.broken = gather_broken_to_root(domain_, comm_);
-  for (const Extra& e : extras_) {
-    std::vector<double> values = e.save();
-    if (root) c.extras[e.name] = std::move(values);
-  }
-  // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
-  // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
-  c.extras["summary.precrack_bonds"] = {double(summary_.precrack_bonds)};
-  c.extras["summary.run_initial_total_energy"] = {summary_.run_initial_total_energy};
-  for (std::size_t k = 0; k < summary_.quasistatic.size(); ++k) {
-    const auto& [name, q] = summary_.quasistatic[k];
-    double stage = -1;
-    for (std::size_t s = 0; s < scene_.stages.size(); ++s)
-      if (scene_.stages[s].name == name) stage = double(s);
-    std::vector<double> v = {stage, double(q.cutbacks), double(q.newton_iterations), double(q.linear_iterations),
-                             double(q.broken), q.external_work, q.seconds, summary_.quasistatic_work_error[k]};
-    for (const LoadIncrement& inc : q.increments)
-      v.insert(v.end(), {inc.load_factor, double(inc.newton_iterations), double(inc.linear_iterations),
-                         double(inc.break_passes), double(inc.broken), inc.residual});
-    c.extras["summary.quasistatic." + std::to_string(k)] = std::move(v);
-  }
-  return c;
+  return peri::make_checkpoint(scene_, domain_, *state_, ledger_, {step_, time_, stage_, stage_step_}, summary_, extras_,
+                               comm_);
 }
 
 void Simulation::write_checkpoint() {
@@ -1359,144 +1163,28 @@ void Simulation::write_checkpoint() {
   PetscLogEventBegin(events().output, 0, 0, 0, 0);
   const auto t0 = std::chrono::steady_clock::now();
   store_checkpoint(checkpoint_path(), make_checkpoint(), comm_);
-  last_checkpoint_step_ = step_;
-  last_checkpoint_ = std::chrono::steady_clock::now();
-  summary_.output_seconds += std::chrono::duration<double>(last_checkpoint_ - t0).count();
+  cadence_.written(step_);
+  summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   PetscLogEventEnd(events().output, 0, 0, 0, 0);
 }
 
-void Simulation::check_restart(const Checkpoint& c) {
-  const std::string what = "checkpoint (step " + std::to_string(c.step) + ")";
-  // The physics must be the checkpoint's: only progress and checkpoint cadence may differ.
-  Scene stored = parse_scene(c.scene, "checkpoint scene");
-  Scene mine = scene_;
-  mine.output.progress_seconds = stored.output.progress_seconds;
-  mine.output.checkpoint_every_steps = stored.output.checkpoint_every_steps;
-  mine.output.checkpoint_every_seconds = stored.output.checkpoint_every_seconds;
-  const std::string a = emit_scene(stored), b = emit_scene(mine);
-  if (a != b) {
-    std::istringstream sa(a), sb(b);
-    std::string la, lb;
-    int line = 0;
-    while (true) {
-      ++line;
-      const bool ga = static_cast<bool>(std::getline(sa, la)), gb = static_cast<bool>(std::getline(sb, lb));
-      if (!ga || !gb || la != lb) break;
-    }
-    throw InputError(what + " was written by a different scene: resolved scene line " + std::to_string(line) +
-                     " is '" + la + "' in the checkpoint and '" + lb +
-                     "' here (only output.progress_seconds and output.checkpoint_every_* may change on resume)");
-  }
-  if (c.nodes != domain_.global_nodes || c.ordered_bonds != summary_.ordered_bonds)
-    throw InputError(what + " holds " + std::to_string(c.nodes) + " nodes and " + std::to_string(c.ordered_bonds) +
-                     " ordered bonds; this scene has " + std::to_string(domain_.global_nodes) + " and " +
-                     std::to_string(summary_.ordered_bonds));
-  std::int64_t before = 0;
-  const bool stage_ok = c.stage >= 0 && static_cast<std::size_t>(c.stage) < stage_steps_.size() &&
-                        c.stage_step <= stage_steps_[c.stage];
-  if (stage_ok)
-    for (std::int64_t s = 0; s < c.stage; ++s) before += stage_steps_[s];
-  if (!stage_ok || before + c.stage_step != c.step || scene_.stages[c.stage].kind != StageKind::Dynamic)
-    throw InputError(what + ": stage " + std::to_string(c.stage) + " step " + std::to_string(c.stage_step) +
-                     " does not fit this scene's stages");
-}
-
-void Simulation::restore_summary_extras(const Checkpoint& c) {
-  // Written by make_checkpoint; absent extras leave the figures as the constructor set them.
-  if (const auto it = c.extras.find("summary.precrack_bonds"); it != c.extras.end() && it->second.size() == 1)
-    summary_.precrack_bonds = std::llround(it->second[0]);
-  // (Checkpoints without it: the explicit part's start, as before quasi-static stages were counted.)
-  summary_.run_initial_total_energy = c.initial_total_energy;
-  if (const auto it = c.extras.find("summary.run_initial_total_energy"); it != c.extras.end() && it->second.size() == 1)
-    summary_.run_initial_total_energy = it->second[0];
-  for (std::size_t k = 0;; ++k) {
-    const auto it = c.extras.find("summary.quasistatic." + std::to_string(k));
-    if (it == c.extras.end()) break;
-    const std::vector<double>& v = it->second;
-    if (v.size() < 8 || (v.size() - 8) % 6 != 0 || !(v[0] >= 0 && v[0] < double(scene_.stages.size()))) break;
-    QuasiStaticStats q;
-    q.cutbacks = static_cast<int>(v[1]);
-    q.newton_iterations = static_cast<long>(v[2]);
-    q.linear_iterations = static_cast<long>(v[3]);
-    q.broken = static_cast<std::int64_t>(v[4]);
-    q.external_work = v[5];
-    q.seconds = v[6];
-    for (std::size_t p = 8; p < v.size(); p += 6) {
-      LoadIncrement inc;
-      inc.load_factor = v[p];
-      inc.newton_iterations = static_cast<int>(v[p + 1]);
-      inc.linear_iterations = static_cast<int>(v[p + 2]);
-      inc.break_passes = static_cast<int>(v[p + 3]);
-      inc.broken = static_cast<std::int64_t>(v[p + 4]);
-      inc.residual = v[p + 5];
-      q.increments.push_back(inc);
-    }
-    summary_.quasistatic.push_back({scene_.stages[static_cast<std::size_t>(v[0])].name, q});
-    summary_.quasistatic_work_error.push_back(v[7]);
-  }
-}
-
 void Simulation::restore(const Checkpoint& c) {
-  double* u;
-  double* v;
-  PERI_PETSC(VecGetArray(state_->displacement(), &u));
-  PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  for (std::int32_t l = 0; l < domain_.owned; ++l) {
-    const std::size_t n = 3 * static_cast<std::size_t>(domain_.natural[l]);
-    for (int k = 0; k < 3; ++k) {
-      u[3 * l + k] = c.displacement[n + k];
-      v[3 * l + k] = c.velocity[n + k];
-    }
-  }
-  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
-
-  long long found = apply_broken_pairs(domain_, c.broken), found_all = 0;
+  restore_state(c, domain_, *state_, ledger_, comm_);
   flags_changed();
-  MPI_Allreduce(&found, &found_all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
-  if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
-    throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +
-                     " broken bonds, but only " + std::to_string(found_all / 2) + " are bonds of this scene");
-
-  // Tallies: per rank when the ownership is the checkpoint's (sums continue bit for bit), else
-  // their totals on rank 0.
-  int same = c.ranks == ranks_ && c.owner_hash[rank_] == ownership_hash(domain_), all_same = 0;
-  MPI_Allreduce(&same, &all_same, 1, MPI_INT, MPI_MIN, comm_);
-  if (all_same) {
-    ledger_.bonds.dissipated = c.dissipated[rank_];
-    ledger_.damping_work = c.damping_work[rank_];
-    ledger_.external_work = c.external_work[rank_];
-    ledger_.bonds.newly_broken = c.newly_broken[rank_];
-  } else {
-    ledger_.bonds = BondTally{};
-    ledger_.damping_work = 0;
-    ledger_.external_work = 0;
-    if (rank_ == 0)
-      for (int r = 0; r < c.ranks; ++r) {
-        ledger_.bonds.dissipated += c.dissipated[r];
-        ledger_.damping_work += c.damping_work[r];
-        ledger_.external_work += c.external_work[r];
-        ledger_.bonds.newly_broken += c.newly_broken[r];
-      }
-  }
-  restore_summary_extras(c);
+  restore_summary(c, scene_, summary_);
   step_ = c.step;
   time_ = c.time;
   stage_ = static_cast<std::size_t>(c.stage);
   stage_step_ = c.stage_step;
   summary_.initial_total_energy = c.initial_total_energy;
-  for (const Extra& e : extras_) {
-    const auto it = c.extras.find(e.name);
-    e.restore(it == c.extras.end() ? nullptr : &it->second);
-  }
+  extras_.restore(c);
 
   // Forces at the restored positions, computed as the uninterrupted run did at the end of this
   // step; every bond past its critical stretch there is already broken, so none breaks now.
   compute_forces(true);
   add_load_forces(time_, false);
   summary_.final_energy = reduce_energies(ledger_.bonds.strain_energy);
-  while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
-  last_checkpoint_step_ = step_;
+  output_->skip_frames_through(step_);
   if (rank_ == 0 && !options_.quiet) {
     std::printf("[peridrive] resumed at step %lld/%lld (t = %.6g s) from a checkpoint written on %d rank%s\n",
                 static_cast<long long>(step_), static_cast<long long>(total_steps_), time_, c.ranks,

@@ -23,6 +23,9 @@
 #include "peri/models/long_range.hpp"
 #include "peri/models/marder.hpp"
 #include "peri/io/output.hpp"
+#include "peri/io/run_checkpoint.hpp"
+#include "peri/io/run_output.hpp"
+#include "peri/io/summary.hpp"
 #include "peri/stages/quasistatic.hpp"
 #include "peri/state/state.hpp"
 
@@ -36,48 +39,6 @@ struct RunOptions {
   /// Continue from this checkpoint: begin() restores it instead of applying initial conditions,
   /// and the outputs in out_dir are continued (frames and series rows after it are dropped).
   std::shared_ptr<const Checkpoint> restart;
-};
-
-/// Figures of a finished (or running) simulation, as written to summary.json.
-struct RunSummary {
-  std::int64_t nodes = 0, ordered_bonds = 0, steps = 0, precrack_bonds = 0;
-  /// Steps this process took and timed in step_seconds (after a resume: those after the
-  /// checkpoint; the rates are steps_timed * ordered_bonds / step_seconds).
-  std::int64_t steps_timed = 0;
-  int ranks = 1, frames = 0;
-  double dt = 0, dt_stable = 0, simulated_time = 0;
-  double setup_seconds = 0, step_seconds = 0, output_seconds = 0, wall_seconds = 0;
-  double bytes_per_bond = 0;
-  double partition_seconds = 0;
-  std::int64_t edge_cut = 0;
-  std::string partition_method;  ///< cells, bonds or petsc (-partition_method)
-  double partition_balance = 1;  ///< largest rank's ordered bonds / mean
-  /// Memory after each setup phase, summed over ranks: peak resident set (VmHWM) so far and
-  /// current resident set (VmRSS), bytes.
-  struct MemoryMark {
-    std::string phase;
-    double peak = 0, current = 0;
-  };
-  std::vector<MemoryMark> memory;
-  EnergyRow final_energy;
-  double initial_total_energy = 0;  ///< total at the start of the explicit part (after quasi-static stages)
-  double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
-  /// The same over the whole run: from the total before the first stage, so that a quasi-static
-  /// stage whose support work is not stored or dissipated shows here (equal to the above when
-  /// the run has no quasi-static stage).
-  double run_initial_total_energy = 0;
-  double run_energy_balance_error = 0;
-  /// Quasi-static stages run: (stage name, figures).
-  std::vector<std::pair<std::string, QuasiStaticStats>> quasistatic;
-  /// Per quasi-static stage: |W_reactions - (dU + D)| / W_reactions (trapezoidal work).
-  std::vector<double> quasistatic_work_error;
-  std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
-  /// Crack tips (scenes whose materials break): final tips and speeds, see crack_tips.hpp.
-  bool crack_tracking = false;
-  double max_crack_speed = 0, mean_crack_speed = 0, rayleigh_wave_speed = 0, crack_speed_window = 0;
-  double crack_tip_seconds = 0;  ///< time spent finding and tracking tips (slowest rank)
-  std::string crack_tips_json;  ///< JSON array, one object per track
-  std::string to_json() const;
 };
 
 class Simulation : public EquilibriumModel {
@@ -136,7 +97,7 @@ class Simulation : public EquilibriumModel {
   void write_checkpoint();
   std::string checkpoint_path() const { return options_.out_dir + "/checkpoint.h5"; }
   /// True when SIGTERM/SIGINT stopped the run (after its final checkpoint); finish() was skipped.
-  bool stopped() const { return stopped_; }
+  bool stopped() const { return cadence_.stopped(); }
   /// Store an extra array in checkpoints (e.g. a diagnostic's history). `save` is called on every
   /// rank and rank 0's values are stored; on restart `restore` is called on every rank with the
   /// stored values, or nullptr when the checkpoint has none under that name.
@@ -185,10 +146,7 @@ class Simulation : public EquilibriumModel {
   /// explicit part's initial total.
   double energy_balance_error(const EnergyRow& row) const;
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
-  void check_restart(const Checkpoint& c);        // InputError unless c continues this scene
   void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
-  void restore_summary_extras(const Checkpoint& c);  // figures of stages before the checkpoint
-  bool checkpoint_due(bool poll);                 // collective at poll steps; sets stopped_
   // Marder lattice bodies (src/stages/simulation_lattice.cpp); nothing is built when there is none.
   void lattice_setup();
   void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
@@ -256,30 +214,19 @@ class Simulation : public EquilibriumModel {
   double time_ = 0, dt_ = 0;
   EnergyLedger ledger_;        // this rank's energy accounts (diagnostics/energies.hpp)
   std::optional<HealthCheck> health_;  // after the domain
-  std::vector<std::int64_t> frame_steps_;
-  std::size_t next_frame_ = 0;
   std::size_t stage_ = 0;           // current stage
   std::int64_t stage_step_ = 0;     // steps taken in it
   std::chrono::steady_clock::time_point loop_start_;
   std::int64_t loop_start_step_ = 0;  ///< step_ at loop_start_ (a resumed run's checkpoint step)
   double output_seconds_at_loop_start_ = 0;  ///< output time spent before the loop (the first frame)
-  std::unique_ptr<FrameWriter> frames_;
-  std::unique_ptr<SeriesWriter> series_;
+  std::optional<RunOutput> output_;  // after the stages' steps
   std::unique_ptr<CrackTipMonitor> tips_;    // nullptr: no material breaks
-  std::unique_ptr<std::ofstream> tips_csv_;  // rank 0
   std::string resolved_;
   RunSummary summary_;
   std::chrono::steady_clock::time_point start_, last_progress_;
   // Checkpoints and stop requests.
-  struct Extra {
-    std::string name;
-    std::function<std::vector<double>()> save;
-    std::function<void(const std::vector<double>*)> restore;
-  };
-  std::vector<Extra> extras_;
-  bool stopped_ = false;
-  std::int64_t last_checkpoint_step_ = -1;
-  std::chrono::steady_clock::time_point last_checkpoint_;
+  CheckpointExtras extras_;
+  CheckpointCadence cadence_{scene_.output, !options_.out_dir.empty(), comm_};
 };
 
 }  // namespace peri
