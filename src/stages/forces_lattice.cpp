@@ -77,11 +77,11 @@ void Forces::lattice_forces(const BondView& view, bool interior, bool with_energ
 void Forces::lattice_reduce() {
   state_.reverse_begin();
   state_.reverse_end();
-  const double* f;
-  PERI_PETSC(VecGetArrayRead(state_.force_accumulator(), &f));
+  const VecArrayRead slots(state_.force_accumulator());
+  const double* f = slots.data();
   // Forces [N] -> force densities [N/m^3], the unit of force_; the dashpot force (computed by the
   // node's own row, never on a ghost) added after the slot sum, also kept apart (viscous_) for
-  // the dissipation booked by step().
+  // the dissipation booked by the explicit update.
   for (std::size_t b = 0; b < marder_.size(); ++b) {
     if (!marder_[b]) continue;
     const bool dashpots = marder_[b]->dashpot > 0;
@@ -98,7 +98,6 @@ void Forces::lattice_reduce() {
         }
     }
   }
-  PERI_PETSC(VecRestoreArrayRead(state_.force_accumulator(), &f));
 }
 
 double Forces::lattice_energy(const BondView& view) {

@@ -1,6 +1,9 @@
-// Simulation: one run, built along DESIGN.md's data flow (scene -> nodes -> bonds -> partition
-// -> state -> model -> stages -> diagnostics -> output). run() reads like the algorithm:
-// initial conditions, then each stage's explicit velocity-Verlet loop.
+// Simulation: one run. The setup builds its problem along DESIGN.md's data flow (stages/problem.hpp:
+// domain, state, force model, loads, the stages' time steps); run() then reads like the
+// algorithm: initial conditions, then the stages in order, those that take no time (quasi-static
+// preload, release: quasistatic_stage.hpp, release.hpp) changing the state at once, the dynamic
+// ones stepping it by velocity Verlet (explicit.hpp), each step checked (diagnostics/health.hpp)
+// before its series row, frame or checkpoint is written (io/).
 #pragma once
 #include <mpi.h>
 
@@ -19,8 +22,10 @@
 #include "peri/io/run_checkpoint.hpp"
 #include "peri/io/run_output.hpp"
 #include "peri/io/summary.hpp"
+#include "peri/stages/explicit.hpp"
 #include "peri/stages/problem.hpp"
 #include "peri/stages/quasistatic.hpp"
+#include "peri/stages/quasistatic_stage.hpp"
 #include "peri/state/state.hpp"
 
 namespace peri {
@@ -99,23 +104,14 @@ class Simulation : public EquilibriumModel {
                             std::function<void(const std::vector<double>*)> restore);
 
  private:
-  void start_stage();               // stage_: set its boundaries and step, or run it (no-time stages)
+  void explicit_step();                      // one step of the explicit stage, its checks and output
+  void run_timeless_stage(const Stage& stage);  // a quasi-static or release stage
   void run_quasistatic(const Stage& stage);
   void run_release(const Stage& stage);
-  // defer_kick: the free nodes' second half kick may wait for the next step's first pass
-  // (kick_pending_; settle_kick() applies it, as every reader of the velocity does first).
-  void step(bool with_energy, bool defer_kick = false);
-  void settle_kick();
-  void second_kick_free(double* v, double dt) const;  // the free runs' second half kick
-  /// Forces at the current displacement (intact: by laws that never break), into the ledger.
-  void compute_forces(bool with_energy, bool intact = false) { forces_.compute(with_energy, intact, ledger_.bonds); }
+  void start_loop_clock();                   // the steps timed from here
   void check_health(std::int64_t step, double time);
   void write_frame();
   void write_series_row();
-  /// Adds the loads' forces at time `t` to the force model's (after compute_forces: the owned
-  /// nodes' positions current); with `book`, their work goes to the ledger.
-  void add_load_forces(double t, bool book);
-  double kinetic_energy();
   /// |total - initial total| over the run's energy scale (at least the problem's floor), from
   /// the explicit part's initial total.
   double energy_balance_error(const EnergyRow& row) const;
@@ -126,35 +122,26 @@ class Simulation : public EquilibriumModel {
   RunSummary summary_;  // the setup's figures first (build_problem)
   std::chrono::steady_clock::time_point start_, last_progress_;
   std::unique_ptr<Problem> p_;  // what the setup built (stages/problem.hpp)
-  // Its parts that every stage reads.
+  // Its parts that the run reads throughout.
   const Scene& scene_;
   MPI_Comm comm_;
   int rank_ = 0, ranks_ = 1;
   Domain& domain_;
   State& state_;
   Forces& forces_;
-  Boundaries& boundaries_;
-  const std::vector<double>& mass_;         // per owned node
-  const std::vector<double>& inv_density_;  // per owned node
   std::int64_t total_steps_ = 0;
-  // The explicit stage.
-  double damping_ = 0;                     // current stage's viscous damping [1/s]
-  bool stage_started_ = false;
-  struct FreeRun {                          // owned nodes [begin, end) of one body, no boundary
-    std::int32_t begin, end;
-    int body;
-  };
-  std::vector<FreeRun> free_runs_;          // Verlet update streams (step(), without damping or dashpots)
-  bool kick_pending_ = false;               // free runs' second half kick deferred (step(); dt_, force)
   // Where the run stands.
   std::int64_t step_ = 0;
-  double time_ = 0, dt_ = 0;
-  std::size_t stage_ = 0;           // current stage
-  std::int64_t stage_step_ = 0;     // steps taken in it
-  // Diagnostics.
-  EnergyLedger ledger_;        // this rank's energy accounts (diagnostics/energies.hpp)
+  double time_ = 0;
+  std::size_t stage_ = 0;         // current stage
+  std::int64_t stage_step_ = 0;   // steps taken in it
+  bool stage_started_ = false;    // its start (time step, damping, boundaries) made
+  // Diagnostics and the stages.
+  EnergyLedger ledger_;           // this rank's energy accounts (diagnostics/energies.hpp)
   HealthCheck health_;
-  std::unique_ptr<CrackTipMonitor> tips_;    // nullptr: no material breaks
+  Verlet verlet_;                 // the explicit stage (stages/explicit.hpp)
+  ProblemEquilibrium equilibrium_;  // the quasi-static stages' model (stages/quasistatic_stage.hpp)
+  std::unique_ptr<CrackTipMonitor> tips_;  // nullptr: no material breaks
   std::chrono::steady_clock::time_point loop_start_;
   std::int64_t loop_start_step_ = 0;  ///< step_ at loop_start_ (a resumed run's checkpoint step)
   double output_seconds_at_loop_start_ = 0;  ///< output time spent before the loop (the first frame)
