@@ -48,7 +48,7 @@ else:
     m = re.search(r"done: 400 steps \(80 timed here\) in \S+ s \((\S+) bond updates/s\)", log)
     if not m:
         problems.append("the console's done line lacks '400 steps (80 timed here)'")
-    elif abs(float(m.group(1)) / resumed["bond_updates_per_second"] - 1) > 2e-3:
+    elif abs(float(m.group(1)) / resumed["bond_updates_per_second"] - 1) > 5e-3:  # the console prints 3 digits (%.3g): up to 5e-3 apart
         problems.append(f"the console's rate {m.group(1)} is not summary.json's")
 for p in problems:
     print("  " + p)

@@ -15,36 +15,13 @@
 #include <sstream>
 
 #include "peri/core/error.hpp"
+#include "peri/core/hdf5.hpp"
 
 namespace peri {
 namespace {
 
 constexpr char kMagic[] = "peridrive checkpoint\n";
 constexpr std::size_t kMaxExtras = 4096;
-
-/// RAII owner of an HDF5 identifier.
-class H5Id {
- public:
-  H5Id(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  H5Id(const H5Id&) = delete;
-  H5Id& operator=(const H5Id&) = delete;
-  H5Id(H5Id&& o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = -1; }
-  ~H5Id() {
-    if (id_ >= 0) close_(id_);
-  }
-  hid_t get() const { return id_; }
-  bool ok() const { return id_ >= 0; }
-  /// Close now and report failure (a file's close flushes it).
-  bool close() {
-    const herr_t r = id_ >= 0 ? close_(id_) : 0;
-    id_ = -1;
-    return r >= 0;
-  }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
 
 // ------------------------------------------------------------------------------------------------
 // Writing

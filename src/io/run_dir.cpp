@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "peri/core/error.hpp"
+#include "peri/core/hdf5.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri {
@@ -83,26 +84,28 @@ bool hdf5_scene_record(const std::string& path, std::string& scene) {
   H5Eget_auto2(H5E_DEFAULT, &func, &data);
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // a damaged file is no record: no HDF5 error stack
   bool ok = false;
-  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  const bool as_dataset = file >= 0 && H5Lexists(file, "scene", H5P_DEFAULT) > 0;
-  const hid_t object = file < 0 ? -1 : as_dataset ? H5Dopen2(file, "scene", H5P_DEFAULT) : H5Aopen(file, "scene", H5P_DEFAULT);
-  const hid_t type = object < 0 ? -1 : as_dataset ? H5Dget_type(object) : H5Aget_type(object);
-  if (type >= 0 && H5Tget_class(type) == H5T_STRING && H5Tis_variable_str(type) == 0) {
-    const std::size_t size = H5Tget_size(type);
-    if (size > 0 && size <= kMaxSceneFileBytes) {
-      std::string buf(size + 1, '\0');  // room for the terminator after a null-padded text
-      const hid_t mem = H5Tcopy(H5T_C_S1);
-      H5Tset_size(mem, size + 1);
-      H5Tset_cset(mem, H5Tget_cset(type));  // (no conversion between character sets)
-      ok = (as_dataset ? H5Dread(object, mem, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data())
-                       : H5Aread(object, mem, buf.data())) >= 0;
-      H5Tclose(mem);
-      scene.assign(buf.c_str());  // up to the first NUL
+  {
+    const H5Id file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    const bool as_dataset = file.ok() && H5Lexists(file.get(), "scene", H5P_DEFAULT) > 0;
+    const H5Id object = !file.ok()  ? H5Id()
+                        : as_dataset ? H5Id(H5Dopen2(file.get(), "scene", H5P_DEFAULT), H5Dclose)
+                                     : H5Id(H5Aopen(file.get(), "scene", H5P_DEFAULT), H5Aclose);
+    const H5Id type = !object.ok()  ? H5Id()
+                      : as_dataset ? H5Id(H5Dget_type(object.get()), H5Tclose)
+                                   : H5Id(H5Aget_type(object.get()), H5Tclose);
+    if (type.ok() && H5Tget_class(type.get()) == H5T_STRING && H5Tis_variable_str(type.get()) == 0) {
+      const std::size_t size = H5Tget_size(type.get());
+      if (size > 0 && size <= kMaxSceneFileBytes) {
+        std::string buf(size + 1, '\0');  // room for the terminator after a null-padded text
+        const H5Id mem(H5Tcopy(H5T_C_S1), H5Tclose);
+        H5Tset_size(mem.get(), size + 1);
+        H5Tset_cset(mem.get(), H5Tget_cset(type.get()));  // (no conversion between character sets)
+        ok = (as_dataset ? H5Dread(object.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buf.data())
+                         : H5Aread(object.get(), mem.get(), buf.data())) >= 0;
+        scene.assign(buf.c_str());  // up to the first NUL
+      }
     }
   }
-  if (type >= 0) H5Tclose(type);
-  if (object >= 0) (as_dataset ? H5Dclose : H5Aclose)(object);
-  if (file >= 0) H5Fclose(file);
   H5Eset_auto2(H5E_DEFAULT, func, data);
   return ok;
 }

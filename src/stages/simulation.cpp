@@ -5,1352 +5,101 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <iomanip>
-#include <limits>
 #include <set>
-#include <sstream>
-#include <unordered_map>
-#include <type_traits>
 
-#include "peri/core/build_info.hpp"
 #include "peri/io/checkpoint.hpp"
-#include "peri/core/resources.hpp"
 #include "peri/io/restart.hpp"
-#include "peri/io/run_dir.hpp"
-#include "peri/kernels/tangent.hpp"
-#include "peri/models/model.hpp"
+#include "peri/stages/events.hpp"
+#include "peri/stages/release.hpp"
+#include "peri/stages/setup_checks.hpp"
 
 namespace peri {
 namespace {
 
 constexpr int kCheckEvery = 20;  // steps between collective health/progress checks
-constexpr int kTipColumns = 4;   // crack tip tracks with their own columns in series.csv
-
-// Velocity ramp: v(t) = v_target * ramp(t); its integral P(t) gives exact prescribed displacements.
-double ramp(double t, double tr) { return tr > 0 ? std::min(t / tr, 1.0) : 1.0; }
-double ramp_integral(double t, double tr) {
-  if (tr <= 0) return t;
-  return t < tr ? 0.5 * t * t / tr : t - 0.5 * tr;
-}
-
-struct Events {
-  PetscLogEvent setup, nodes, partition, bonds, plans, forces, halo, update, output;
-  Events() {
-    PetscClassId id;
-    PetscClassIdRegister("peridrive", &id);
-    PetscLogEventRegister("PeriSetup", id, &setup);
-    // Phases of PeriSetup: nodes and the neighbour search structure, the partition, this rank's
-    // bond families and ghosts, and the bond loop's plans.
-    PetscLogEventRegister("PeriNodes", id, &nodes);
-    PetscLogEventRegister("PeriPartition", id, &partition);
-    PetscLogEventRegister("PeriBonds", id, &bonds);
-    PetscLogEventRegister("PeriPlans", id, &plans);
-    PetscLogEventRegister("PeriForces", id, &forces);
-    PetscLogEventRegister("PeriHalo", id, &halo);
-    PetscLogEventRegister("PeriUpdate", id, &update);
-    PetscLogEventRegister("PeriOutput", id, &output);
-  }
-};
-const Events& events() {
-  static Events e;
-  return e;
-}
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s << std::setprecision(6) << v;
-  return s.str();
-}
-
-std::string json_string(const std::string& text) {
-  std::string out = "\"";
-  for (const char ch : text) {
-    if (ch == '"' || ch == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (static_cast<unsigned char>(ch) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned char>(ch));
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out + "\"";
-}
-
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream s;
-  s << std::setprecision(12) << v;
-  return s.str();
-}
 
 }  // namespace
 
-std::string RunSummary::to_json() const {
-  // Rates over the steps this process timed (a resumed run: those after its checkpoint).
-  const double updates = step_seconds > 0 ? double(ordered_bonds) * double(steps_timed) / step_seconds : 0;
-  double qs_error = 0;
-  for (double e : quasistatic_work_error) qs_error = std::max(qs_error, e);
-  std::ostringstream j;
-  j << "{\n"
-    << "  \"peridrive_version\": " << json_string(version()) << ",\n"
-    << "  \"git_revision\": " << json_string(git_revision()) << ",\n"
-    << "  \"nodes\": " << nodes << ",\n"
-    << "  \"bonds\": " << ordered_bonds / 2 << ",\n"
-    << "  \"ordered_bonds\": " << ordered_bonds << ",\n"
-    << "  \"ranks\": " << ranks << ",\n"
-    << "  \"bond_kernel\": " << json_string(bond_kernel_isa()) << ",\n"
-    << "  \"dt\": " << json_number(dt) << ",\n"
-    << "  \"dt_stable\": " << json_number(dt_stable) << ",\n"
-    << "  \"steps\": " << steps << ",\n"
-    << "  \"steps_timed\": " << steps_timed << ",\n"
-    << "  \"simulated_time\": " << json_number(simulated_time) << ",\n"
-    << "  \"frames\": " << frames << ",\n"
-    << "  \"wall_seconds\": " << json_number(wall_seconds) << ",\n"
-    << "  \"setup_seconds\": " << json_number(setup_seconds) << ",\n"
-    << "  \"step_seconds\": " << json_number(step_seconds) << ",\n"
-    << "  \"output_seconds\": " << json_number(output_seconds) << ",\n"
-    << "  \"bond_updates_per_second\": " << json_number(updates) << ",\n"
-    << "  \"bond_updates_per_second_per_rank\": " << json_number(updates / ranks) << ",\n"
-    << "  \"bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
-    << "  \"partition_seconds\": " << json_number(partition_seconds) << ",\n"
-    << "  \"edge_cut\": " << edge_cut << ",\n"
-    << "  \"partition_method\": " << json_string(partition_method) << ",\n"
-    << "  \"partition_balance\": " << json_number(partition_balance) << ",\n"
-    << "  \"memory\": [";
-  for (std::size_t k = 0; k < memory.size(); ++k)
-    j << (k ? ", " : "") << "{\"phase\": " << json_string(memory[k].phase) << ", \"peak_bytes\": "
-      << json_number(memory[k].peak) << ", \"rss_bytes\": " << json_number(memory[k].current)
-      << ", \"peak_bytes_per_bond\": " << json_number(ordered_bonds > 0 ? memory[k].peak / double(ordered_bonds) : 0)
-      << "}";
-  j << "],\n"
-    << "  \"precrack_bonds\": " << precrack_bonds << ",\n"
-    << "  \"broken_bonds\": " << final_energy.broken_bonds << ",\n"
-    << "  \"final\": {\"kinetic_energy\": " << json_number(final_energy.kinetic)
-    << ", \"strain_energy\": " << json_number(final_energy.strain)
-    << ", \"external_work\": " << json_number(final_energy.external_work)
-    << ", \"dissipated_energy\": " << json_number(final_energy.dissipated)
-    << ", \"total_energy\": " << json_number(final_energy.total()) << "},\n"
-    << "  \"initial_total_energy\": " << json_number(initial_total_energy) << ",\n"
-    << "  \"energy_balance_error\": " << json_number(energy_balance_error) << ",\n"
-    << "  \"run_initial_total_energy\": " << json_number(run_initial_total_energy) << ",\n"
-    << "  \"run_energy_balance_error\": " << json_number(run_energy_balance_error) << ",\n"
-    << "  \"quasistatic_work_error\": " << json_number(qs_error) << ",\n";
-  if (crack_tracking)
-    j << "  \"crack_tips\": " << crack_tips_json << ",\n"
-      << "  \"max_crack_speed\": " << json_number(max_crack_speed) << ",\n"
-      << "  \"mean_crack_speed\": " << json_number(mean_crack_speed) << ",\n"
-      << "  \"crack_speed_window\": " << json_number(crack_speed_window) << ",\n"
-      << "  \"crack_tip_seconds\": " << json_number(crack_tip_seconds) << ",\n"
-      << "  \"rayleigh_wave_speed\": " << json_number(rayleigh_wave_speed) << ",\n"
-      << "  \"max_crack_speed_over_rayleigh\": " << json_number(max_crack_speed / rayleigh_wave_speed) << ",\n"
-      << "  \"mean_crack_speed_over_rayleigh\": " << json_number(mean_crack_speed / rayleigh_wave_speed) << ",\n";
-  j << "  \"quasistatic\": [";
-  for (std::size_t k = 0; k < quasistatic.size(); ++k) {
-    const QuasiStaticStats& q = quasistatic[k].second;
-    j << (k ? ", " : "") << "{\"stage\": " << json_string(quasistatic[k].first) << ", \"increments\": " << q.increments.size()
-      << ", \"cutbacks\": " << q.cutbacks << ", \"newton_iterations\": " << q.newton_iterations
-      << ", \"linear_iterations\": " << q.linear_iterations << ", \"broken_bonds\": " << q.broken
-      << ", \"seconds\": " << json_number(q.seconds) << ", \"support_work\": " << json_number(q.external_work)
-      << ", \"work_error\": " << json_number(k < quasistatic_work_error.size() ? quasistatic_work_error[k] : NAN)
-      << "}";
-  }
-  j << "],\n"
-    << "  \"derived\": {";
-  for (std::size_t k = 0; k < derived.size(); ++k)
-    j << (k ? ", " : "") << json_string(derived[k].first) << ": " << json_number(derived[k].second);
-  j << "}\n}\n";
-  return j.str();
-}
-
 Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
-    : scene_(scene), comm_(comm), options_(std::move(options)) {
-  start_ = std::chrono::steady_clock::now();
-  PetscLogEventBegin(events().setup, 0, 0, 0, 0);
-  MPI_Comm_rank(comm_, &rank_);
-  MPI_Comm_size(comm_, &ranks_);
-  mark_memory("start");
-
-  // Nodes, and every check that needs them, before anything is allocated per rank.
-  PartitionSettings partition_settings = partition_settings_from_options();
-  PetscLogEventBegin(events().nodes, 0, 0, 0, 0);
-  warn_large_families(estimate_size(scene_));
-  check_fits(scene_, comm_, partition_settings.method == PartitionMethod::Bonds);
-  stop_point();
-  nodes_ = discretize(scene_);
-  std::vector<std::vector<std::int64_t>> bc_nodes;
-  for (const Boundary& b : scene_.boundaries)
-    bc_nodes.push_back(select_nodes(nodes_, scene_, b.region, "boundaries." + b.name + ".region"));
-  warn_overlapping_boundaries(bc_nodes);
-  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
-    const Material& m = scene_.material(scene_.bodies[b].material);
-    laws_.push_back(scene_.bodies[b].kind == BodyKind::Lattice
-                        ? BondLaw{}
-                        : calibrate(m, nodes_.bodies[b], scene_.bodies[b].where.str() + ": bodies." + scene_.bodies[b].name));
-    density_.push_back(m.density);
-    intact_laws_.push_back(laws_.back().empty() ? BondLaw{} : laws_.back().intact());
-    const double limit = scene_.stability.motion_per_step * scene_.bodies[b].spacing;
-    motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
-  }
-  check_node_masses();
-  stop_point();
-
-  // Bonds, partition, this rank's domain and state.
-  {
-    double max_reach = 0;
-    for (const BodyGeometry& g : nodes_.bodies) max_reach = std::max(max_reach, reach(g));
-    const CellList cells(nodes_, max_reach);
-    PetscLogEventEnd(events().nodes, 0, 0, 0, 0);
-    mark_memory("nodes");
-    PetscLogEventBegin(events().partition, 0, 0, 0, 0);
-    partition_settings.method = resolve_partition_method(partition_settings.method, nodes_);  // auto: rcb or cells
-    partition_ = partition_nodes(nodes_, cells, ranks_, comm_, partition_settings);
-    PetscLogEventEnd(events().partition, 0, 0, 0, 0);
-    stop_point();
-    mark_memory("partition");
-    Scene initial_cracks = scene_;  // cracks named by release stages break later
-    std::erase_if(initial_cracks.cracks, [&](const Crack& c) { return scene_.released_later(c.name); });
-    PetscLogEventBegin(events().bonds, 0, 0, 0, 0);
-    domain_ = build_domain(initial_cracks, nodes_, cells, partition_, rank_, [] { return stop_signal() != 0; });
-    PetscLogEventEnd(events().bonds, 0, 0, 0, 0);
-    stop_point();  // before anything reads a domain the stop left unfinished
-    if (partition_.edge_cut < 0) {  // a partitioner without a graph (rcb): the bonds to ghost nodes
-      long long cut = 0, all = 0;
-      for (std::int32_t i : domain_.boundary_rows)
-        for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b)
-          cut += domain_.bonds.neighbor[b] >= domain_.owned;
-      MPI_Allreduce(&cut, &all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
-      partition_.edge_cut = all / 2;  // each cut bond from both ends
-    }
-  }
-  mark_memory("domain");
-  bc_.assign(domain_.owned, -1);
-  {
-    std::vector<int> bc_natural(nodes_.size(), -1);  // later regions win where they overlap
-    for (std::size_t b = 0; b < bc_nodes.size(); ++b)
-      for (std::int64_t i : bc_nodes[b]) bc_natural[i] = static_cast<int>(b);
-    for (std::int32_t i = 0; i < domain_.owned; ++i) bc_[i] = bc_natural[domain_.natural[i]];
-  }
-  if (scene_.long_range) long_range_setup();
-  pressure_setup();
-  // The global node arrays and maps end here: every rank keeps its own nodes (owned and ghosts)
-  // in domain_, which is all that the stages, output, checkpoints and crack tips read.
-  decltype(bc_nodes)().swap(bc_nodes);
-  partition_.release_maps();
-  std::vector<double>().swap(nodes_.X);
-  std::vector<double>().swap(nodes_.volume);
-  std::vector<int>().swap(nodes_.body);
-  state_ = std::make_unique<State>(domain_, comm_);
-  mark_memory("state");
-
-  const std::size_t nb = scene_.bodies.size();
-  interior_by_body_.resize(nb);
-  boundary_by_body_.resize(nb);
-  for (std::int32_t r : domain_.interior_rows) interior_by_body_[domain_.body[r]].push_back(r);
-  for (std::int32_t r : domain_.boundary_rows) boundary_by_body_[domain_.body[r]].push_back(r);
-  lattice_setup();
-  interior_plan_.resize(nb);
-  boundary_plan_.resize(nb);
-  PetscLogEventBegin(events().plans, 0, 0, 0, 0);
-  {
-    const BondView topology = bond_view();
-    for (std::size_t b = 0; b < nb; ++b) {
-      if (marder_[b]) continue;
-      interior_plan_[b] = plan_rows(topology, interior_by_body_[b].data(), interior_by_body_[b].size());
-      boundary_plan_[b] = plan_rows(topology, boundary_by_body_[b].data(), boundary_by_body_[b].size());
-    }
-  }
-  PetscLogEventEnd(events().plans, 0, 0, 0, 0);
-  inv_density_.resize(domain_.owned);
-  mass_.resize(domain_.owned);
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    inv_density_[i] = 1.0 / density_[domain_.body[i]];
-    mass_[i] = density_[domain_.body[i]] * domain_.volume[i];
-  }
-  // The Verlet update's streams: runs of owned nodes of one body without a boundary (at most 64
-  // nodes, so that a run failing the quick motion check is rechecked cheaply), and the others.
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    if (bc_[i] >= 0) {
-      bc_rows_.push_back(i);
-      continue;
-    }
-    FreeRun* last = free_runs_.empty() ? nullptr : &free_runs_.back();
-    if (last && last->end == i && last->body == domain_.body[i] && i - last->begin < 64)
-      last->end = i + 1;
-    else
-      free_runs_.push_back({i, i + 1, domain_.body[i]});
-  }
-  {
-    // Energy of a uniform strain of 1e-10 in every body, sum m c_l^2 x 1e-20: the smallest energy
-    // the balance is judged against (a body at rest holds only round-off, ~1e-21 J).
-    std::vector<double> wave2(nb);
-    for (std::size_t b = 0; b < nb; ++b)
-      wave2[b] = marder_[b] ? marder_[b]->a
-                            : std::pow(elastic_constants(laws_[b], nodes_.bodies[b], density_[b]).c_longitudinal, 2);
-    double local = 0;
-    for (std::int32_t i = 0; i < domain_.owned; ++i) local += mass_[i] * wave2[domain_.body[i]] * 1e-20;
-    MPI_Allreduce(&local, &energy_floor_, 1, MPI_DOUBLE, MPI_SUM, comm_);
-  }
-  force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
-  position_stride_ = position_plane_stride(domain_.local());
-  positions_.assign(3 * static_cast<std::size_t>(position_stride_), 0.0);
-  damage_.assign(domain_.owned, 0.0);
-  // Boundary nodes' per-step figures (increment, old velocity, force at the start of the step)
-  // are kept for those nodes only: slot s of bc_slot_ for node i, 3 components each.
-  bc_slot_.assign(domain_.owned, -1);
-  std::int32_t bc_count = 0;
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    if (bc_[i] >= 0) bc_slot_[i] = bc_count++;
-  du_bc_.assign(3 * static_cast<std::size_t>(bc_count), 0.0);
-  v_old_bc_ = du_bc_;
-  prev_force_bc_ = du_bc_;
-
-  // Stable time step (collective, per body, then the smallest) and each stage's step.
-  BondView view = bond_view();
-  std::vector<double> dt_body(nb, std::numeric_limits<double>::infinity());
-  for (std::size_t b = 0; b < nb; ++b) {
-    if (marder_[b]) {
-      if (!interior_by_body_[b].empty() || !boundary_by_body_[b].empty())
-        dt_body[b] = marder_stable_time_step(*marder_[b]);
-      continue;
-    }
-    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
-      dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density_[b], view, rows->data(), rows->size()));
-  }
-  check_stable_step(dt_body);
-  // Tools: a penalty stiffness per unit mass of `stiffness` times the stiffest node's bond
-  // stiffness (2 rho / dt_bound^2 at the bound), so that the bound with contact is at least
-  // dt_bound / sqrt(1 + stiffness).
-  double stiffest_tool = 0;
-  bool friction = false;
-  for (const Tool& t : scene_.tools) {
-    RigidTool c;
-    c.sphere = t.sphere;
-    c.radius = t.radius;
-    for (int d = 0; d < 3; ++d) {  // a cylinder's z components are 0
-      c.center[d] = t.center[d];
-      c.velocity[d] = t.velocity[d];
-    }
-    c.friction = t.friction;
-    c.stiffness = t.stiffness * 2.0 / (summary_.dt_stable * summary_.dt_stable);
-    tools_.push_back(c);
-    stiffest_tool = std::max(stiffest_tool, t.stiffness);
-    friction |= t.friction > 0;
-  }
-  tool_contact_.assign(tools_.size(), ContactTally{});
-  if (friction)  // (natural id, tool, force) of every friction force, gathered to rank 0
+    : options_(std::move(options)),
+      start_(std::chrono::steady_clock::now()),
+      p_(build_problem(scene, comm, summary_)),
+      scene_(p_->scene),
+      comm_(p_->comm),
+      rank_(p_->rank),
+      ranks_(p_->ranks),
+      domain_(p_->domain),
+      state_(*p_->state),
+      forces_(*p_->forces),
+      total_steps_(p_->stages.total),
+      health_(scene_, domain_, forces_.laws(), comm_),
+      verlet_(*p_, ledger_, health_),
+      equilibrium_(*p_, ledger_),
+      output_(scene_.output, total_steps_, rank_),
+      cadence_(scene_.output, !options_.out_dir.empty(), comm_) {
+  if (p_->tools && p_->tools->friction())  // (natural id, tool, force) of every friction force, gathered to rank 0
     add_checkpoint_extra(
-        "tool_friction",
-        [this] {
-          std::vector<double> local;
-          for (std::size_t k = 0; k < tool_contact_.size(); ++k)
-            for (const NodeFriction& nf : tool_contact_[k].friction)
-              local.insert(local.end(), {double(domain_.natural[nf.node]), double(k), nf.force[0], nf.force[1],
-                                         nf.force[2]});
-          const int n = static_cast<int>(local.size());
-          std::vector<int> counts(ranks_), displs(ranks_, 0);
-          MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm_);
-          for (int r = 1; r < ranks_; ++r) displs[r] = displs[r - 1] + counts[r - 1];
-          std::vector<double> all(rank_ == 0 ? displs.back() + counts.back() : 0);
-          MPI_Gatherv(local.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm_);
-          return all;
-        },
-        [this](const std::vector<double>* flat) {
-          if (!flat) return;
-          std::unordered_map<std::int64_t, std::int32_t> local;
-          for (std::int32_t i = 0; i < domain_.owned; ++i) local.emplace(domain_.natural[i], i);
-          resumed_friction_.emplace(tools_.size());
-          for (std::size_t e = 0; e + 5 <= flat->size(); e += 5) {
-            const auto it = local.find(static_cast<std::int64_t>((*flat)[e]));
-            const auto k = static_cast<std::size_t>((*flat)[e + 1]);
-            if (it == local.end() || k >= tools_.size()) continue;
-            (*resumed_friction_)[k].push_back({it->second, {(*flat)[e + 2], (*flat)[e + 3], (*flat)[e + 4]}});
-          }
-          for (auto& list : *resumed_friction_)
-            std::sort(list.begin(), list.end(), [](const NodeFriction& a, const NodeFriction& b) { return a.node < b.node; });
-        });
-  summary_.dt_stable /= std::sqrt(1.0 + stiffest_tool);
-  for (const Boundary& b : scene_.boundaries) active_bc_.push_back({b.velocity, b.ramp_time});
-  for (std::size_t s = 0; s < scene_.stages.size(); ++s) {
-    const Stage& st = scene_.stages[s];
-    if (st.kind != StageKind::Dynamic) {  // no time passes
-      stage_dt_.push_back(0.0);
-      stage_steps_.push_back(0);
-      continue;
-    }
-    const double dt = st.dt ? *st.dt : st.safety_factor * summary_.dt_stable;
-    check_stage(s, dt);
-    if (dt > summary_.dt_stable && !st.allow_unstable_dt) {
-      std::ostringstream msg;
-      msg << st.where.str() << ": stages." << s << ".dt: time step " << fmt(dt)
-          << " s exceeds the stable bound " << fmt(summary_.dt_stable)
-          << " s (Silling & Askari 2005); expected dt <= " << fmt(summary_.dt_stable)
-          << ", or allow_unstable_dt: true to run anyway";
-      throw InputError(msg.str());
-    }
-    // A duration is covered exactly: n steps of duration / n (at most the requested step).
-    const std::int64_t n = st.steps ? *st.steps : std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(st.duration / dt - 1e-9)));
-    stage_dt_.push_back(st.steps ? dt : st.duration / static_cast<double>(n));
-    stage_steps_.push_back(std::max<std::int64_t>(n, 1));
-    total_steps_ += stage_steps_.back();
+        "tool_friction", [this] { return p_->tools->save_friction(); },
+        [this](const std::vector<double>* flat) { p_->tools->restore_friction(flat); });
+  if (options_.restart)
+    check_restart(*options_.restart, scene_, domain_.global_nodes, summary_.ordered_bonds, p_->stages.steps);
+  tips_ = CrackTipMonitor::create(scene_, forces_.laws(), p_->bodies, p_->density,
+                                  scene_.output.series_every * *std::max_element(p_->stages.dt.begin(), p_->stages.dt.end()),
+                                  domain_, comm_);
+  if (tips_) {
+    summary_.crack_tracking = true;
+    summary_.rayleigh_wave_speed = tips_->rayleigh_wave_speed();
+    summary_.crack_speed_window = tips_->window();
+    // The tip history continues across restarts; the tips themselves are recomputed from damage.
+    add_checkpoint_extra(
+        "crack_tip_tracks", [this] { return tips_->save(); },
+        [this](const std::vector<double>* flat) { tips_->restore(flat); });
   }
-  check_initial_state();
-  // More frames than steps would repeat steps: one per step at most (the same frames are written).
-  const int frames = static_cast<int>(std::clamp<std::int64_t>(scene_.output.frames, 1, total_steps_ + 1));
-  if (frames < scene_.output.frames && rank_ == 0)
-    std::fprintf(stderr, "peridrive: warning: output.frames: %d frames asked for a run of %lld steps; writing %d, "
-                 "one per step\n", scene_.output.frames, static_cast<long long>(total_steps_), frames);
-  for (int k = 0; k < frames; ++k)
-    frame_steps_.push_back(frames == 1 ? total_steps_ : std::llround(double(k) * total_steps_ / (frames - 1)));
-
-  // Summary figures known now.
-  std::int64_t local_bonds = domain_.bonds.size(), local_pre = domain_.initially_broken;
-  MPI_Allreduce(&local_bonds, &summary_.ordered_bonds, 1, MPI_INT64_T, MPI_SUM, comm_);
-  MPI_Allreduce(&local_pre, &summary_.precrack_bonds, 1, MPI_INT64_T, MPI_SUM, comm_);
-  summary_.precrack_bonds /= 2;
-  summary_.nodes = domain_.global_nodes;
-  summary_.ranks = ranks_;
-  summary_.steps = total_steps_;
-  for (std::size_t s = 0; s < stage_dt_.size(); ++s)
-    if (scene_.stages[s].kind == StageKind::Dynamic) {
-      summary_.dt = stage_dt_[s];
-      break;
-    }
-  double bpb = domain_.bonds.bytes_per_bond(), bpb_max = 0;
-  MPI_Allreduce(&bpb, &bpb_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
-  summary_.bytes_per_bond = bpb_max;
-  summary_.partition_seconds = partition_.seconds;
-  summary_.edge_cut = partition_.edge_cut;
-  summary_.partition_method = to_string(partition_settings.method);
-  {
-    // Balance of the bonds each rank actually holds (any partitioner).
-    const double mine = static_cast<double>(domain_.bonds.size());
-    double most = 0;
-    MPI_Allreduce(&mine, &most, 1, MPI_DOUBLE, MPI_MAX, comm_);
-    summary_.partition_balance = summary_.ordered_bonds > 0 ? most * ranks_ / double(summary_.ordered_bonds) : 1.0;
-  }
-  for (std::size_t b = 0; b < nb; ++b) {
-    if (marder_[b]) {
-      lattice_derived(b);
-      continue;
-    }
-    const std::string p = scene_.bodies[b].name + ".";
-    const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
-    for (const auto& [key, value] : laws_[b].derived()) summary_.derived.push_back({p + key, value});
-    summary_.derived.push_back({p + "horizon", laws_[b].horizon()});
-    if (nodes_.bodies[b].kind == BodyKind::Fiber) {  // a bar: E and its wave speed only
-      summary_.derived.push_back({p + "youngs_modulus", e.youngs});
-      summary_.derived.push_back({p + "longitudinal_wave_speed", e.c_longitudinal});
-      summary_.derived.push_back({p + "spacing_along_path", nodes_.bodies[b].spacing});
-      summary_.derived.push_back({p + "nodes", double(nodes_.bodies[b].count)});
-      continue;
-    }
-    summary_.derived.push_back({p + "shear_modulus", e.mu});
-    summary_.derived.push_back({p + "bulk_modulus", e.bulk});
-    summary_.derived.push_back({p + "youngs_modulus", e.youngs});
-    summary_.derived.push_back({p + "longitudinal_wave_speed", e.c_longitudinal});
-    summary_.derived.push_back({p + "shear_wave_speed", e.c_shear});
-    summary_.derived.push_back({p + "rayleigh_wave_speed", e.c_rayleigh});
-    summary_.derived.push_back({p + "nodes", double(nodes_.bodies[b].count)});
-  }
-  summary_.derived.push_back({"dt_stable", summary_.dt_stable});
-  for (std::size_t s = 0; s < stage_dt_.size(); ++s) {
-    if (scene_.stages[s].kind != StageKind::Dynamic) continue;
-    summary_.derived.push_back({"stages." + std::to_string(s) + ".dt", stage_dt_[s]});
-    summary_.derived.push_back({"stages." + std::to_string(s) + ".steps", double(stage_steps_[s])});
-  }
-  summary_.derived.push_back({"ordered_bonds", double(summary_.ordered_bonds)});
-  resolved_ = emit_scene(scene_, derived_lines());
-  if (options_.restart) check_restart(*options_.restart);
-  setup_crack_tips();
-  mark_memory("setup");
-  PetscLogEventEnd(events().setup, 0, 0, 0, 0);
 
   // Output last: nothing is written unless every check above passed.
-  stop_point();
+  stop_point(comm_);
   if (!options_.out_dir.empty()) {
-    make_output_dir(options_.out_dir, comm_);
-    const std::int64_t resume_step = options_.restart ? options_.restart->step : -1;
-    if (rank_ == 0) {
-      // A previous run's completion marker must not vouch for this one until it finishes; a fresh
-      // run leaves nothing of an earlier one (checkpoints, tips, temporaries) to be mixed with its own.
-      const std::vector<std::string> stale =
-          resume_step >= 0 ? std::vector<std::string>{"summary.json", "FAILED"} : run_file_names();
-      for (const std::string& name : stale) std::remove((options_.out_dir + "/" + name).c_str());
-      write_text_file(options_.out_dir + "/scene.resolved.yaml", resolved_);
+    std::string columns = tips_ ? tips_->series_columns() : std::string();
+    if (p_->tools) {
+      if (!columns.empty()) columns += ',';
+      columns += p_->tools->series_columns();
     }
-    MPI_Barrier(comm_);
-    frames_ = std::make_unique<FrameWriter>(options_.out_dir, "frames", domain_, *state_, resolved_,
-                                            scene_.output.write_velocity, resume_step);
-    std::string tip_columns;
-    if (tracker_) {
-      tip_columns = "crack_tips";
-      for (int k = 0; k < kTipColumns; ++k)
-        for (const char* c : {"_x", "_y", "_speed"}) tip_columns += ",tip" + std::to_string(k) + c;
-      if (rank_ == 0) {
-        const std::string path = options_.out_dir + "/tips.csv", header = "step,time,track,x,y,z,path_length,speed\n";
-        const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
-        tips_csv_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
-        if (!*tips_csv_) throw Error("cannot write '" + path + "'");
-        *tips_csv_ << kept << std::setprecision(12);
-      }
-    }
-    for (const Tool& t : scene_.tools)  // a sphere's centre moves in z too
-      for (const char* c : {"_x", "_y", t.sphere ? "_z" : nullptr, "_force_x", "_force_y", "_force_z"})
-        if (c) tip_columns += (tip_columns.empty() ? "" : ",") + t.name + c;
-    series_ = std::make_unique<SeriesWriter>(options_.out_dir + "/series.csv", rank_ == 0, tip_columns, resume_step);
+    output_.open(options_.out_dir, domain_, state_, p_->resolved, scene_.output.write_velocity,
+                 options_.restart ? options_.restart->step : -1, columns, tips_ != nullptr, comm_);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
 Simulation::~Simulation() = default;
 
-BondView Simulation::bond_view() {
-  return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                  domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
-                  positions_.data(), position_stride_, domain_.bonds.row_broken.data()};
-}
-
-std::vector<std::string> Simulation::derived_lines() const {
-  std::vector<std::string> lines;
-  lines.push_back(std::string("derived by peridrive ") + version() + " (" + git_revision() + "):");
-  for (const auto& [k, v] : summary_.derived) {
-    std::ostringstream s;
-    s << k << " = " << std::setprecision(10) << v;
-    lines.push_back(s.str());
-  }
-  return lines;
-}
-
-void Simulation::apply_initial_conditions() {
-  const Initial& ic = scene_.initial;
-  const double pi = 3.14159265358979323846;
-  double* u;
-  double* v;
-  PERI_PETSC(VecGetArray(state_->displacement(), &u));
-  PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    double r[3];
-    for (int c = 0; c < 3; ++c) r[c] = domain_.X[3 * i + c] - ic.center[c];
-    for (int a = 0; a < 3; ++a) {
-      u[3 * i + a] = 0;
-      v[3 * i + a] = 0;
-      for (int c = 0; c < 3; ++c) {
-        u[3 * i + a] += ic.displacement_gradient[3 * a + c] * r[c];
-        v[3 * i + a] += ic.velocity_gradient[3 * a + c] * r[c];
-      }
-    }
-    if (ic.seed_amplitude != 0) {
-      double s = ic.seed_amplitude;
-      if (ic.seed_wavelength_x > 0) s *= std::sin(2 * pi * domain_.X[3 * i] / ic.seed_wavelength_x);
-      if (ic.seed_wavelength_y > 0) s *= std::sin(2 * pi * domain_.X[3 * i + 1] / ic.seed_wavelength_y);
-      u[3 * i + 2] += s;
-    }
-    if (bc_[i] >= 0) {
-      const Boundary& b = scene_.boundaries[bc_[i]];
-      for (int c = 0; c < 3; ++c)
-        if (b.components[c]) v[3 * i + c] = b.velocity[c] * ramp(0.0, b.ramp_time);
-    }
-  }
-  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
-}
-
-void Simulation::compute_forces(bool with_energy, bool intact) {
-  PetscLogEventBegin(events().forces, 0, 0, 0, 0);
-  const std::vector<BondLaw>& laws = intact ? intact_laws_ : laws_;
-  BondView view = bond_view();
-  BondTally t;
-  if (with_energy) {  // the bond loop writes each bond row's energy density (lattice rows: 0)
-    energy_density_.assign(domain_.owned, 0.0);
-    view.energy_density = energy_density_.data();
-  }
-  density_current_ = with_energy;
-  if (has_kelvin_) {  // ghost velocities for the dashpots (not overlapped: the two ghosted Vecs
-    state_->velocity_halo_begin();  // share one scatter, which holds one exchange at a time)
-    state_->velocity_halo_end();
-  }
-  state_->halo_begin();  // interior rows need no ghost: overlap them with the exchange
-  {
-    LocalArray u(state_->displacement());
-    std::optional<LocalArray> vel;
-    if (has_kelvin_) vel.emplace(state_->velocity());
-    view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, position_stride_, positions_.data());
-    for (std::size_t b = 0; b < laws_.size(); ++b)
-      if (!marder_[b]) bond_forces(laws[b], view, interior_plan_[b], force_.data(), with_energy, t);
-    if (has_lattice_) lattice_forces(view, true, with_energy, t, vel ? vel->data() : nullptr);
-  }
-  PetscLogEventBegin(events().halo, 0, 0, 0, 0);
-  state_->halo_end();
-  PetscLogEventEnd(events().halo, 0, 0, 0, 0);
-  {
-    LocalArray u(state_->displacement());
-    std::optional<LocalArray> vel;
-    if (has_kelvin_) vel.emplace(state_->velocity());
-    view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), position_stride_, positions_.data());
-    for (std::size_t b = 0; b < laws_.size(); ++b)
-      if (!marder_[b]) bond_forces(laws[b], view, boundary_plan_[b], force_.data(), with_energy, t);
-    if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
-  }
-  if (has_lattice_) lattice_reduce();
-  if (long_range_) {
-    LocalArray u(state_->displacement());
-    t.strain_energy += add_long_range_forces(u.data(), with_energy);
-  }
-  tally_.dissipated += t.dissipated;
-  tally_.newly_broken += t.newly_broken;
-  tally_.strain_energy = t.strain_energy;
-  PetscLogEventEnd(events().forces, 0, 0, 0, 0);
-}
-
-void Simulation::long_range_setup() {
-  LongRangeState lr(PairLaw(*scene_.long_range), long_range_table(nodes_));
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const std::int64_t p = lr.table.index_of(domain_.natural[i]);
-    if (p < 0) continue;
-    lr.mine.push_back(p);
-    lr.mine_local.push_back(i);
-  }
-  const int n = static_cast<int>(lr.mine.size());
-  lr.counts.resize(ranks_);
-  lr.displs.assign(ranks_, 0);
-  MPI_Allgather(&n, 1, MPI_INT, lr.counts.data(), 1, MPI_INT, comm_);
-  for (int r = 1; r < ranks_; ++r) lr.displs[r] = lr.displs[r - 1] + lr.counts[r - 1];
-  lr.gathered.resize(lr.table.size());
-  MPI_Allgatherv(lr.mine.data(), n, MPI_INT64_T, lr.gathered.data(), lr.counts.data(), lr.displs.data(),
-                 MPI_INT64_T, comm_);
-  for (int r = 0; r < ranks_; ++r) {  // positions travel as 3 doubles per node
-    lr.counts[r] *= 3;
-    lr.displs[r] *= 3;
-  }
-  lr.send.resize(3 * static_cast<std::size_t>(n));
-  lr.recv.resize(3 * static_cast<std::size_t>(lr.table.size()));
-  lr.x.resize(lr.recv.size());
-  lr.force.resize(lr.send.size());
-  // The list at the reference positions: a cutoff that takes in most of the scene would hold
-  // O(N^2) pairs (12 bytes each); refuse it before anything is written.
-  long_range_forces(lr.law, lr.table, lr.table.X.data(), lr.mine, lr.force.data(), lr.list, false);
-  double pairs = static_cast<double>(lr.list.partner.size()), all_pairs = 0;
-  MPI_Allreduce(&pairs, &all_pairs, 1, MPI_DOUBLE, MPI_SUM, comm_);
-  const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
-  if (all_pairs > 2e8 || per_node > 5000) {
-    std::ostringstream msg;
-    msg << scene_.long_range->where.str() << ": long_range.cutoff: " << fmt(lr.law.cutoff) << " m takes in "
-        << all_pairs << " node pairs, " << fmt(per_node) << " per node (with the Verlet list's skin of a quarter "
-        << "cutoff) at the reference positions; expected a cutoff of a few a (length " << fmt(lr.law.length)
-        << " m): at most 5000 pairs per node and 2e8 in all";
-    throw InputError(msg.str());
-  }
-  std::fill(lr.force.begin(), lr.force.end(), 0.0);
-  long_range_.emplace(std::move(lr));
-}
-
-void Simulation::gather_fiber_positions(const double* u) {
-  LongRangeState& lr = *long_range_;
-  for (std::size_t k = 0; k < lr.mine.size(); ++k)
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t i = static_cast<std::size_t>(lr.mine_local[k]);
-      lr.send[3 * k + c] = domain_.X[3 * i + c] + u[3 * i + c];
-    }
-  MPI_Allgatherv(lr.send.data(), static_cast<int>(lr.send.size()), MPI_DOUBLE, lr.recv.data(), lr.counts.data(),
-                 lr.displs.data(), MPI_DOUBLE, comm_);
-  for (std::size_t g = 0; g < lr.gathered.size(); ++g)
-    for (int c = 0; c < 3; ++c) lr.x[3 * lr.gathered[g] + c] = lr.recv[3 * g + c];
-}
-
-double Simulation::add_long_range_forces(const double* u, bool with_energy) {
-  LongRangeState& lr = *long_range_;
-  gather_fiber_positions(u);
-  std::fill(lr.force.begin(), lr.force.end(), 0.0);
-  const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), lr.list, with_energy);
-  for (std::size_t k = 0; k < lr.mine.size(); ++k)
-    for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(lr.mine_local[k]) + c] += lr.force[3 * k + c];
-  return energy;
-}
-
-void Simulation::flags_changed() {
-  for (const RowBlocks& plan : interior_plan_) plan.forget_broken();
-  for (const RowBlocks& plan : boundary_plan_) plan.forget_broken();
-}
-
-bool Simulation::has_intact_bond(std::int32_t row) const {
-  for (std::int64_t b = domain_.bonds.offsets[row]; b < domain_.bonds.offsets[row + 1]; ++b)
-    if (!(domain_.bonds.broken[b] & 1)) return true;  // bit 0: broken (lattices keep other bits)
-  return false;
-}
-
-void Simulation::settle_kick() {
-  if (!kick_pending_) return;
-  PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  double* v;
-  PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  second_kick_free(v, dt_);
-  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  kick_pending_ = false;
-  PetscLogEventEnd(events().update, 0, 0, 0, 0);
-}
-
-void Simulation::second_kick_free(double* v, double dt) const {
-  for (const FreeRun& r : free_runs_) {  // kick with damp_new = 1, one stream per run
-    const double ir = inv_density_[r.begin];
-    const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
-    double* __restrict vr = v + k0;
-    const double* __restrict fr = force_.data() + k0;
-    for (std::size_t k = 0; k < n; ++k) vr[k] = vr[k] + 0.5 * dt * fr[k] * ir;
-  }
-}
-
-void Simulation::step(bool with_energy, bool defer_kick) {
-  const double dt = dt_, t0 = time_, t1 = time_ + dt;
-  // Mass-proportional damping alpha (force -rho alpha v), integrated semi-implicitly:
-  // v_half = (1 - alpha dt/2) v + dt/2 a(t),  v(t+dt) = (v_half + dt/2 a(t+dt)) / (1 + alpha dt/2).
-  const double damp_old = 1.0 - 0.5 * damping_ * dt, damp_new = 1.0 / (1.0 + 0.5 * damping_ * dt);
-  PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  double* u;
-  double* v;
-  PERI_PETSC(VecGetArray(state_->displacement(), &u));
-  PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  std::vector<double>& du_bc = du_bc_;  // read only where written below (prescribed components)
-  std::vector<double>& v_old_bc = v_old_bc_;
-  double damped = 0;  // energy removed by damping: alpha m v.v dt, trapezoidal in time
-  // Energy removed by lattice dashpots: the kick by the dashpot force F_d over dt/2 changes the
-  // kinetic energy by F_d . (v_before + v_after)/2 dt/2 (exactly the share of F_d in
-  // m (v_after^2 - v_before^2)/2), booked as dissipated with the opposite sign.
-  double viscous = 0;
-  const bool kelvin = has_kelvin_;
-  // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
-  const bool damped_run = damping_ > 0;
-  // Free component k of node i: half kick, drift; returns the squared motion.
-  auto kick_drift = [&](std::int32_t i, std::size_t k) {
-    if (damped_run) damped += mass_[i] * v[k] * v[k];
-    const double before = v[k];
-    v[k] = damp_old * v[k] + 0.5 * dt * force_[k] * inv_density_[i];
-    if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
-    u[k] += dt * v[k];
-    return dt * dt * v[k] * v[k];
-  };
-  // Instability detector: no stable explicit step moves a node by a sizeable part of the spacing.
-  // (A node without intact bonds flies ballistically: exact at any speed, never unstable.)
-  // The first such node in local order is reported (the streams below visit the nodes in another).
-  std::int32_t unstable_row = -1;
-  double unstable_moved2 = 0;
-  auto check_motion = [&](std::int32_t i, double moved2) {
-    if (!(moved2 <= motion_limit2_[domain_.body[i]]) && unstable_node_ < 0 && (unstable_row < 0 || i < unstable_row) &&
-        has_intact_bond(i)) {
-      unstable_row = i;
-      unstable_moved2 = moved2;
-    }
-  };
-  auto kick_drift_node = [&](std::int32_t i) {
-    const int bi = bc_[i];
-    const std::size_t k0 = 3 * static_cast<std::size_t>(i);
-    double moved2 = 0;
-    if (bi < 0) {  // most nodes: no per-component boundary test
-      for (int c = 0; c < 3; ++c) moved2 += kick_drift(i, k0 + c);
-    }
-    for (int c = 0; c < 3 && bi >= 0; ++c) {
-      const std::size_t k = k0 + c;
-      if (scene_.boundaries[bi].components[c]) {
-        const ActiveBoundary& b = active_bc_[bi];
-        const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
-        v_old_bc[kb] = v[k];
-        du_bc[kb] = b.velocity[c] * (ramp_integral(t1, b.ramp_time) - ramp_integral(t0, b.ramp_time));
-        prev_force_bc_[kb] = force_[k];
-        u[k] += du_bc[kb];
-        v[k] = b.velocity[c] * ramp(t1, b.ramp_time);
-        moved2 += du_bc[kb] * du_bc[kb];
-      } else {
-        moved2 += kick_drift(i, k);
-      }
-    }
-    check_motion(i, moved2);
-  };
-  const bool streaming = !damped_run && !kelvin;
-  // The free nodes' second half kick of the step before, when it was deferred to this pass (a
-  // stage, which alone sets damping and dt, begins with none pending).
-  const bool pending = kick_pending_;
-  kick_pending_ = false;
-  if (streaming) {
-    // Free runs: the same half kick and drift as kick_drift (damp_old = 1), one contiguous
-    // stream of 3 (end - begin) components. Each component within (motion limit)^2 / 3 bounds
-    // the node's squared motion by the limit; a run with any component beyond it (or a NaN) is
-    // checked node by node.
-    for (const FreeRun& r : free_runs_) {
-      const double ir = inv_density_[r.begin];
-      const double v2_third = motion_limit2_[r.body] / (3 * dt * dt) * (1 - 1e-12);
-      const std::size_t k0 = 3 * static_cast<std::size_t>(r.begin), n = 3 * static_cast<std::size_t>(r.end - r.begin);
-      double* __restrict vr = v + k0;
-      double* __restrict ur = u + k0;
-      const double* __restrict fr = force_.data() + k0;
-      auto stream = [&](auto both) {  // (a compile-time choice: a test in the loop kept it scalar)
-        for (std::size_t k = 0; k < n; ++k) {
-          double vk = vr[k] + 0.5 * dt * fr[k] * ir;
-          if constexpr (decltype(both)::value) vk = vk + 0.5 * dt * fr[k] * ir;  // two kicks, each rounded alone
-          vr[k] = vk;
-          ur[k] += dt * vk;
-        }
-      };
-      if (pending) stream(std::true_type{});
-      else stream(std::false_type{});
-      int slow = 0;
-      for (std::size_t k = 0; k < n; ++k) slow |= !(vr[k] * vr[k] <= v2_third);
-      if (slow)
-        for (std::int32_t i = r.begin; i < r.end; ++i) {
-          const std::size_t k = 3 * static_cast<std::size_t>(i);
-          check_motion(i, dt * dt * v[k] * v[k] + dt * dt * v[k + 1] * v[k + 1] + dt * dt * v[k + 2] * v[k + 2]);
-        }
-    }
-    for (std::int32_t i : bc_rows_) kick_drift_node(i);
-  } else {
-    for (std::int32_t i = 0; i < domain_.owned; ++i) kick_drift_node(i);
-  }
-  if (unstable_row >= 0) {
-    unstable_node_ = domain_.natural[unstable_row];
-    unstable_motion_ = std::sqrt(unstable_moved2);
-  }
-  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
-  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  PetscLogEventEnd(events().update, 0, 0, 0, 0);
-  // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
-  // "Kelvin dissipation").
-  compute_forces(with_energy);
-  add_tool_forces(t1, true);
-  add_pressure_forces(t1, true);
-  PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  // Free component k of node i: second half kick.
-  auto kick = [&](std::int32_t i, std::size_t k) {
-    const double before = v[k];
-    v[k] = damp_new * (v[k] + 0.5 * dt * force_[k] * inv_density_[i]);
-    if (kelvin) viscous -= viscous_[k] * domain_.volume[i] * 0.5 * (before + v[k]);
-    if (damped_run) damped += mass_[i] * v[k] * v[k];
-  };
-  auto kick_node = [&](std::int32_t i) {
-    const int bi = bc_[i];
-    const std::size_t k0 = 3 * static_cast<std::size_t>(i);
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t k = k0 + c;
-      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
-        // Work of the reaction that enforces the motion: change of the node's kinetic energy
-        // minus the work of the internal force along the prescribed path (trapezoidal).
-        const std::size_t kb = 3 * static_cast<std::size_t>(bc_slot_[i]) + c;
-        const double fi = 0.5 * (force_[k] + prev_force_bc_[kb]) * domain_.volume[i];
-        external_work_ += 0.5 * mass_[i] * (v[k] * v[k] - v_old_bc[kb] * v_old_bc[kb]) - fi * du_bc[kb];
-      } else {
-        kick(i, k);
-      }
-    }
-  };
-  if (streaming) {
-    // The free nodes' second half kick: now, or (defer_kick, no tool reading v below) in the next
-    // step's first pass, which then reads and writes velocity once for both kicks.
-    if (defer_kick && tools_.empty()) {
-      kick_pending_ = true;
-    } else {
-      second_kick_free(v, dt);
-    }
-    for (std::int32_t i : bc_rows_) kick_node(i);
-  } else {
-    for (std::int32_t i = 0; i < domain_.owned; ++i) kick_node(i);
-  }
-  // Friction: the force found at t + dt acts between v(t + dt/2) and v(t + 3dt/2), whose mean is
-  // the velocity just computed.
-  for (std::size_t k = 0; k < tools_.size(); ++k)
-    damping_work_ -= friction_work(tools_[k], tool_contact_[k], dt, v, domain_.volume.data());
-  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  if (damping_ > 0) damping_work_ += 0.5 * damping_ * dt * damped;
-  if (kelvin) damping_work_ += 0.5 * dt * viscous;
-  PetscLogEventEnd(events().update, 0, 0, 0, 0);
-  time_ = t1;
-  ++step_;
-}
-
-void Simulation::pressure_setup() {
-  std::unordered_map<std::int64_t, std::int32_t> local;  // natural -> local, nodes of loaded spheres
-  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
-    const Body& body = scene_.bodies[b];
-    if (body.kind != BodyKind::Shell || !(body.pressure > 0)) continue;
-    if (local.empty())
-      for (std::int32_t l = 0; l < domain_.local(); ++l) local.emplace(domain_.natural[l], l);
-    const BodyGeometry& g = nodes_.bodies[b];
-    std::vector<std::vector<std::pair<std::int32_t, std::int32_t>>> corners(domain_.owned);
-    for (const auto& t : g.triangles)
-      for (int k = 0; k < 3; ++k) {
-        const auto i = local.find(t[k]);
-        if (i == local.end() || i->second >= domain_.owned) continue;
-        const auto a = local.find(t[(k + 1) % 3]), c = local.find(t[(k + 2) % 3]);
-        if (a == local.end() || c == local.end()) continue;  // a corner beyond the halo: no share
-        corners[i->second].push_back({a->second, c->second});
-      }
-    PressureLoad load;
-    load.pressure = body.pressure;
-    load.ramp = body.pressure_ramp_time;
-    auto bond_to = [&](std::int32_t i, std::int32_t j) -> std::int64_t {
-      for (std::int64_t q = domain_.bonds.offsets[i]; q < domain_.bonds.offsets[i + 1]; ++q)
-        if (domain_.bonds.neighbor[q] == j) return q;
-      return -1;
-    };
-    for (std::int32_t i = 0; i < domain_.owned; ++i) {
-      if (corners[i].empty()) continue;
-      load.node.push_back(i);
-      for (const auto& [a, c] : corners[i]) {
-        load.others.push_back({a, c});
-        load.bonds.push_back({bond_to(i, a), bond_to(i, c)});
-      }
-      load.begin.push_back(static_cast<std::int64_t>(load.others.size()));
-    }
-    load.force_prev.assign(3 * load.node.size(), 0.0);
-    load.x_prev.assign(3 * load.node.size(), 0.0);
-    pressure_.push_back(std::move(load));
-  }
-}
-
-void Simulation::add_pressure_forces(double t, bool book) {
-  if (pressure_.empty()) return;
-  PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  const double* x = positions_.data();
-  const std::int64_t s = position_stride_;
-  auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
-  auto intact = [&](std::int64_t q) { return q < 0 || !(domain_.bonds.broken[q] & 1); };
-  for (PressureLoad& load : pressure_) {
-    const double p = load.pressure * (load.ramp > 0 ? std::min(t / load.ramp, 1.0) : 1.0);
-    double work = 0;
-    for (std::size_t m = 0; m < load.node.size(); ++m) {
-      const std::int32_t i = load.node[m];
-      double f[3] = {0, 0, 0};
-      for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
-        if (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1])) continue;
-        const std::int32_t a = load.others[e][0], c = load.others[e][1];
-        const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
-        const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
-        // p times the triangle's area vector (1/2 e1 x e2), a third to this corner.
-        const double k = p / 6.0;
-        f[0] += k * (e1[1] * e2[2] - e1[2] * e2[1]);
-        f[1] += k * (e1[2] * e2[0] - e1[0] * e2[2]);
-        f[2] += k * (e1[0] * e2[1] - e1[1] * e2[0]);
-      }
-      const double inv_volume = 1.0 / domain_.volume[i];
-      for (int c = 0; c < 3; ++c) {
-        force_[3 * static_cast<std::size_t>(i) + c] += f[c] * inv_volume;
-        const double xc = pos(i, c);
-        if (book && load.started) work += 0.5 * (load.force_prev[3 * m + c] + f[c]) * (xc - load.x_prev[3 * m + c]);
-        load.force_prev[3 * m + c] = f[c];
-        load.x_prev[3 * m + c] = xc;
-      }
-    }
-    load.started = true;
-    external_work_ += work;
-  }
-  PetscLogEventEnd(events().update, 0, 0, 0, 0);
-}
-
-void Simulation::add_tool_forces(double t, bool book) {
-  if (tools_.empty()) return;
-  PetscLogEventBegin(events().update, 0, 0, 0, 0);
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  for (std::size_t k = 0; k < tools_.size(); ++k) {
-    const RigidCylinder& tool = tools_[k];
-    ContactTally c;
-    cylinder_contact(tool, t, dt_, positions_.data(), position_stride_, v, domain_.volume.data(), inv_density_.data(), domain_.owned,
-                     force_.data(), c, resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
-    tally_.strain_energy += c.energy;
-    // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
-    if (book)
-      for (int d = 0; d < 3; ++d)
-        external_work_ += 0.5 * dt_ * (tool_contact_[k].force[d] + c.force[d]) * tool.velocity[d];
-    tool_contact_[k] = std::move(c);
-  }
-  resumed_friction_.reset();
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  PetscLogEventEnd(events().update, 0, 0, 0, 0);
-}
-
-double Simulation::kinetic_energy() {
-  settle_kick();
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  double ke = 0;
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    ke += 0.5 * mass_[i] * (v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  double total = 0;
-  MPI_Allreduce(&ke, &total, 1, MPI_DOUBLE, MPI_SUM, comm_);
-  return total;
-}
-
-EnergyRow Simulation::energies() {
-  // Strain energy of the current state from a separate (non-breaking) pass.
-  BondView view = bond_view();
-  double strain = 0;
-  {
-    LocalArray u(state_->displacement());
-    view.u = u.data();
-    current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
-    if (has_lattice_) strain += lattice_energy(view);
-    for (std::size_t b = 0; b < laws_.size(); ++b) {
-      if (marder_[b]) continue;
-      strain += bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size());
-      strain += bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size());
-    }
-  }
-  return reduce_energies(strain);
-}
-
-double Simulation::energy_balance_error(const EnergyRow& row) const {
-  return energy_balance_error(row, summary_.initial_total_energy);
-}
-
-double Simulation::energy_balance_error(const EnergyRow& row, double e0) const {
-  const double scale = std::max({std::fabs(row.kinetic) + std::fabs(row.strain) + std::fabs(row.dissipated),
-                                 std::fabs(row.external_work), std::fabs(e0), energy_floor_, 1e-300});
-  return std::fabs(row.total() - e0) / scale;
-}
-
-EnergyRow Simulation::reduce_energies(double local_strain) {
-  double local[4] = {local_strain, tally_.dissipated + damping_work_, external_work_, double(tally_.newly_broken)};
-  double global[4];
-  MPI_Allreduce(local, global, 4, MPI_DOUBLE, MPI_SUM, comm_);
-  EnergyRow row;
-  row.step = step_;
-  row.time = time_;
-  row.kinetic = kinetic_energy();
-  row.strain = global[0];
-  row.dissipated = global[1];
-  row.external_work = global[2];
-  row.broken_bonds = std::llround(global[3]) / 2;  // ordered bonds -> bonds
-  return row;
-}
-
-void Simulation::write_series_row() {
-  const EnergyRow row = reduce_energies(tally_.strain_energy);
-  // Energy growth detector (after the first row, which sets the reference).
-  const double tolerance = scene_.stability.energy_error;
-  if (tolerance > 0 && step_ > 0) {
-    const double e0 = summary_.initial_total_energy;
-    const double error = energy_balance_error(row);
-    if (!(error <= tolerance)) {
-      std::ostringstream msg;
-      msg << "energy balance error " << fmt(error) << " at step " << step_ << " (t = " << fmt(time_)
-          << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
-          << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt_)
-          << " s, stable bound " << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(-1)
-          << "), or boundary motion too violent for the resolution";
-      throw RuntimeFailure(msg.str());
-    }
-  }
-  std::string extra = tracker_ ? track_crack_tips(row) : std::string();
-  if (!tools_.empty()) {
-    // Each tool's axis position and total force on the nodes (the reaction on the tool is its negative).
-    std::vector<double> local(3 * tools_.size()), total(3 * tools_.size());
-    for (std::size_t k = 0; k < tools_.size(); ++k)
-      for (int d = 0; d < 3; ++d) local[3 * k + d] = tool_contact_[k].force[d];
-    MPI_Allreduce(local.data(), total.data(), static_cast<int>(total.size()), MPI_DOUBLE, MPI_SUM, comm_);
-    std::ostringstream values;
-    values << std::setprecision(12);
-    for (std::size_t k = 0; k < tools_.size(); ++k) {
-      const RigidCylinder& t = tools_[k];
-      values << (extra.empty() && k == 0 ? "" : ",") << t.center[0] + t.velocity[0] * time_ << ','
-             << t.center[1] + t.velocity[1] * time_ << ',';
-      if (t.sphere) values << t.center[2] + t.velocity[2] * time_ << ',';
-      values << total[3 * k] << ',' << total[3 * k + 1] << ',' << total[3 * k + 2];
-    }
-    extra += values.str();
-  }
-  if (series_) series_->write(row, extra);
-  summary_.final_energy = row;
-}
-
-std::array<double, 3> Simulation::reference_position(std::int64_t natural) {
-  double local[3] = {0, 0, 0}, x[3];
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    if (domain_.natural[i] == natural)
-      for (int c = 0; c < 3; ++c) local[c] = domain_.X[3 * static_cast<std::size_t>(i) + c];
-  MPI_Allreduce(local, x, 3, MPI_DOUBLE, MPI_SUM, comm_);  // one rank owns it
-  return {x[0], x[1], x[2]};
-}
-
-void Simulation::mark_memory(const char* phase) {
-  const ProcessMemory m = process_memory();
-  double local[2] = {m.peak, m.current}, sum[2];
-  MPI_Allreduce(local, sum, 2, MPI_DOUBLE, MPI_SUM, comm_);
-  summary_.memory.push_back({phase, sum[0], sum[1]});
-}
-
-void Simulation::setup_crack_tips() {
-  // Tracking runs when some membrane material breaks (crack tips are paths in a sheet; solid
-  // bodies have crack surfaces and are not tracked). Lengths from the breaking bodies
-  // (crack_tips.hpp): link 2 dx, tip separation 2 delta, window 10 delta / c_l, jumps up to
-  // 2 delta + 2 c_l x the time between samples. Seeds: the pre-cracks' midpoints.
-  double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
-  tip_bodies_.assign(laws_.size(), false);
-  for (std::size_t b = 0; b < laws_.size(); ++b) {
-    if (!laws_[b].breaks() || nodes_.bodies[b].kind != BodyKind::Membrane) continue;  // flat sheets only
-    tip_bodies_[b] = true;
-    const ElasticConstants e = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]);
-    dx = std::max(dx, nodes_.bodies[b].spacing);
-    delta = std::max(delta, laws_[b].horizon());
-    c_l = std::min(c_l, e.c_longitudinal);
-    c_r = std::min(c_r, e.c_rayleigh);
-  }
-  if (!(delta > 0)) return;
-  CrackTipSettings s;
-  s.link_distance = 2 * dx;
-  s.tip_separation = 2 * delta;
-  const double sample = scene_.output.series_every * *std::max_element(stage_dt_.begin(), stage_dt_.end());
-  tracker_ = std::make_unique<CrackTipTracker>(s, 10 * delta / c_l, s.tip_separation + 2 * c_l * sample);
-  for (const Crack& c : scene_.cracks)
-    for (int k = 0; k < 3; ++k) tip_seeds_.push_back(0.5 * (c.from[k] + c.to[k]));
-  summary_.crack_tracking = true;
-  summary_.rayleigh_wave_speed = c_r;
-  summary_.crack_speed_window = tracker_->window();
-  // The tip history continues across restarts; the tips themselves are recomputed from damage.
-  add_checkpoint_extra(
-      "crack_tip_tracks", [this] { return tracker_->save(); },
-      [this](const std::vector<double>* flat) {
-        if (flat) tracker_->restore(*flat);
-        tips_broken_at_ = -1;
-      });
-}
-
-std::string Simulation::track_crack_tips(const EnergyRow& row) {
-  const auto t0 = std::chrono::steady_clock::now();
-  // The damage field changes only when bonds break: otherwise the last tips stand.
-  if (row.broken_bonds != tips_broken_at_) {
-    tips_broken_at_ = row.broken_bonds;
-    update_damage();
-    std::vector<std::int64_t> ids;
-    std::vector<double> X;
-    for (std::int32_t i = 0; i < domain_.owned; ++i)
-      if (tip_bodies_[domain_.body[i]] && damage_[i] >= tracker_->settings().damage_threshold) {
-        ids.push_back(domain_.natural[i]);
-        X.insert(X.end(), &domain_.X[3 * i], &domain_.X[3 * i] + 3);
-      }
-    // Every rank gathers the (few) damaged nodes, sorts them by natural id, finds the same tips.
-    const int n = static_cast<int>(ids.size());
-    std::vector<int> counts(ranks_), displs(ranks_, 0), counts3(ranks_), displs3(ranks_, 0);
-    MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
-    for (int r = 0; r < ranks_; ++r) {
-      if (r > 0) displs[r] = displs[r - 1] + counts[r - 1];
-      counts3[r] = 3 * counts[r];
-      displs3[r] = 3 * displs[r];
-    }
-    const int total = displs.back() + counts.back();
-    std::vector<std::int64_t> all_ids(total);
-    std::vector<double> all_X(3 * static_cast<std::size_t>(total));
-    MPI_Allgatherv(ids.data(), n, MPI_INT64_T, all_ids.data(), counts.data(), displs.data(), MPI_INT64_T, comm_);
-    MPI_Allgatherv(X.data(), 3 * n, MPI_DOUBLE, all_X.data(), counts3.data(), displs3.data(), MPI_DOUBLE, comm_);
-    std::vector<int> order(total);
-    for (int k = 0; k < total; ++k) order[k] = k;
-    std::sort(order.begin(), order.end(), [&](int a, int b) { return all_ids[a] < all_ids[b]; });
-    std::vector<std::int64_t> sorted_ids(total);
-    std::vector<double> sorted_X(3 * static_cast<std::size_t>(total));
-    for (int k = 0; k < total; ++k) {
-      sorted_ids[k] = all_ids[order[k]];
-      for (int c = 0; c < 3; ++c) sorted_X[3 * k + c] = all_X[3 * order[k] + c];
-    }
-    last_tips_ = find_crack_tips(sorted_ids, sorted_X, tip_seeds_, tracker_->settings());
-  }
-  tracker_->update(row.time, last_tips_);
-  // Series columns: tip count, then position and speed of tracks 0..kTipColumns-1 if sampled now.
-  std::ostringstream out;
-  out << std::setprecision(12) << last_tips_.size();
-  for (int k = 0; k < kTipColumns; ++k) {
-    const CrackTrack* t = k < static_cast<int>(tracker_->tracks().size()) ? &tracker_->tracks()[k] : nullptr;
-    if (t && t->active && t->time.back() == row.time) {
-      out << ',' << t->position.back()[0] << ',' << t->position.back()[1] << ',';
-      if (std::isfinite(t->speed.back())) out << t->speed.back();
-    } else {
-      out << ",,,";
-    }
-  }
-  if (tips_csv_) {
-    for (const CrackTrack& t : tracker_->tracks()) {
-      if (!t.active || t.time.back() != row.time) continue;
-      *tips_csv_ << row.step << ',' << row.time << ',' << t.id << ',' << t.position.back()[0] << ','
-                 << t.position.back()[1] << ',' << t.position.back()[2] << ',' << t.path_length.back() << ',';
-      if (std::isfinite(t.speed.back())) *tips_csv_ << t.speed.back();
-      *tips_csv_ << '\n';
-    }
-    tips_csv_->flush();
-  }
-  summary_.crack_tip_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return out.str();
-}
-
-void Simulation::summarize_crack_tips() {
-  summary_.max_crack_speed = tracker_->max_speed();
-  summary_.mean_crack_speed = tracker_->mean_speed();
-  std::ostringstream j;
-  j << "[";
-  for (const CrackTrack& t : tracker_->tracks()) {
-    const auto& p = t.position.back();
-    const auto& p0 = t.position.front();
-    double vmax = 0;
-    for (double v : t.speed)
-      if (std::isfinite(v)) vmax = std::max(vmax, v);
-    const auto steady = tracker_->steady_part(t);
-    j << (t.id ? "," : "") << "\n    {\"track\": " << t.id << ", \"active\": " << (t.active ? "true" : "false")
-      << ", \"position\": [" << json_number(p[0]) << ", " << json_number(p[1]) << ", " << json_number(p[2]) << "]"
-      << ", \"path_length\": " << json_number(t.path_length.back())
-      << ", \"speed\": " << json_number(t.speed.back()) << ", \"max_speed\": " << json_number(vmax)
-      << ", \"first_time\": " << json_number(t.time.front()) << ", \"last_time\": " << json_number(t.time.back())
-      << ", \"first_position\": [" << json_number(p0[0]) << ", " << json_number(p0[1]) << ", "
-      << json_number(p0[2]) << "]"
-      << ", \"steady_from\": " << json_number(steady[0]) << ", \"steady_to\": " << json_number(steady[1])
-      << ", \"steady_mean_speed\": " << json_number(steady[2] / (steady[1] - steady[0])) << "}";
-  }
-  j << (tracker_->tracks().empty() ? "]" : "\n  ]");
-  summary_.crack_tips_json = j.str();
-}
-
-void Simulation::update_energy_density() {
-  // Bonds (lattice bodies: 0, their energy is kept per bond direction, not per node), then the
-  // long-range pairs; the current ghost displacements are those of the last force evaluation.
-  BondView view = bond_view();
-  LocalArray u(state_->displacement());
-  view.u = u.data();
-  if (!density_current_) {  // else the last force evaluation's (an energy call on this state)
-    current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
-    energy_density_.assign(domain_.owned, 0.0);
-    for (std::size_t b = 0; b < laws_.size(); ++b) {
-      if (marder_[b]) continue;
-      bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(), energy_density_.data());
-      bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(), energy_density_.data());
-    }
-  }
-  if (long_range_) {
-    LongRangeState& lr = *long_range_;
-    gather_fiber_positions(u.data());
-    std::vector<double> scratch(lr.force.size(), 0.0), share(lr.mine.size(), 0.0);
-    long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, scratch.data(), lr.list, true, share.data());
-    for (std::size_t k = 0; k < lr.mine.size(); ++k) energy_density_[lr.mine_local[k]] += share[k];
-  }
-  density_current_ = false;  // it holds the long-range shares now: a second call starts over
-}
-
-void Simulation::write_frame() {
-  settle_kick();
-  PetscLogEventBegin(events().output, 0, 0, 0, 0);
-  const auto t0 = std::chrono::steady_clock::now();
-  update_damage();
-  update_energy_density();
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  frames_->write(step_, time_, u, v, damage_.data(), energy_density_.data());
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  PetscLogEventEnd(events().output, 0, 0, 0, 0);
-}
-
-void Simulation::check_health(std::int64_t step, double time) {
-  settle_kick();
-  // Collective: first non-finite node (natural id) and the broken-bond count.
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  long long bad = std::numeric_limits<long long>::max();
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    bool ok = true;
-    for (int c = 0; c < 3; ++c) ok &= std::isfinite(u[3 * i + c]) && std::isfinite(v[3 * i + c]);
-    if (!ok) bad = std::min<long long>(bad, domain_.natural[i]);
-  }
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  const long long none = std::numeric_limits<long long>::max();
-  long long local[2] = {bad, unstable_node_ >= 0 ? unstable_node_ : none}, global[2];
-  MPI_Allreduce(local, global, 2, MPI_LONG_LONG, MPI_MIN, comm_);
-  const long long bad_global = global[0];
-  if (global[1] != none && bad_global == none) {
-    const long long node = global[1];
-    double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
-    MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
-    const std::array<double, 3> X = reference_position(node);
-    int body = -1, body_any = -1;  // of the node, from the rank that owns it
-    for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
-      if (domain_.natural[i] == node) body = domain_.body[i];
-    MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
-    std::ostringstream msg;
-    msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
-        << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
-        << ") moved " << fmt(moved_max) << " m in one step, more than stability.motion_per_step = "
-        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
-    if (dt_ > summary_.dt_stable)
-      msg << "the time step " << fmt(dt_) << " s is above the stable bound " << fmt(summary_.dt_stable)
-          << " s (accepted because of allow_unstable_dt)";
-    else
-      msg << "the time step " << fmt(dt_) << " s is too large for the current state (stable bound "
-          << fmt(summary_.dt_stable) << " s at the reference state; " << law_note(body_any)
-          << "), or a boundary velocity too violent for the resolution";
-    msg << ". Positions and velocities are still finite; nothing non-finite was written";
-    throw RuntimeFailure(msg.str());
-  }
-  if (bad_global != none) {
-    const std::array<double, 3> X = reference_position(bad_global);
-    std::ostringstream msg;
-    msg << "non-finite displacement or velocity at step " << step << " (t = " << fmt(time)
-        << " s), node " << bad_global << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1])
-        << ", " << fmt(X[2]) << "); likely cause: time step " << fmt(dt_) << " s above the stable bound "
-        << fmt(summary_.dt_stable) << " s, or a boundary velocity too violent for the resolution";
-    throw RuntimeFailure(msg.str());
-  }
-  if (options_.quiet) return;
-  const auto now = std::chrono::steady_clock::now();
-  int print = rank_ == 0 && std::chrono::duration<double>(now - last_progress_).count() >= scene_.output.progress_seconds;
-  MPI_Bcast(&print, 1, MPI_INT, 0, comm_);
-  if (!print) return;
-  long long broken_local = tally_.newly_broken, broken = 0;
-  MPI_Reduce(&broken_local, &broken, 1, MPI_LONG_LONG, MPI_SUM, 0, comm_);
-  if (rank_ == 0) {
-    const double elapsed = std::chrono::duration<double>(now - loop_start_).count();
-    const double rate = (step - loop_start_step_) / std::max(elapsed, 1e-9);
-    std::printf("[peridrive] step %lld/%lld  t = %.4g s  %.0f steps/s  ETA %.0f s  broken bonds %lld\n",
-                static_cast<long long>(step), static_cast<long long>(total_steps_), time, rate,
-                (total_steps_ - step) / std::max(rate, 1e-9), broken / 2);
-    std::fflush(stdout);
-  }
-  last_progress_ = now;
-}
+// ------------------------------------------------------------------------------------------------
+// The run
 
 void Simulation::run() {
   begin();
   advance(total_steps_);
-  if (!stopped_) finish();
+  if (!cadence_.stopped()) finish();
 }
 
 void Simulation::begin() {
-  last_checkpoint_ = std::chrono::steady_clock::now();
+  cadence_.start(options_.restart ? options_.restart->step : -1);
   if (options_.restart) {
     restore(*options_.restart);
     return;
   }
-  apply_initial_conditions();
+  apply_initial_conditions(*p_);
   // Stages that take no time and come first (preload, release) shape the initial state.
   while (stage_ < scene_.stages.size() && scene_.stages[stage_].kind != StageKind::Dynamic) {
-    start_stage();
+    run_timeless_stage(scene_.stages[stage_]);
     ++stage_;
   }
-  compute_forces(true);
-  add_tool_forces(time_, false);
-  add_pressure_forces(time_, false);
+  verlet_.forces_at(time_);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
   // Without a leading preload the whole run's balance starts here too (run_quasistatic sets it
   // before the first preload's work).
   if (summary_.quasistatic.empty()) summary_.run_initial_total_energy = summary_.initial_total_energy;
-  if (frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) {
-    write_frame();
-    while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] == 0) ++next_frame_;
-  }
+  if (output_.frame_due(0)) write_frame();
   if (rank_ == 0 && !options_.quiet) {
     std::printf("[peridrive] %lld nodes, %lld bonds, %d rank%s; dt = %.4g s (stable bound %.4g s), %lld steps; bond kernel %s\n",
                 static_cast<long long>(summary_.nodes), static_cast<long long>(summary_.ordered_bonds / 2),
@@ -1358,183 +107,123 @@ void Simulation::begin() {
                 static_cast<long long>(total_steps_), bond_kernel_isa());
     std::fflush(stdout);
   }
-  loop_start_ = std::chrono::steady_clock::now();
-  loop_start_step_ = step_;
-  output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
-  last_progress_ = loop_start_;
-}
-
-void Simulation::start_stage() {
-  settle_kick();  // with the force and time step it was deferred with
-  const Stage& st = scene_.stages[stage_];
-  if (st.kind == StageKind::QuasiStatic) {
-    run_quasistatic(st);
-    return;
-  }
-  if (st.kind == StageKind::Release) {
-    run_release(st);
-    return;
-  }
-  dt_ = stage_dt_[stage_];
-  damping_ = st.damping;
-  for (std::size_t b = 0; b < scene_.boundaries.size(); ++b)
-    active_bc_[b] = {scene_.boundaries[b].velocity, scene_.boundaries[b].ramp_time};
-  for (const BoundaryValue& bv : st.boundary_velocity)
-    for (std::size_t b = 0; b < scene_.boundaries.size(); ++b)
-      if (scene_.boundaries[b].name == bv.boundary) active_bc_[b] = {bv.value, 0.0};
+  start_loop_clock();
 }
 
 std::int64_t Simulation::advance(std::int64_t n) {
   std::int64_t taken = 0;
-  while (stage_ < scene_.stages.size() && !stopped_) {
-    if (scene_.stages[stage_].kind != StageKind::Dynamic) {
+  while (stage_ < scene_.stages.size() && !cadence_.stopped()) {
+    const Stage& stage = scene_.stages[stage_];
+    if (stage.kind != StageKind::Dynamic) {
       // A later stage that takes no time: run it, and restart the energy balance after a
       // quasi-static one (it removes kinetic energy by construction).
-      start_stage();
+      run_timeless_stage(stage);
       ++stage_;
-      compute_forces(true);
-      add_tool_forces(time_, false);
-      add_pressure_forces(time_, false);
+      verlet_.forces_at(time_);
       write_series_row();
-      if (scene_.stages[stage_ - 1].kind == StageKind::QuasiStatic)
-        summary_.initial_total_energy = summary_.final_energy.total();
+      if (stage.kind == StageKind::QuasiStatic) summary_.initial_total_energy = summary_.final_energy.total();
       continue;
     }
     if (!stage_started_) {
-      start_stage();
+      verlet_.start(stage, p_->stages.dt[stage_]);
       stage_started_ = true;
     }
-    if (stage_step_ >= stage_steps_[stage_]) {
+    if (stage_step_ >= p_->stages.steps[stage_]) {
       ++stage_;
       stage_step_ = 0;
       stage_started_ = false;
       continue;
     }
     if (taken >= n) break;
-    const bool series = (step_ + 1) % scene_.output.series_every == 0 || step_ + 1 == total_steps_;
-    // A frame's step is an energy call too: the bond loop then writes the energy density.
-    const bool frame_next = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_ + 1;
-    step(series || frame_next, true);
-    ++stage_step_;
+    explicit_step();
     ++taken;
-    const bool frame = frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_;
-    // Nothing is written before the state is checked: no non-finite value reaches a file.
-    // (Each reader of the velocity applies a deferred kick first: settle_kick().)
-    if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
-    if (series) write_series_row();
-    if (frame) {
-      write_frame();
-      while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
-    }
-    if (checkpoint_due(step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
   }
-  settle_kick();  // v(t) whole when the call returns
+  verlet_.settle_kick();  // v(t) whole when the call returns
   return taken;
 }
 
-void Simulation::run_release(const Stage& stage) {
-  // Break every intact bond crossing the named cracks in the current (e.g. preloaded) state; its
-  // current energy becomes dissipated energy, so the energy balance continues exactly.
-  std::vector<const Crack*> cracks;
-  for (const std::string& name : stage.cracks)
-    for (const Crack& c : scene_.cracks)
-      if (c.name == name) cracks.push_back(&c);
-  state_->halo_begin();
-  state_->halo_end();
-  LocalArray u(state_->displacement());
-  std::int64_t released = 0;
-  double energy = 0;
-  const BondView view = bond_view();
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const BondLaw& law = laws_[domain_.body[i]];
-    const double* Xi = &domain_.X[3 * static_cast<std::size_t>(i)];
-    for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b) {
-      if (domain_.bonds.broken[b]) continue;
-      const std::int32_t j = domain_.bonds.neighbor[b];
-      const double* Xj = &domain_.X[3 * static_cast<std::size_t>(j)];
-      bool cut = false;
-      for (const Crack* c : cracks) cut = cut || crosses(Xi, Xj, *c);
-      if (!cut) continue;
-      double y2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        const double e = Xj[c] - Xi[c] + u.data()[3 * j + c] - u.data()[3 * i + c];
-        y2 += e * e;
-      }
-      energy += 0.5 * domain_.volume[i] * view.measure(i, b) * law.energy(view.xi2(i, b), y2);  // eq. (5), one end
-      domain_.bonds.broken[b] = 1;
-      domain_.bonds.row_broken[i] = 1;
-      ++released;
-    }
+void Simulation::explicit_step() {
+  const bool series = (step_ + 1) % scene_.output.series_every == 0 || step_ + 1 == total_steps_;
+  // A frame's step is an energy call too: the bond loop then writes the energy density.
+  const bool frame_next = output_.frame_due(step_ + 1);
+  time_ = verlet_.step(time_, series || frame_next, true);
+  ++step_;
+  ++stage_step_;
+  const bool frame = output_.frame_due(step_);
+  // Nothing is written before the state is checked: no non-finite value reaches a file.
+  // (Each reader of the velocity applies a deferred kick first: settle_kick().)
+  if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
+  if (series) write_series_row();
+  if (frame) write_frame();
+  if (cadence_.due(step_, step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
+}
+
+void Simulation::finish() {
+  const auto t_end = std::chrono::steady_clock::now();
+  summary_.step_seconds = std::chrono::duration<double>(t_end - loop_start_).count() -
+                          (summary_.output_seconds - output_seconds_at_loop_start_);
+  summary_.steps_timed = step_ - loop_start_step_;
+  summary_.wall_seconds = std::chrono::duration<double>(t_end - start_).count();
+  summary_.simulated_time = time_;
+  summary_.frames = output_.frames();
+  summary_.energy_balance_error = energy_balance_error(summary_.final_energy);
+  summary_.run_energy_balance_error =
+      peri::energy_balance_error(summary_.final_energy, summary_.run_initial_total_energy, p_->energy_floor);
+  if (tips_) {
+    summary_.max_crack_speed = tips_->max_speed();
+    summary_.mean_crack_speed = tips_->mean_speed();
+    summary_.crack_tips_json = tips_->tracks_json();
+    summary_.crack_tip_seconds = tips_->seconds();
   }
-  flags_changed();
-  tally_.dissipated += energy;
-  tally_.newly_broken += released;
-  long long global = 0, local = released;
-  MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, comm_);
-  summary_.precrack_bonds += global / 2;
+  // Timings of the slowest rank: the job's figures.
+  double times[4] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
+                     summary_.crack_tip_seconds}, tmax[4];
+  MPI_Allreduce(times, tmax, 4, MPI_DOUBLE, MPI_MAX, comm_);
+  summary_.crack_tip_seconds = tmax[3];
+  summary_.step_seconds = tmax[0];
+  summary_.output_seconds = tmax[1];
+  summary_.wall_seconds = tmax[2];
+  mark_memory(summary_, "end", comm_);
+  output_.write_summary(summary_.to_json());
+}
+
+void Simulation::start_loop_clock() {
+  loop_start_ = std::chrono::steady_clock::now();
+  loop_start_step_ = step_;  // (a resumed run: the steps before the checkpoint were timed by the run that took them)
+  output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
+  last_progress_ = loop_start_;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Stages that take no time
+
+void Simulation::run_timeless_stage(const Stage& stage) {
+  verlet_.settle_kick();  // with the force and time step it was deferred with
+  if (stage.kind == StageKind::QuasiStatic) run_quasistatic(stage);
+  else run_release(stage);
+}
+
+void Simulation::run_release(const Stage& stage) {
+  const std::int64_t released = release_cracks(*p_, stage, ledger_);
+  summary_.precrack_bonds += released;
   if (rank_ == 0 && !options_.quiet) {
-    std::printf("[peridrive] release '%s': %lld bonds broken\n", stage.name.c_str(), global / 2);
+    std::printf("[peridrive] release '%s': %lld bonds broken\n", stage.name.c_str(), static_cast<long long>(released));
     std::fflush(stdout);
   }
-  if (global == 0)
+  if (released == 0)
     throw InputError(stage.where.str() + ": stages." + stage.name + ".cracks: no intact bond crosses the named cracks");
 }
 
-std::unique_ptr<QuasiStaticLoader> Simulation::make_loader(const Stage& stage) {
-  std::vector<PetscInt> d_nnz(domain_.owned), o_nnz(domain_.owned);
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    PetscInt d = 1, o = 0;
-    for (std::int64_t b = domain_.bonds.offsets[i]; b < domain_.bonds.offsets[i + 1]; ++b)
-      (domain_.bonds.neighbor[b] < domain_.owned ? d : o) += 1;
-    d_nnz[i] = d;
-    o_nnz[i] = o;
-  }
-  BondView view = bond_view();
-  double local[2] = {0, double(domain_.owned)}, global[2];
-  for (std::size_t b = 0; b < laws_.size(); ++b)
-    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
-      local[0] += reference_stiffness_sum(laws_[b], view, rows->data(), rows->size());
-  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, comm_);
-  double spacing = INFINITY;
-  for (const Body& b : scene_.bodies) spacing = std::min(spacing, b.spacing);
-  return std::make_unique<QuasiStaticLoader>(comm_, domain_.owned, d_nnz, o_nnz, global[0] / std::max(global[1], 1.0),
-                                             spacing, stage);
-}
-
 void Simulation::run_quasistatic(const Stage& stage) {
-  const std::size_t n = 3 * static_cast<std::size_t>(domain_.owned);
-  std::vector<std::uint8_t> constrained(n, 0);
-  std::vector<double> increment(n, 0.0);
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const int bi = bc_[i];
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t k = 3 * static_cast<std::size_t>(i) + c;
-      if (bi >= 0 && scene_.boundaries[bi].components[c]) {
-        constrained[k] = 1;
-        for (const BoundaryValue& bv : stage.displacements)
-          if (bv.boundary == scene_.boundaries[bi].name) increment[k] = bv.value[c];
-        for (int d = 0; d < 3; ++d)
-          increment[k] += stage.displacement_gradient[3 * c + d] * (domain_.X[3 * i + d] - scene_.initial.center[d]);
-      }
-      // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
-      if (c == 2 && stage.in_plane && scene_.bodies[domain_.body[i]].kind == BodyKind::Membrane) constrained[k] = 1;
-    }
-  }
   const EnergyRow before = energies();
   if (step_ == 0 && summary_.quasistatic.empty()) summary_.run_initial_total_energy = before.total();
-  std::unique_ptr<QuasiStaticLoader> loader = make_loader(stage);
   if (rank_ == 0 && !options_.quiet) {
     std::printf("[peridrive] quasistatic '%s': %ld initial load steps\n", stage.name.c_str(), stage.load_steps);
     std::fflush(stdout);
   }
-  QuasiStaticStats stats = loader->run(*this, constrained, increment, !options_.quiet);
-  external_work_ += stats.external_work;
-  // Equilibrium: at rest.
-  PERI_PETSC(VecSet(state_->velocity(), 0.0));
+  const QuasiStaticStats stats = peri::run_quasistatic(*p_, stage, equilibrium_, ledger_, !options_.quiet);
   const EnergyRow after = energies();
-  double work = 0, local = stats.external_work;
-  MPI_Allreduce(&local, &work, 1, MPI_DOUBLE, MPI_SUM, comm_);
-  stats.external_work = work;
+  const double work = stats.external_work;
   const double stored = (after.strain - before.strain) + (after.dissipated - before.dissipated) - before.kinetic;
   summary_.quasistatic.push_back({stage.name, stats});
   summary_.quasistatic_work_error.push_back(std::fabs(work - stored) / std::max(std::fabs(work), 1e-300));
@@ -1558,82 +247,137 @@ void Simulation::run_quasistatic(const Stage& stage) {
   }
 }
 
-void Simulation::set_displacement(const double* u_owned) {
-  double* u;
-  PERI_PETSC(VecGetArray(state_->displacement(), &u));
-  std::copy(u_owned, u_owned + 3 * static_cast<std::size_t>(domain_.owned), u);
-  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
-  density_current_ = false;
-  state_->halo_begin();
-  state_->halo_end();
-}
+// ------------------------------------------------------------------------------------------------
+// Checks and output of a step
 
-void Simulation::get_displacement(double* u_owned) {
-  const double* u;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  std::copy(u, u + 3 * static_cast<std::size_t>(domain_.owned), u_owned);
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-}
-
-void Simulation::internal_force(double* f_owned) {
-  compute_forces(false, true);
-  for (std::int32_t i = 0; i < domain_.owned; ++i)
-    for (int c = 0; c < 3; ++c) f_owned[3 * i + c] = force_[3 * i + c] * domain_.volume[i];
-}
-
-void Simulation::add_tangent(Mat J) {
-  BondView view = bond_view();
-  LocalArray u(state_->displacement());  // ghosts current: set_displacement exchanged them
-  view.u = u.data();
-  current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
-  std::vector<std::int32_t> cols;
-  std::vector<PetscInt> global_cols;
-  std::vector<double> blocks;
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    row_tangent(intact_laws_[domain_.body[i]], view, i, cols, blocks);
-    global_cols.resize(cols.size());
-    for (std::size_t k = 0; k < cols.size(); ++k) global_cols[k] = static_cast<PetscInt>(domain_.global[cols[k]]);
-    const PetscInt row = static_cast<PetscInt>(domain_.global[i]);
-    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, static_cast<PetscInt>(cols.size()), global_cols.data(), blocks.data(),
-                                   ADD_VALUES));
+void Simulation::check_health(std::int64_t step, double time) {
+  verlet_.settle_kick();
+  {
+    const VecArrayRead u(state_.displacement()), v(state_.velocity());
+    health_.check(step, time, u.data(), v.data(), verlet_.dt(), summary_.dt_stable);
   }
+  if (options_.quiet) return;
+  const auto now = std::chrono::steady_clock::now();
+  int print = rank_ == 0 && std::chrono::duration<double>(now - last_progress_).count() >= scene_.output.progress_seconds;
+  MPI_Bcast(&print, 1, MPI_INT, 0, comm_);
+  if (!print) return;
+  long long broken_local = ledger_.bonds.newly_broken, broken = 0;
+  MPI_Reduce(&broken_local, &broken, 1, MPI_LONG_LONG, MPI_SUM, 0, comm_);
+  if (rank_ == 0) {
+    const double elapsed = std::chrono::duration<double>(now - loop_start_).count();
+    const double rate = (step - loop_start_step_) / std::max(elapsed, 1e-9);
+    std::printf("[peridrive] step %lld/%lld  t = %.4g s  %.0f steps/s  ETA %.0f s  broken bonds %lld\n",
+                static_cast<long long>(step), static_cast<long long>(total_steps_), time, rate,
+                (total_steps_ - step) / std::max(rate, 1e-9), broken / 2);
+    std::fflush(stdout);
+  }
+  last_progress_ = now;
 }
 
-std::int64_t Simulation::break_bonds() {
-  const std::int64_t before = tally_.newly_broken;
-  compute_forces(false);
-  long long local = tally_.newly_broken - before, global = 0;
-  MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, comm_);
-  return global / 2;
+void Simulation::write_series_row() {
+  const EnergyRow row = reduce_energies(ledger_.bonds.strain_energy);
+  // Energy growth detector (after the first row, which sets the reference).
+  if (step_ > 0)
+    health_.check_energy(row, energy_balance_error(row), summary_.initial_total_energy, verlet_.dt(), summary_.dt_stable);
+  std::string extra;
+  if (tips_) {
+    extra = tips_->sample(row, [this] { return forces_.damage(); });
+    output_.write_tips(tips_->csv_rows(row));
+  }
+  if (p_->tools) extra += p_->tools->series_values(time_, !extra.empty());
+  output_.write_series(row, extra);
+  summary_.final_energy = row;
 }
 
-void Simulation::finish() {
-  const auto t_end = std::chrono::steady_clock::now();
-  summary_.step_seconds = std::chrono::duration<double>(t_end - loop_start_).count() -
-                          (summary_.output_seconds - output_seconds_at_loop_start_);
-  summary_.steps_timed = step_ - loop_start_step_;
-  summary_.wall_seconds = std::chrono::duration<double>(t_end - start_).count();
-  summary_.simulated_time = time_;
-  summary_.frames = frames_ ? frames_->frames() : 0;
-  summary_.energy_balance_error = energy_balance_error(summary_.final_energy);
-  summary_.run_energy_balance_error = energy_balance_error(summary_.final_energy, summary_.run_initial_total_energy);
-  if (tracker_) summarize_crack_tips();
-  // Timings of the slowest rank: the job's figures.
-  double times[4] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
-                     summary_.crack_tip_seconds}, tmax[4];
-  MPI_Allreduce(times, tmax, 4, MPI_DOUBLE, MPI_MAX, comm_);
-  summary_.crack_tip_seconds = tmax[3];
-  summary_.step_seconds = tmax[0];
-  summary_.output_seconds = tmax[1];
-  summary_.wall_seconds = tmax[2];
-  mark_memory("end");
-  if (!options_.out_dir.empty() && rank_ == 0)
-    write_text_file(options_.out_dir + "/summary.json", summary_.to_json());
+void Simulation::write_frame() {
+  verlet_.settle_kick();
+  PetscLogEventBegin(events().output, 0, 0, 0, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  const double* damage = forces_.damage();
+  const double* energy_density = forces_.energy_density();
+  {
+    const VecArrayRead u(state_.displacement()), v(state_.velocity());
+    output_.write_frame(step_, time_, u.data(), v.data(), damage, energy_density);
+  }
+  summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  PetscLogEventEnd(events().output, 0, 0, 0, 0);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Checkpoints and restart
+
+void Simulation::add_checkpoint_extra(std::string name, std::function<std::vector<double>()> save,
+                                      std::function<void(const std::vector<double>*)> restore) {
+  extras_.add(std::move(name), std::move(save), std::move(restore));
+}
+
+Checkpoint Simulation::make_checkpoint() {
+  return peri::make_checkpoint(scene_, domain_, state_, ledger_, {step_, time_, stage_, stage_step_}, summary_, extras_,
+                               comm_);
+}
+
+void Simulation::write_checkpoint() {
+  verlet_.settle_kick();
+  PetscLogEventBegin(events().output, 0, 0, 0, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  store_checkpoint(checkpoint_path(), make_checkpoint(), comm_);
+  cadence_.written(step_);
+  summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  PetscLogEventEnd(events().output, 0, 0, 0, 0);
+}
+
+void Simulation::restore(const Checkpoint& c) {
+  restore_state(c, domain_, state_, ledger_, comm_);
+  forces_.flags_changed();
+  restore_summary(c, scene_, summary_);
+  step_ = c.step;
+  time_ = c.time;
+  stage_ = static_cast<std::size_t>(c.stage);
+  stage_step_ = c.stage_step;
+  summary_.initial_total_energy = c.initial_total_energy;
+  extras_.restore(c);
+
+  // Forces at the restored positions, computed as the uninterrupted run did at the end of this
+  // step; every bond past its critical stretch there is already broken, so none breaks now.
+  verlet_.forces_at(time_);
+  summary_.final_energy = reduce_energies(ledger_.bonds.strain_energy);
+  output_.skip_frames_through(step_);
+  if (rank_ == 0 && !options_.quiet) {
+    std::printf("[peridrive] resumed at step %lld/%lld (t = %.6g s) from a checkpoint written on %d rank%s\n",
+                static_cast<long long>(step_), static_cast<long long>(total_steps_), time_, c.ranks,
+                c.ranks > 1 ? "s" : "");
+    std::fflush(stdout);
+  }
+  start_loop_clock();
+}
+
+// ------------------------------------------------------------------------------------------------
+// Energies and fields
+
+EnergyRow Simulation::energies() {
+  // Strain energy of the current state from a separate (non-breaking) pass.
+  return reduce_energies(forces_.strain_energy());
+}
+
+double Simulation::energy_balance_error(const EnergyRow& row) const {
+  return peri::energy_balance_error(row, summary_.initial_total_energy, p_->energy_floor);
+}
+
+EnergyRow Simulation::reduce_energies(double local_strain) {
+  verlet_.settle_kick();
+  const VecArrayRead v(state_.velocity());
+  const double kinetic = kinetic_energy(v.data(), p_->mass, comm_);
+  return peri::reduce_energies(ledger_, local_strain, kinetic, step_, time_, comm_);
+}
+
+std::array<double, 6> Simulation::momentum() {
+  const VecArrayRead u(state_.displacement()), v(state_.velocity());
+  return peri::momentum(domain_.X.data(), u.data(), v.data(), p_->mass, comm_);
 }
 
 std::vector<double> Simulation::gather_natural(const double* owned, int bs) {
-  const double* slice = state_->to_natural(owned, bs);
-  const int n = static_cast<int>(bs * state_->natural_count());
+  const double* slice = state_.to_natural(owned, bs);
+  const int n = static_cast<int>(bs * state_.natural_count());
   std::vector<int> counts(ranks_), displs(ranks_, 0);
   MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
   for (int r = 1; r < ranks_; ++r) displs[r] = displs[r - 1] + counts[r - 1];
@@ -1643,33 +387,25 @@ std::vector<double> Simulation::gather_natural(const double* owned, int bs) {
 }
 
 std::vector<double> Simulation::natural_positions() {
-  const double* u;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
   std::vector<double> x(3 * static_cast<std::size_t>(domain_.owned));
-  for (std::size_t a = 0; a < x.size(); ++a) x[a] = domain_.X[a] + u[a];
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
+  {
+    const VecArrayRead u(state_.displacement());
+    for (std::size_t a = 0; a < x.size(); ++a) x[a] = domain_.X[a] + u[a];
+  }
   return gather_natural(x.data(), 3);
 }
 
 std::vector<double> Simulation::natural_velocities() {
-  settle_kick();
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  std::vector<double> copy(v, v + 3 * static_cast<std::size_t>(domain_.owned));
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
+  verlet_.settle_kick();
+  std::vector<double> copy;
+  {
+    const VecArrayRead v(state_.velocity());
+    copy.assign(v.data(), v.data() + 3 * static_cast<std::size_t>(domain_.owned));
+  }
   return gather_natural(copy.data(), 3);
 }
 
-void Simulation::update_damage() {
-  const BondView view = bond_view();
-  for (const std::vector<std::int32_t>* rows : {&domain_.interior_rows, &domain_.boundary_rows})
-    node_damage(view, rows->data(), rows->size(), damage_.data());
-}
-
-std::vector<double> Simulation::natural_damage() {
-  update_damage();
-  return gather_natural(damage_.data(), 1);
-}
+std::vector<double> Simulation::natural_damage() { return gather_natural(forces_.damage(), 1); }
 
 std::vector<std::pair<std::int64_t, std::int64_t>> Simulation::broken_bonds() {
   std::vector<long long> mine;
@@ -1691,266 +427,19 @@ std::vector<std::pair<std::int64_t, std::int64_t>> Simulation::broken_bonds() {
   return {set.begin(), set.end()};
 }
 
-std::array<double, 6> Simulation::momentum() {
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  std::array<double, 6> p{}, total{};
-  for (std::int32_t i = 0; i < domain_.owned; ++i) {
-    const double m = mass_[i];
-    const double x[3] = {domain_.X[3 * i] + u[3 * i], domain_.X[3 * i + 1] + u[3 * i + 1], domain_.X[3 * i + 2] + u[3 * i + 2]};
-    const double* w = &v[3 * i];
-    for (int c = 0; c < 3; ++c) p[c] += m * w[c];
-    p[3] += m * (x[1] * w[2] - x[2] * w[1]);
-    p[4] += m * (x[2] * w[0] - x[0] * w[2]);
-    p[5] += m * (x[0] * w[1] - x[1] * w[0]);
-  }
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  MPI_Allreduce(p.data(), total.data(), 6, MPI_DOUBLE, MPI_SUM, comm_);
-  return total;
-}
+std::vector<std::string> Simulation::derived_lines() const { return peri::derived_lines(summary_); }
 
-}  // namespace peri
+const std::string& Simulation::resolved_scene() const { return p_->resolved; }
 
 // ------------------------------------------------------------------------------------------------
-// Checkpoints and restart
+// The quasi-static loader's view (tests call it directly)
 
-namespace peri {
+void Simulation::set_displacement(const double* u_owned) { equilibrium_.set_displacement(u_owned); }
+void Simulation::get_displacement(double* u_owned) { equilibrium_.get_displacement(u_owned); }
+void Simulation::internal_force(double* f_owned) { equilibrium_.internal_force(f_owned); }
+void Simulation::add_tangent(Mat J) { equilibrium_.add_tangent(J); }
+std::int64_t Simulation::break_bonds() { return equilibrium_.break_bonds(); }
 
-void Simulation::add_checkpoint_extra(std::string name, std::function<std::vector<double>()> save,
-                                      std::function<void(const std::vector<double>*)> restore) {
-  extras_.push_back({std::move(name), std::move(save), std::move(restore)});
-}
-
-bool Simulation::checkpoint_due(bool poll) {
-  const Output& o = scene_.output;
-  bool due = o.checkpoint_every_steps > 0 && step_ % o.checkpoint_every_steps == 0;
-  if (poll) {
-    // One collective verdict: a signal on any rank stops all; rank 0's clock decides the cadence.
-    const double since = std::chrono::duration<double>(std::chrono::steady_clock::now() - last_checkpoint_).count();
-    int local[2] = {stop_signal() != 0, rank_ == 0 && o.checkpoint_every_seconds > 0 && since >= o.checkpoint_every_seconds};
-    int global[2];
-    MPI_Allreduce(local, global, 2, MPI_INT, MPI_MAX, comm_);
-    stopped_ = global[0] != 0;
-    due = due || global[0] || global[1];
-  }
-  return due && !options_.out_dir.empty() && step_ != last_checkpoint_step_;
-}
-
-Checkpoint Simulation::make_checkpoint() {
-  Checkpoint c;
-  c.peridrive_version = version();
-  c.git_revision = git_revision();
-  c.scene = emit_scene(scene_);
-  c.scene_hash = fnv1a64(c.scene.data(), c.scene.size());
-  c.nodes = domain_.global_nodes;
-  c.ordered_bonds = summary_.ordered_bonds;
-  c.step = step_;
-  c.time = time_;
-  c.stage = static_cast<std::int64_t>(stage_);
-  c.stage_step = stage_step_;
-  c.initial_total_energy = summary_.initial_total_energy;
-  c.ranks = ranks_;
-  const bool root = rank_ == 0;
-  c.dissipated.resize(root ? ranks_ : 0);
-  c.damping_work.resize(root ? ranks_ : 0);
-  c.external_work.resize(root ? ranks_ : 0);
-  c.newly_broken.resize(root ? ranks_ : 0);
-  c.owner_hash.resize(root ? ranks_ : 0);
-  const std::uint64_t own = ownership_hash(domain_);
-  MPI_Gather(&tally_.dissipated, 1, MPI_DOUBLE, c.dissipated.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&damping_work_, 1, MPI_DOUBLE, c.damping_work.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&external_work_, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm_);
-  MPI_Gather(&tally_.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm_);
-  MPI_Gather(&own, 1, MPI_UINT64_T, c.owner_hash.data(), 1, MPI_UINT64_T, 0, comm_);
-  const double* u;
-  const double* v;
-  PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-  c.displacement = gather_natural_to_root(*state_, domain_, u, 3, comm_);
-  PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
-  PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-  c.velocity = gather_natural_to_root(*state_, domain_, v, 3, comm_);
-  PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-  c.broken = gather_broken_to_root(domain_, comm_);
-  for (const Extra& e : extras_) {
-    std::vector<double> values = e.save();
-    if (root) c.extras[e.name] = std::move(values);
-  }
-  // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
-  // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
-  c.extras["summary.precrack_bonds"] = {double(summary_.precrack_bonds)};
-  c.extras["summary.run_initial_total_energy"] = {summary_.run_initial_total_energy};
-  for (std::size_t k = 0; k < summary_.quasistatic.size(); ++k) {
-    const auto& [name, q] = summary_.quasistatic[k];
-    double stage = -1;
-    for (std::size_t s = 0; s < scene_.stages.size(); ++s)
-      if (scene_.stages[s].name == name) stage = double(s);
-    std::vector<double> v = {stage, double(q.cutbacks), double(q.newton_iterations), double(q.linear_iterations),
-                             double(q.broken), q.external_work, q.seconds, summary_.quasistatic_work_error[k]};
-    for (const LoadIncrement& inc : q.increments)
-      v.insert(v.end(), {inc.load_factor, double(inc.newton_iterations), double(inc.linear_iterations),
-                         double(inc.break_passes), double(inc.broken), inc.residual});
-    c.extras["summary.quasistatic." + std::to_string(k)] = std::move(v);
-  }
-  return c;
-}
-
-void Simulation::write_checkpoint() {
-  settle_kick();
-  PetscLogEventBegin(events().output, 0, 0, 0, 0);
-  const auto t0 = std::chrono::steady_clock::now();
-  store_checkpoint(checkpoint_path(), make_checkpoint(), comm_);
-  last_checkpoint_step_ = step_;
-  last_checkpoint_ = std::chrono::steady_clock::now();
-  summary_.output_seconds += std::chrono::duration<double>(last_checkpoint_ - t0).count();
-  PetscLogEventEnd(events().output, 0, 0, 0, 0);
-}
-
-void Simulation::check_restart(const Checkpoint& c) {
-  const std::string what = "checkpoint (step " + std::to_string(c.step) + ")";
-  // The physics must be the checkpoint's: only progress and checkpoint cadence may differ.
-  Scene stored = parse_scene(c.scene, "checkpoint scene");
-  Scene mine = scene_;
-  mine.output.progress_seconds = stored.output.progress_seconds;
-  mine.output.checkpoint_every_steps = stored.output.checkpoint_every_steps;
-  mine.output.checkpoint_every_seconds = stored.output.checkpoint_every_seconds;
-  const std::string a = emit_scene(stored), b = emit_scene(mine);
-  if (a != b) {
-    std::istringstream sa(a), sb(b);
-    std::string la, lb;
-    int line = 0;
-    while (true) {
-      ++line;
-      const bool ga = static_cast<bool>(std::getline(sa, la)), gb = static_cast<bool>(std::getline(sb, lb));
-      if (!ga || !gb || la != lb) break;
-    }
-    throw InputError(what + " was written by a different scene: resolved scene line " + std::to_string(line) +
-                     " is '" + la + "' in the checkpoint and '" + lb +
-                     "' here (only output.progress_seconds and output.checkpoint_every_* may change on resume)");
-  }
-  if (c.nodes != domain_.global_nodes || c.ordered_bonds != summary_.ordered_bonds)
-    throw InputError(what + " holds " + std::to_string(c.nodes) + " nodes and " + std::to_string(c.ordered_bonds) +
-                     " ordered bonds; this scene has " + std::to_string(domain_.global_nodes) + " and " +
-                     std::to_string(summary_.ordered_bonds));
-  std::int64_t before = 0;
-  const bool stage_ok = c.stage >= 0 && static_cast<std::size_t>(c.stage) < stage_steps_.size() &&
-                        c.stage_step <= stage_steps_[c.stage];
-  if (stage_ok)
-    for (std::int64_t s = 0; s < c.stage; ++s) before += stage_steps_[s];
-  if (!stage_ok || before + c.stage_step != c.step || scene_.stages[c.stage].kind != StageKind::Dynamic)
-    throw InputError(what + ": stage " + std::to_string(c.stage) + " step " + std::to_string(c.stage_step) +
-                     " does not fit this scene's stages");
-}
-
-void Simulation::restore_summary_extras(const Checkpoint& c) {
-  // Written by make_checkpoint; absent extras leave the figures as the constructor set them.
-  if (const auto it = c.extras.find("summary.precrack_bonds"); it != c.extras.end() && it->second.size() == 1)
-    summary_.precrack_bonds = std::llround(it->second[0]);
-  // (Checkpoints without it: the explicit part's start, as before quasi-static stages were counted.)
-  summary_.run_initial_total_energy = c.initial_total_energy;
-  if (const auto it = c.extras.find("summary.run_initial_total_energy"); it != c.extras.end() && it->second.size() == 1)
-    summary_.run_initial_total_energy = it->second[0];
-  for (std::size_t k = 0;; ++k) {
-    const auto it = c.extras.find("summary.quasistatic." + std::to_string(k));
-    if (it == c.extras.end()) break;
-    const std::vector<double>& v = it->second;
-    if (v.size() < 8 || (v.size() - 8) % 6 != 0 || !(v[0] >= 0 && v[0] < double(scene_.stages.size()))) break;
-    QuasiStaticStats q;
-    q.cutbacks = static_cast<int>(v[1]);
-    q.newton_iterations = static_cast<long>(v[2]);
-    q.linear_iterations = static_cast<long>(v[3]);
-    q.broken = static_cast<std::int64_t>(v[4]);
-    q.external_work = v[5];
-    q.seconds = v[6];
-    for (std::size_t p = 8; p < v.size(); p += 6) {
-      LoadIncrement inc;
-      inc.load_factor = v[p];
-      inc.newton_iterations = static_cast<int>(v[p + 1]);
-      inc.linear_iterations = static_cast<int>(v[p + 2]);
-      inc.break_passes = static_cast<int>(v[p + 3]);
-      inc.broken = static_cast<std::int64_t>(v[p + 4]);
-      inc.residual = v[p + 5];
-      q.increments.push_back(inc);
-    }
-    summary_.quasistatic.push_back({scene_.stages[static_cast<std::size_t>(v[0])].name, q});
-    summary_.quasistatic_work_error.push_back(v[7]);
-  }
-}
-
-void Simulation::restore(const Checkpoint& c) {
-  double* u;
-  double* v;
-  PERI_PETSC(VecGetArray(state_->displacement(), &u));
-  PERI_PETSC(VecGetArray(state_->velocity(), &v));
-  for (std::int32_t l = 0; l < domain_.owned; ++l) {
-    const std::size_t n = 3 * static_cast<std::size_t>(domain_.natural[l]);
-    for (int k = 0; k < 3; ++k) {
-      u[3 * l + k] = c.displacement[n + k];
-      v[3 * l + k] = c.velocity[n + k];
-    }
-  }
-  PERI_PETSC(VecRestoreArray(state_->velocity(), &v));
-  PERI_PETSC(VecRestoreArray(state_->displacement(), &u));
-
-  long long found = apply_broken_pairs(domain_, c.broken), found_all = 0;
-  flags_changed();
-  MPI_Allreduce(&found, &found_all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
-  if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
-    throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +
-                     " broken bonds, but only " + std::to_string(found_all / 2) + " are bonds of this scene");
-
-  // Tallies: per rank when the ownership is the checkpoint's (sums continue bit for bit), else
-  // their totals on rank 0.
-  int same = c.ranks == ranks_ && c.owner_hash[rank_] == ownership_hash(domain_), all_same = 0;
-  MPI_Allreduce(&same, &all_same, 1, MPI_INT, MPI_MIN, comm_);
-  if (all_same) {
-    tally_.dissipated = c.dissipated[rank_];
-    damping_work_ = c.damping_work[rank_];
-    external_work_ = c.external_work[rank_];
-    tally_.newly_broken = c.newly_broken[rank_];
-  } else {
-    tally_ = BondTally{};
-    damping_work_ = 0;
-    external_work_ = 0;
-    if (rank_ == 0)
-      for (int r = 0; r < c.ranks; ++r) {
-        tally_.dissipated += c.dissipated[r];
-        damping_work_ += c.damping_work[r];
-        external_work_ += c.external_work[r];
-        tally_.newly_broken += c.newly_broken[r];
-      }
-  }
-  restore_summary_extras(c);
-  step_ = c.step;
-  time_ = c.time;
-  stage_ = static_cast<std::size_t>(c.stage);
-  stage_step_ = c.stage_step;
-  summary_.initial_total_energy = c.initial_total_energy;
-  for (const Extra& e : extras_) {
-    const auto it = c.extras.find(e.name);
-    e.restore(it == c.extras.end() ? nullptr : &it->second);
-  }
-
-  // Forces at the restored positions, computed as the uninterrupted run did at the end of this
-  // step; every bond past its critical stretch there is already broken, so none breaks now.
-  compute_forces(true);
-  add_tool_forces(time_, false);
-  add_pressure_forces(time_, false);
-  summary_.final_energy = reduce_energies(tally_.strain_energy);
-  while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step_) ++next_frame_;
-  last_checkpoint_step_ = step_;
-  if (rank_ == 0 && !options_.quiet) {
-    std::printf("[peridrive] resumed at step %lld/%lld (t = %.6g s) from a checkpoint written on %d rank%s\n",
-                static_cast<long long>(step_), static_cast<long long>(total_steps_), time_, c.ranks,
-                c.ranks > 1 ? "s" : "");
-    std::fflush(stdout);
-  }
-  loop_start_ = std::chrono::steady_clock::now();
-  loop_start_step_ = step_;  // the steps before the checkpoint were timed by the run that took them
-  output_seconds_at_loop_start_ = summary_.output_seconds;  // the first frame is not the loop's
-  last_progress_ = loop_start_;
-}
+std::unique_ptr<QuasiStaticLoader> Simulation::make_loader(const Stage& stage) { return peri::make_loader(*p_, stage); }
 
 }  // namespace peri

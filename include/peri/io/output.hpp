@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "peri/core/hdf5.hpp"
+#include "peri/diagnostics/energies.hpp"
 #include "peri/state/state.hpp"
 
 namespace peri {
@@ -20,15 +22,6 @@ void make_output_dir(const std::string& dir, MPI_Comm comm);
 
 /// Write a small text file atomically (temporary name, then rename). Rank 0 only.
 void write_text_file(const std::string& path, const std::string& text);
-
-/// Series row: what the CSV holds at one step.
-struct EnergyRow {
-  std::int64_t step = 0;
-  double time = 0;
-  double kinetic = 0, strain = 0, external_work = 0, dissipated = 0;
-  std::int64_t broken_bonds = 0;  ///< bonds (not ordered pairs) broken so far
-  double total() const { return kinetic + strain + dissipated - external_work; }
-};
 
 class FrameWriter {
  public:
@@ -56,13 +49,13 @@ class FrameWriter {
   /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
   /// that replaces it (false if it cannot be opened at all). Collective.
   bool salvage(const std::string& path, hid_t fapl, std::int64_t resume_step, const std::string& resolved_scene);
-  hid_t create(const std::string& path, hid_t fapl, const std::string& resolved_scene);  // with the mesh
+  H5Id create(const std::string& path, hid_t fapl, const std::string& resolved_scene);  // with the mesh
 
   std::string dir_, stem_;
   const Domain& domain_;
   State& state_;
   bool write_velocity_;
-  hid_t file_ = -1;
+  H5Id file_;
   std::vector<double> work_;
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;

@@ -1,6 +1,9 @@
-// Simulation: one run, built along DESIGN.md's data flow (scene -> nodes -> bonds -> partition
-// -> state -> model -> stages -> diagnostics -> output). run() reads like the algorithm:
-// initial conditions, then each stage's explicit velocity-Verlet loop.
+// Simulation: one run. The setup builds its problem along DESIGN.md's data flow (stages/problem.hpp:
+// domain, state, force model, loads, the stages' time steps); run() then reads like the
+// algorithm: initial conditions, then the stages in order, those that take no time (quasi-static
+// preload, release: quasistatic_stage.hpp, release.hpp) changing the state at once, the dynamic
+// ones stepping it by velocity Verlet (explicit.hpp), each step checked (diagnostics/health.hpp)
+// before its series row, frame or checkpoint is written (io/).
 #pragma once
 #include <mpi.h>
 
@@ -13,13 +16,16 @@
 #include <utility>
 #include <vector>
 
-#include "peri/loads/contact.hpp"
-#include "peri/diagnostics/crack_tips.hpp"
-#include "peri/kernels/forces.hpp"
-#include "peri/models/long_range.hpp"
-#include "peri/models/marder.hpp"
-#include "peri/io/output.hpp"
+#include "peri/diagnostics/crack_tip_monitor.hpp"
+#include "peri/diagnostics/energies.hpp"
+#include "peri/diagnostics/health.hpp"
+#include "peri/io/run_checkpoint.hpp"
+#include "peri/io/run_output.hpp"
+#include "peri/io/summary.hpp"
+#include "peri/stages/explicit.hpp"
+#include "peri/stages/problem.hpp"
 #include "peri/stages/quasistatic.hpp"
+#include "peri/stages/quasistatic_stage.hpp"
 #include "peri/state/state.hpp"
 
 namespace peri {
@@ -32,48 +38,6 @@ struct RunOptions {
   /// Continue from this checkpoint: begin() restores it instead of applying initial conditions,
   /// and the outputs in out_dir are continued (frames and series rows after it are dropped).
   std::shared_ptr<const Checkpoint> restart;
-};
-
-/// Figures of a finished (or running) simulation, as written to summary.json.
-struct RunSummary {
-  std::int64_t nodes = 0, ordered_bonds = 0, steps = 0, precrack_bonds = 0;
-  /// Steps this process took and timed in step_seconds (after a resume: those after the
-  /// checkpoint; the rates are steps_timed * ordered_bonds / step_seconds).
-  std::int64_t steps_timed = 0;
-  int ranks = 1, frames = 0;
-  double dt = 0, dt_stable = 0, simulated_time = 0;
-  double setup_seconds = 0, step_seconds = 0, output_seconds = 0, wall_seconds = 0;
-  double bytes_per_bond = 0;
-  double partition_seconds = 0;
-  std::int64_t edge_cut = 0;
-  std::string partition_method;  ///< cells, bonds or petsc (-partition_method)
-  double partition_balance = 1;  ///< largest rank's ordered bonds / mean
-  /// Memory after each setup phase, summed over ranks: peak resident set (VmHWM) so far and
-  /// current resident set (VmRSS), bytes.
-  struct MemoryMark {
-    std::string phase;
-    double peak = 0, current = 0;
-  };
-  std::vector<MemoryMark> memory;
-  EnergyRow final_energy;
-  double initial_total_energy = 0;  ///< total at the start of the explicit part (after quasi-static stages)
-  double energy_balance_error = 0;  ///< |E(t) - E(0)| / max(|E| scale) at the end
-  /// The same over the whole run: from the total before the first stage, so that a quasi-static
-  /// stage whose support work is not stored or dissipated shows here (equal to the above when
-  /// the run has no quasi-static stage).
-  double run_initial_total_energy = 0;
-  double run_energy_balance_error = 0;
-  /// Quasi-static stages run: (stage name, figures).
-  std::vector<std::pair<std::string, QuasiStaticStats>> quasistatic;
-  /// Per quasi-static stage: |W_reactions - (dU + D)| / W_reactions (trapezoidal work).
-  std::vector<double> quasistatic_work_error;
-  std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
-  /// Crack tips (scenes whose materials break): final tips and speeds, see crack_tips.hpp.
-  bool crack_tracking = false;
-  double max_crack_speed = 0, mean_crack_speed = 0, rayleigh_wave_speed = 0, crack_speed_window = 0;
-  double crack_tip_seconds = 0;  ///< time spent finding and tracking tips (slowest rank)
-  std::string crack_tips_json;  ///< JSON array, one object per track
-  std::string to_json() const;
 };
 
 class Simulation : public EquilibriumModel {
@@ -98,7 +62,7 @@ class Simulation : public EquilibriumModel {
   const RunSummary& summary() const { return summary_; }
   const Domain& domain() const { return domain_; }
   /// Resolved scene YAML with derived constants as comments.
-  const std::string& resolved_scene() const { return resolved_; }
+  const std::string& resolved_scene() const;
   /// Derived constants as "key = value" lines.
   std::vector<std::string> derived_lines() const;
 
@@ -123,7 +87,7 @@ class Simulation : public EquilibriumModel {
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
   /// Crack tip histories (identical on every rank); nullptr when no material breaks.
-  const CrackTipTracker* crack_tips() const { return tracker_.get(); }
+  const CrackTipTracker* crack_tips() const { return tips_ ? &tips_->tracker() : nullptr; }
 
   /// The run's state as a checkpoint, complete on rank 0 (collective).
   Checkpoint make_checkpoint();
@@ -132,7 +96,7 @@ class Simulation : public EquilibriumModel {
   void write_checkpoint();
   std::string checkpoint_path() const { return options_.out_dir + "/checkpoint.h5"; }
   /// True when SIGTERM/SIGINT stopped the run (after its final checkpoint); finish() was skipped.
-  bool stopped() const { return stopped_; }
+  bool stopped() const { return cadence_.stopped(); }
   /// Store an extra array in checkpoints (e.g. a diagnostic's history). `save` is called on every
   /// rank and rank 0's values are stored; on restart `restore` is called on every rank with the
   /// stored values, or nullptr when the checkpoint has none under that name.
@@ -140,184 +104,51 @@ class Simulation : public EquilibriumModel {
                             std::function<void(const std::vector<double>*)> restore);
 
  private:
-  void apply_initial_conditions();
-  void compute_forces(bool with_energy, bool intact = false);  // intact: laws that never break
-  void start_stage();               // stage_: set its boundaries and step, or run it (no-time stages)
+  void explicit_step();                      // one step of the explicit stage, its checks and output
+  void run_timeless_stage(const Stage& stage);  // a quasi-static or release stage
   void run_quasistatic(const Stage& stage);
   void run_release(const Stage& stage);
-  // defer_kick: the free nodes' second half kick may wait for the next step's first pass
-  // (kick_pending_; settle_kick() applies it, as every reader of the velocity does first).
-  void step(bool with_energy, bool defer_kick = false);
-  void settle_kick();
-  void second_kick_free(double* v, double dt) const;  // the free runs' second half kick
-  /// The bond loop's plans forget what they keep of the broken flags (RowBlocks::forget_broken):
-  /// after flags are written other than by the loop (release stage, restart).
-  void flags_changed();
-  bool has_intact_bond(std::int32_t row) const;
+  void start_loop_clock();                   // the steps timed from here
   void check_health(std::int64_t step, double time);
-  // Setup checks and warnings (src/stages/simulation_checks.cpp): derived quantities that the
-  // scene's values would make absurd are refused there, naming the keys; all before any output.
-  void stop_point();                              // collective: StopRequested on every rank after a signal
-  void warn_large_families(const SizeEstimate& e) const;
-  void warn_overlapping_boundaries(const std::vector<std::vector<std::int64_t>>& bc_nodes) const;
-  void check_node_masses() const;                 // global node arrays (before they are freed)
-  void check_stable_step(const std::vector<double>& dt_body);  // per body, collective
-  void check_stage(std::size_t stage, double dt) const;  // step count, damping
-  void check_initial_state();                     // initial conditions, boundaries, tools (collective)
-  std::string law_note(int body) const;           // how body's law behaves near the stable bound (-1: all)
   void write_frame();
   void write_series_row();
-  /// Adds the tools' contact forces at time `t` to force_ (after compute_forces: positions_ of
-  /// the owned nodes current, the velocity Vec at the half step when `book`); with `book`, the
-  /// tools' work (trapezoidal in time) goes to external_work_. The contact's penalty energy is
-  /// added to tally_.strain_energy. Friction is booked by step() after the second half kick.
-  void add_tool_forces(double t, bool book);
-  /// Internal pressure of sphere bodies (example 7.2), a follower load: each geodesic triangle
-  /// carries p(t) times its current area vector, a third to each corner whose bonds to the
-  /// other two corners are intact (a torn triangle holds no gas). book: its work since the last
-  /// call (trapezoidal: the mean of the two forces times the displacement) goes to external_work_.
-  void add_pressure_forces(double t, bool book);
-  struct PressureLoad {
-    double pressure = 0, ramp = 0;
-    std::vector<std::int32_t> node;                 // owned loaded nodes (local)
-    std::vector<std::int64_t> begin{0};             // per loaded node, into the lists below
-    std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
-    std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to them (-1: none)
-    std::vector<double> force_prev, x_prev;         // per loaded node: last force [N], position
-    bool started = false;
-  };
-  std::vector<PressureLoad> pressure_;
-  void pressure_setup();
-  std::vector<double> energy_density_;  // owned: strain energy per unit volume (frames)
-  // Whether energy_density_ holds the bond energies of the current state: written by the bond
-  // loop in energy calls (compute_forces), so a frame needs no separate pass over the bonds.
-  bool density_current_ = false;
-  void update_energy_density();
-  double kinetic_energy();
-  void update_damage();                          // damage_ of every owned node from the flags
-  BondView bond_view();                          // bond arrays of this rank (u filled by caller)
-  /// |total - initial total| over the run's energy scale (at least energy_floor_); from the
-  /// total `e0` (the explicit part's initial total when not given).
+  /// |total - initial total| over the run's energy scale (at least the problem's floor), from
+  /// the explicit part's initial total.
   double energy_balance_error(const EnergyRow& row) const;
-  double energy_balance_error(const EnergyRow& row, double e0) const;
   EnergyRow reduce_energies(double local_strain);  // global energies from this rank's strain
-  void check_restart(const Checkpoint& c);        // InputError unless c continues this scene
   void restore(const Checkpoint& c);              // state, flags, tallies, counters; forces
-  void restore_summary_extras(const Checkpoint& c);  // figures of stages before the checkpoint
-  bool checkpoint_due(bool poll);                 // collective at poll steps; sets stopped_
-  // Marder lattice bodies (src/stages/simulation_lattice.cpp); nothing is built when there is none.
-  void lattice_setup();
-  void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
-                      const double* velocity);
-  void lattice_reduce();
-  double lattice_energy(const BondView& view);
-  void lattice_derived(std::size_t body);
-  void setup_crack_tips();                       // tracker settings from the scene (constructor)
-  void mark_memory(const char* phase);           // summary_.memory row (collective)
-  std::array<double, 3> reference_position(std::int64_t natural);  // of any node (collective)
-  std::string track_crack_tips(const EnergyRow& row);  // one tip sample; returns the series columns
-  void summarize_crack_tips();                   // summary fields from the tracker (finish)
 
-  Scene scene_;
-  MPI_Comm comm_;
   RunOptions options_;
+  RunSummary summary_;  // the setup's figures first (build_problem)
+  std::chrono::steady_clock::time_point start_, last_progress_;
+  std::unique_ptr<Problem> p_;  // what the setup built (stages/problem.hpp)
+  // Its parts that the run reads throughout.
+  const Scene& scene_;
+  MPI_Comm comm_;
   int rank_ = 0, ranks_ = 1;
-  Nodes nodes_;  // after setup only nodes_.bodies: the node arrays live in domain_ per rank
-  Partition partition_;
-  Domain domain_;
-  std::unique_ptr<State> state_;
-  std::vector<BondLaw> laws_;           // per body
-  std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
-  bool has_lattice_ = false;
-  // Long-range forces (scene long_range): every rank holds the table of all fiber nodes and, each
-  // force evaluation, their current positions (gathered); it evaluates the pairs of its own.
-  struct LongRangeState {
-    LongRangeState(PairLaw l, LongRangeTable t) : law(l), table(std::move(t)) {}
-    PairLaw law;
-    LongRangeTable table;
-    std::vector<std::int64_t> mine;         // table indices of this rank's owned fiber nodes
-    std::vector<std::int32_t> mine_local;   // their local (owned) indices
-    std::vector<int> counts, displs;        // per rank: how many, where in the gathered order
-    std::vector<std::int64_t> gathered;     // gathered order -> table index
-    std::vector<double> send, recv, x, force;
-    LongRangeList list;
-  };
-  std::optional<LongRangeState> long_range_;
-  void long_range_setup();                          // before the global node arrays are freed
-  void gather_fiber_positions(const double* u);  // every rank: current positions of all fiber nodes (lr.x)
-  double add_long_range_forces(const double* u, bool with_energy);  // returns this rank's energy share
-  std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
-  bool has_kelvin_ = false;                 // some lattice body has bond dashpots (velocity halo)
-  std::vector<double> viscous_;             // dashpot force densities, 3 * local (owned rows written)
-  std::vector<BondLaw> intact_laws_;    // same, never breaking (quasi-static residuals, tangents)
-  struct ActiveBoundary {
-    Vec3 velocity{0, 0, 0};
-    double ramp_time = 0;
-  };
-  std::vector<ActiveBoundary> active_bc_;  // per boundary, in the current stage
-  double damping_ = 0;                     // current stage's viscous damping [1/s]
-  double damping_work_ = 0;                // this rank's energy removed by damping [J]
-  std::vector<double> motion_limit2_;      // per body: (motion_per_step * spacing)^2
-  long long unstable_node_ = -1;           // natural id of a node that moved too far in one step
-  double unstable_motion_ = 0;
-  bool stage_started_ = false;
-  std::vector<double> density_;         // per body
-  std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
-  std::vector<RowBlocks> interior_plan_, boundary_plan_;  // the same rows grouped for the bond loop
-  std::vector<double> inv_density_, mass_;  // per owned node
-  std::vector<double> force_;               // force densities, 3 * owned
-  double energy_floor_ = 0;                 // smallest energy scale of the balance (sum m c_l^2 1e-20)
-  std::vector<double> positions_;           // current positions X + u, planes x, y, z of local() each (bond kernel input)
-  std::int64_t position_stride_ = 0;        // doubles from one plane of positions_ to the next (position_plane_stride)
-  std::vector<RigidCylinder> tools_;        // scene tools, stiffness per unit mass
-  std::vector<ContactTally> tool_contact_;  // per tool: this rank's contact at time_ (forces, friction)
-  std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
-  std::vector<int> bc_;                     // per owned node: boundary index or -1
-  struct FreeRun {                          // owned nodes [begin, end) of one body, no boundary
-    std::int32_t begin, end;
-    int body;
-  };
-  std::vector<FreeRun> free_runs_;          // Verlet update streams (step(), without damping or dashpots)
-  std::vector<std::int32_t> bc_rows_;       // owned nodes with a boundary
-  bool kick_pending_ = false;               // free runs' second half kick deferred (step(); dt_, force_)
-  std::vector<std::int32_t> bc_slot_;       // per owned node: its slot among boundary nodes or -1
-  std::vector<double> du_bc_, v_old_bc_, prev_force_bc_;  // per boundary slot (3 each): step
-                                                          // increment, old velocity, old force
-  std::vector<double> damage_;
-  std::vector<std::int64_t> stage_steps_;
-  std::vector<double> stage_dt_;
-  std::int64_t total_steps_ = 0, step_ = 0;
-  double time_ = 0, dt_ = 0;
-  BondTally tally_;            // this rank's cumulative dissipation / breaks; strain of last call
-  double external_work_ = 0;   // this rank's share
-  std::vector<std::int64_t> frame_steps_;
-  std::size_t next_frame_ = 0;
-  std::size_t stage_ = 0;           // current stage
-  std::int64_t stage_step_ = 0;     // steps taken in it
+  Domain& domain_;
+  State& state_;
+  Forces& forces_;
+  std::int64_t total_steps_ = 0;
+  // Where the run stands.
+  std::int64_t step_ = 0;
+  double time_ = 0;
+  std::size_t stage_ = 0;         // current stage
+  std::int64_t stage_step_ = 0;   // steps taken in it
+  bool stage_started_ = false;    // its start (time step, damping, boundaries) made
+  // Diagnostics and the stages.
+  EnergyLedger ledger_;           // this rank's energy accounts (diagnostics/energies.hpp)
+  HealthCheck health_;
+  Verlet verlet_;                 // the explicit stage (stages/explicit.hpp)
+  ProblemEquilibrium equilibrium_;  // the quasi-static stages' model (stages/quasistatic_stage.hpp)
+  std::unique_ptr<CrackTipMonitor> tips_;  // nullptr: no material breaks
   std::chrono::steady_clock::time_point loop_start_;
   std::int64_t loop_start_step_ = 0;  ///< step_ at loop_start_ (a resumed run's checkpoint step)
   double output_seconds_at_loop_start_ = 0;  ///< output time spent before the loop (the first frame)
-  std::unique_ptr<FrameWriter> frames_;
-  std::unique_ptr<SeriesWriter> series_;
-  std::unique_ptr<CrackTipTracker> tracker_;
-  std::vector<bool> tip_bodies_;  // per body: its crack tips are tracked (breaking membranes)
-  std::vector<double> tip_seeds_;          // pre-crack midpoints
-  std::int64_t tips_broken_at_ = -1;       // broken-bond count of the last tip sample
-  std::vector<CrackTip> last_tips_;
-  std::unique_ptr<std::ofstream> tips_csv_;  // rank 0
-  std::string resolved_;
-  RunSummary summary_;
-  std::chrono::steady_clock::time_point start_, last_progress_;
-  // Checkpoints and stop requests.
-  struct Extra {
-    std::string name;
-    std::function<std::vector<double>()> save;
-    std::function<void(const std::vector<double>*)> restore;
-  };
-  std::vector<Extra> extras_;
-  bool stopped_ = false;
-  std::int64_t last_checkpoint_step_ = -1;
-  std::chrono::steady_clock::time_point last_checkpoint_;
+  // Output, checkpoints and stop requests.
+  RunOutput output_;
+  CheckpointExtras extras_;
+  CheckpointCadence cadence_;
 };
 
 }  // namespace peri

@@ -1,9 +1,5 @@
-// Simulation: the setup checks. Derived quantities that extreme scene values would make overflow,
-// vanish or grow without bound (node masses, energy scales, the stable step, step counts, motion
-// per step, a tool's overlap with the body at t = 0, a sphere's wall stress) are refused with
-// InputError naming the keys that made them and the bound; scenes that run but are likely not
-// what was meant get a warning. Each verdict is the same on every rank (global data, or
-// reductions), and all come before anything is written. docs/user/limits.md lists them.
+#include "peri/stages/setup_checks.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,7 +10,7 @@
 
 #include "peri/io/restart.hpp"
 #include "peri/models/model.hpp"
-#include "peri/stages/simulation.hpp"
+#include "peri/stages/problem.hpp"
 
 namespace peri {
 namespace {
@@ -44,16 +40,16 @@ std::string measure_keys(const Body& b) {
 
 }  // namespace
 
-void Simulation::stop_point() {
+void stop_point(MPI_Comm comm) {
   int mine = stop_signal(), any = 0;
-  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, comm_);
+  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, comm);
   if (any != 0)
     throw StopRequested("stopped by signal " + std::to_string(any) + " while setting up the run; nothing was written");
 }
 
-void Simulation::warn_large_families(const SizeEstimate& e) const {
-  if (rank_ != 0 || !(e.largest_family > kFamilyWarning) || e.largest_family_body < 0) return;
-  const Body& b = scene_.bodies[static_cast<std::size_t>(e.largest_family_body)];
+void warn_large_families(const Scene& scene, const SizeEstimate& e, int rank) {
+  if (rank != 0 || !(e.largest_family > kFamilyWarning) || e.largest_family_body < 0) return;
+  const Body& b = scene.bodies[static_cast<std::size_t>(e.largest_family_body)];
   std::fprintf(stderr,
                "peridrive: warning: %s: bodies.%s.%s: a horizon of %s m (%s spacings) gives each node about %s "
                "bonds, more than %s: setup, memory and every step grow as nodes x bonds per node (about %s "
@@ -63,13 +59,13 @@ void Simulation::warn_large_families(const SizeEstimate& e) const {
                num(e.largest_family).c_str(), num(kFamilyWarning).c_str(), num(e.bonds / 2).c_str());
 }
 
-void Simulation::warn_overlapping_boundaries(const std::vector<std::vector<std::int64_t>>& bc_nodes) const {
-  if (rank_ != 0) return;
+void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vector<std::int64_t>>& bc_nodes, int rank) {
+  if (rank != 0) return;
   // Two boundaries that prescribe the same motion in every stage may share nodes freely (clamps
   // meeting at a corner).
   const auto same_motion = [&](const Boundary& p, const Boundary& q) {
     if (p.components != q.components || p.velocity != q.velocity || p.ramp_time != q.ramp_time) return false;
-    for (const Stage& st : scene_.stages) {
+    for (const Stage& st : scene.stages) {
       const auto in = [](const std::vector<BoundaryValue>& values, const std::string& name) {
         for (const BoundaryValue& v : values)
           if (v.boundary == name) return std::optional<Vec3>(v.value);
@@ -83,7 +79,7 @@ void Simulation::warn_overlapping_boundaries(const std::vector<std::vector<std::
   };
   for (std::size_t a = 0; a < bc_nodes.size(); ++a)
     for (std::size_t b = a + 1; b < bc_nodes.size(); ++b) {
-      if (same_motion(scene_.boundaries[a], scene_.boundaries[b])) continue;
+      if (same_motion(scene.boundaries[a], scene.boundaries[b])) continue;
       // select_nodes lists a region's nodes in ascending natural order.
       std::int64_t shared = 0;
       for (auto i = bc_nodes[a].begin(), j = bc_nodes[b].begin(); i != bc_nodes[a].end() && j != bc_nodes[b].end();) {
@@ -92,30 +88,31 @@ void Simulation::warn_overlapping_boundaries(const std::vector<std::vector<std::
         else ++shared, ++i, ++j;
       }
       if (shared == 0) continue;
-      const std::string first = scene_.boundaries[a].name, later = scene_.boundaries[b].name;
+      const std::string first = scene.boundaries[a].name, later = scene.boundaries[b].name;
       std::fprintf(stderr,
                    "peridrive: warning: %s: boundaries.%s.region and boundaries.%s.region share %lld nodes, which "
                    "they move differently; those follow '%s', the later one (its velocity, components, ramp and "
                    "stage values), not '%s'\n",
-                   scene_.boundaries[b].where.str().c_str(), first.c_str(), later.c_str(),
+                   scene.boundaries[b].where.str().c_str(), first.c_str(), later.c_str(),
                    static_cast<long long>(shared), later.c_str(), first.c_str());
     }
 }
 
-void Simulation::check_node_masses() const {
-  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
-    const BodyGeometry& g = nodes_.bodies[b];
-    const Body& body = scene_.bodies[b];
-    const Material& mat = scene_.material(body.material);
+void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector<BondLaw>& laws,
+                       const std::vector<double>& density) {
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+    const BodyGeometry& g = nodes.bodies[b];
+    const Body& body = scene.bodies[b];
+    const Material& mat = scene.material(body.material);
     double least = INFINITY, most = 0, all = 0;
     for (std::int64_t i = g.first; i < g.first + g.count; ++i) {
-      least = std::min(least, nodes_.volume[i]);
-      most = std::max(most, nodes_.volume[i]);
-      all += nodes_.volume[i];
+      least = std::min(least, nodes.volume[i]);
+      most = std::max(most, nodes.volume[i]);
+      all += nodes.volume[i];
     }
     if (g.count == 0) continue;
     std::ostringstream msg;
-    const double rho = density_[b];
+    const double rho = density[b];
     if (!usable(least) || !std::isfinite(most)) {
       const double bad = usable(least) ? most : least;
       msg << body.where.str() << ": bodies." << body.name << ": " << measure_keys(body) << " give nodes a measure of "
@@ -128,7 +125,7 @@ void Simulation::check_node_masses() const {
           << "; expected a density whose node masses are finite doubles of at least 2.2e-308";
     } else {
       const double wave2 = mat.marder ? mat.marder->a
-                                      : std::pow(elastic_constants(laws_[b], g, rho).c_longitudinal, 2);
+                                      : std::pow(elastic_constants(laws[b], g, rho).c_longitudinal, 2);
       const double mass = rho * all, scale = mass * wave2;  // sum m c_l^2
       if (scale >= 1 / kEnergyRange && scale <= kEnergyRange) continue;
       // The factor farthest from 1 (in decades) is named: the density, the geometry or the stiffness.
@@ -149,35 +146,36 @@ void Simulation::check_node_masses() const {
   }
 }
 
-void Simulation::check_stable_step(const std::vector<double>& dt_body) {
+double check_stable_step(const Problem& p, const std::vector<double>& dt_body) {
+  const Scene& scene = p.scene;
   const std::size_t nb = dt_body.size();
   std::vector<double> dt(nb);
-  MPI_Allreduce(dt_body.data(), dt.data(), static_cast<int>(nb), MPI_DOUBLE, MPI_MIN, comm_);
-  summary_.dt_stable = std::numeric_limits<double>::infinity();
+  MPI_Allreduce(dt_body.data(), dt.data(), static_cast<int>(nb), MPI_DOUBLE, MPI_MIN, p.comm);
+  double dt_stable = std::numeric_limits<double>::infinity();
   for (std::size_t b = 0; b < nb; ++b) {
-    summary_.dt_stable = std::min(summary_.dt_stable, dt[b]);
+    dt_stable = std::min(dt_stable, dt[b]);
     if (std::isinf(dt[b]) || dt[b] >= kSmallestStep) continue;  // inf: a body without bonds
-    const Body& body = scene_.bodies[b];
-    const Material& mat = scene_.material(body.material);
+    const Body& body = scene.bodies[b];
+    const Material& mat = scene.material(body.material);
     std::ostringstream msg;
     msg << body.where.str() << ": bodies." << body.name << ": the stable time step is " << num(dt[b])
         << " s, below " << num(kSmallestStep) << " s: " << stiffness_input(mat);
-    if (!marder_[b]) msg << " gives a micromodulus c = " << num(laws_[b].derived("micromodulus"));
-    msg << ", too stiff for the node masses (density " << num(density_[b])
+    if (!p.forces->marder(b)) msg << " gives a micromodulus c = " << num(p.forces->laws()[b].derived("micromodulus"));
+    msg << ", too stiff for the node masses (density " << num(p.density[b])
         << " kg/m^3); expected a stiffness and density whose wave speed crosses a spacing in at least "
         << num(kSmallestStep) << " s";
     throw InputError(msg.str());
   }
-  if (std::isfinite(summary_.dt_stable)) return;
-  std::int64_t mine = domain_.bonds.size(), bonds = 0;
-  MPI_Allreduce(&mine, &bonds, 1, MPI_INT64_T, MPI_SUM, comm_);
-  if (bonds == 0) throw InputError(scene_.file + ": no node has a bond; the horizon is too small for the spacing");
-  throw InputError(scene_.file + ": the stable time step is not a finite number although " + std::to_string(bonds / 2) +
+  if (std::isfinite(dt_stable)) return dt_stable;
+  std::int64_t mine = p.domain.bonds.size(), bonds = 0;
+  MPI_Allreduce(&mine, &bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
+  if (bonds == 0) throw InputError(scene.file + ": no node has a bond; the horizon is too small for the spacing");
+  throw InputError(scene.file + ": the stable time step is not a finite number although " + std::to_string(bonds / 2) +
                    " bonds exist: the bond stiffness sums overflow; expected stiffness and density of ordinary size");
 }
 
-void Simulation::check_stage(std::size_t s, double dt) const {
-  const Stage& st = scene_.stages[s];
+void check_stage(const Scene& scene, std::size_t s, double dt, double dt_stable) {
+  const Stage& st = scene.stages[s];
   // Damping alpha: the half-step velocity is (1 - alpha dt / 2) v, which reverses and grows when
   // alpha dt / 2 exceeds 1 (the nodes then fly off instead of coming to rest).
   if (!(0.5 * st.damping * dt <= 1)) {
@@ -195,17 +193,17 @@ void Simulation::check_stage(std::size_t s, double dt) const {
   msg << st.where.str() << ": stages." << s << ".duration: " << num(st.duration) << " s in steps of " << num(dt)
       << " s (";
   if (st.dt) msg << "stages." << s << ".dt";
-  else msg << "safety_factor " << num(st.safety_factor) << " x the stable bound " << num(summary_.dt_stable) << " s";
+  else msg << "safety_factor " << num(st.safety_factor) << " x the stable bound " << num(dt_stable) << " s";
   msg << ") takes " << num(count) << " steps; expected at most " << kMaxStageSteps
       << " steps per stage: a shorter duration, a larger time step or a coarser spacing";
   throw InputError(msg.str());
 }
 
-void Simulation::check_initial_state() {
-  // The state begin() starts from (it applies the initial conditions again, or a checkpoint's).
-  apply_initial_conditions();
-  const std::size_t nb = scene_.bodies.size(), nt = scene_.tools.size(), nc = scene_.boundaries.size();
-  const Initial& ic = scene_.initial;
+void check_initial_state(const Problem& p) {
+  const Scene& scene = p.scene;
+  const Domain& domain = p.domain;
+  const std::size_t nb = scene.bodies.size(), nt = scene.tools.size(), nc = scene.boundaries.size();
+  const Initial& ic = scene.initial;
   // Maxima over all ranks: per body, the largest |u0|, |H (X - center)| and |v0| of a node
   // without boundary, and -lo, hi of its reference box (3 each); per tool, the deepest node inside
   // at t = 0; per boundary, the smallest spacing among its nodes' bodies (its negative). Sums: per
@@ -220,13 +218,10 @@ void Simulation::check_initial_state() {
   double* depth = hi + 3 * nb;
   double* neg_spacing = depth + nt;
   {
-    const double* u;
-    const double* v;
-    PERI_PETSC(VecGetArrayRead(state_->displacement(), &u));
-    PERI_PETSC(VecGetArrayRead(state_->velocity(), &v));
-    for (std::int32_t i = 0; i < domain_.owned; ++i) {
-      const int b = domain_.body[i];
-      const double* X = &domain_.X[3 * static_cast<std::size_t>(i)];
+    const VecArrayRead u(p.state->displacement()), v(p.state->velocity());
+    for (std::int32_t i = 0; i < domain.owned; ++i) {
+      const int b = domain.body[i];
+      const double* X = &domain.X[3 * static_cast<std::size_t>(i)];
       const double* ui = &u[3 * static_cast<std::size_t>(i)];
       const double* vi = &v[3 * static_cast<std::size_t>(i)];
       double affine[3] = {0, 0, 0};
@@ -234,14 +229,15 @@ void Simulation::check_initial_state() {
         for (int c = 0; c < 3; ++c) affine[a] += ic.displacement_gradient[3 * a + c] * (X[c] - ic.center[c]);
       u_max[b] = std::max(u_max[b], std::hypot(ui[0], ui[1], ui[2]));
       affine_max[b] = std::max(affine_max[b], std::hypot(affine[0], affine[1], affine[2]));
-      if (bc_[i] < 0) v_max[b] = std::max(v_max[b], std::hypot(vi[0], vi[1], vi[2]));
-      else neg_spacing[bc_[i]] = std::max(neg_spacing[bc_[i]], -nodes_.bodies[b].spacing);
+      const int bc = p.boundaries->of(i);
+      if (bc < 0) v_max[b] = std::max(v_max[b], std::hypot(vi[0], vi[1], vi[2]));
+      else neg_spacing[bc] = std::max(neg_spacing[bc], -p.bodies[b].spacing);
       for (int c = 0; c < 3; ++c) {
         lo_neg[3 * b + c] = std::max(lo_neg[3 * b + c], -X[c]);
         hi[3 * b + c] = std::max(hi[3 * b + c], X[c]);
       }
       for (std::size_t k = 0; k < nt; ++k) {
-        const Tool& t = scene_.tools[k];
+        const Tool& t = scene.tools[k];
         double r2 = 0;
         for (int c = 0; c < (t.sphere ? 3 : 2); ++c) r2 += std::pow(X[c] + ui[c] - t.center[c], 2);
         if (!(r2 < t.radius * t.radius)) continue;
@@ -249,23 +245,21 @@ void Simulation::check_initial_state() {
         depth[k] = std::max(depth[k], t.radius - std::sqrt(r2));
       }
     }
-    PERI_PETSC(VecRestoreArrayRead(state_->velocity(), &v));
-    PERI_PETSC(VecRestoreArrayRead(state_->displacement(), &u));
   }
-  MPI_Allreduce(MPI_IN_PLACE, most.data(), static_cast<int>(n_max), MPI_DOUBLE, MPI_MAX, comm_);
-  MPI_Allreduce(MPI_IN_PLACE, count.data(), static_cast<int>(nt), MPI_DOUBLE, MPI_SUM, comm_);
-  const std::string where = scene_.file + ": ";
+  MPI_Allreduce(MPI_IN_PLACE, most.data(), static_cast<int>(n_max), MPI_DOUBLE, MPI_MAX, p.comm);
+  MPI_Allreduce(MPI_IN_PLACE, count.data(), static_cast<int>(nt), MPI_DOUBLE, MPI_SUM, p.comm);
+  const std::string where = scene.file + ": ";
 
   // Initial displacements: at most kLargestStrain times the body's extent.
   for (std::size_t b = 0; b < nb; ++b) {
     double extent2 = 0;
     for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
-    const double extent = std::max(std::sqrt(extent2), nodes_.bodies[b].spacing);
+    const double extent = std::max(std::sqrt(extent2), p.bodies[b].spacing);
     if (u_max[b] <= kLargestStrain * extent) continue;
     const bool affine = !(affine_max[b] <= kLargestStrain * extent);
     std::ostringstream msg;
     msg << where << (affine ? "initial.displacement_gradient" : "initial.seed.amplitude") << ": displaces nodes of body '"
-        << scene_.bodies[b].name << "' by up to " << num(u_max[b]) << " m, more than " << num(kLargestStrain)
+        << scene.bodies[b].name << "' by up to " << num(u_max[b]) << " m, more than " << num(kLargestStrain)
         << " times its extent (" << num(extent) << " m); expected an initial stretch of at most " << num(kLargestStrain + 1);
     throw InputError(msg.str());
   }
@@ -273,7 +267,7 @@ void Simulation::check_initial_state() {
   // beyond what the time step resolves.
   for (std::size_t k = 0; k < nt; ++k) {
     if (count[k] == 0) continue;
-    const Tool& t = scene_.tools[k];
+    const Tool& t = scene.tools[k];
     std::ostringstream msg;
     msg << t.where.str() << ": tools." << k << ".center: tool '" << t.name << "' (" << (t.sphere ? "sphere" : "cylinder")
         << " of radius " << num(t.radius) << " m) holds " << num(count[k]) << " node" << (count[k] > 1 ? "s" : "")
@@ -283,17 +277,17 @@ void Simulation::check_initial_state() {
   }
   // Motion per step: boundaries, tools and the initial velocity field move nodes by at most the
   // spacing (or stability.motion_per_step spacings, where larger) in one step.
-  const double per_step = std::max(1.0, scene_.stability.motion_per_step);
+  const double per_step = std::max(1.0, scene.stability.motion_per_step);
   double finest = INFINITY;
-  for (const BodyGeometry& g : nodes_.bodies) finest = std::min(finest, g.spacing);
+  for (const BodyGeometry& g : p.bodies) finest = std::min(finest, g.spacing);
   bool first = true;
-  for (std::size_t s = 0; s < scene_.stages.size(); ++s) {
-    const Stage& st = scene_.stages[s];
+  for (std::size_t s = 0; s < scene.stages.size(); ++s) {
+    const Stage& st = scene.stages[s];
     if (st.kind != StageKind::Dynamic) {
       first = first && st.kind != StageKind::QuasiStatic;  // which leaves the nodes at rest
       continue;
     }
-    const double dt = stage_dt_[s];
+    const double dt = p.stages.dt[s];
     auto refuse = [&](const std::string& key, double speed, double spacing) {
       std::ostringstream msg;
       msg << key << ": " << num(speed) << " m/s moves nodes " << num(speed * dt) << " m in one step of stage '" << st.name
@@ -302,10 +296,10 @@ void Simulation::check_initial_state() {
       throw InputError(msg.str());
     };
     for (std::size_t b = 0; b < nb && first; ++b)
-      if (!(v_max[b] * dt <= per_step * nodes_.bodies[b].spacing))
-        refuse(where + "initial.velocity_gradient", v_max[b], nodes_.bodies[b].spacing);
+      if (!(v_max[b] * dt <= per_step * p.bodies[b].spacing))
+        refuse(where + "initial.velocity_gradient", v_max[b], p.bodies[b].spacing);
     for (std::size_t c = 0; c < nc; ++c) {
-      const Boundary& bc = scene_.boundaries[c];
+      const Boundary& bc = scene.boundaries[c];
       std::string key = bc.where.str() + ": boundaries." + bc.name + ".velocity";
       Vec3 vel = bc.velocity;
       for (const BoundaryValue& bv : st.boundary_velocity)
@@ -318,7 +312,7 @@ void Simulation::check_initial_state() {
       if (!(speed * dt <= per_step * spacing)) refuse(key, speed, spacing);
     }
     for (std::size_t k = 0; k < nt; ++k) {
-      const Tool& t = scene_.tools[k];
+      const Tool& t = scene.tools[k];
       const double speed = std::hypot(t.velocity[0], t.velocity[1], t.velocity[2]);
       if (!(speed * dt <= per_step * finest)) refuse(t.where.str() + ": tools." + std::to_string(k) + ".velocity", speed, finest);
     }
@@ -327,10 +321,10 @@ void Simulation::check_initial_state() {
   // Internal pressure: a wall stress p R / (2 h) beyond kLargestWallStress in-plane bulk moduli
   // tears any sphere at once (and overflows the forces long before that).
   for (std::size_t b = 0; b < nb; ++b) {
-    const Body& body = scene_.bodies[b];
+    const Body& body = scene.bodies[b];
     if (body.kind != BodyKind::Shell || !(body.pressure > 0)) continue;
     const double stress = body.pressure * body.radius / (2 * body.thickness);
-    const double bulk = elastic_constants(laws_[b], nodes_.bodies[b], density_[b]).bulk;
+    const double bulk = elastic_constants(p.forces->laws()[b], p.bodies[b], p.density[b]).bulk;
     if (stress <= kLargestWallStress * bulk) continue;  // (a NaN or inf stress is refused)
     std::ostringstream msg;
     msg << body.where.str() << ": bodies." << body.name << ".pressure: " << num(body.pressure)
@@ -339,32 +333,6 @@ void Simulation::check_initial_state() {
         << num(kLargestWallStress * bulk * 2 * body.thickness / body.radius) << " Pa";
     throw InputError(msg.str());
   }
-}
-
-std::string Simulation::law_note(int body) const {
-  // Each law once, with the bodies that use it (in the order first met).
-  std::vector<std::pair<std::string, std::vector<std::string>>> laws;  // law name, bodies
-  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
-    if (body >= 0 && static_cast<int>(b) != body) continue;
-    const std::string name = marder_[b] ? "marder" : laws_[b].name();
-    auto it = std::find_if(laws.begin(), laws.end(), [&](const auto& l) { return l.first == name; });
-    if (it == laws.end()) it = laws.insert(laws.end(), {name, {}});
-    it->second.push_back("'" + scene_.bodies[b].name + "'");
-  }
-  std::string out;
-  for (const auto& [law, names] : laws) {
-    std::string bodies = names[0];
-    for (std::size_t k = 1; k < names.size(); ++k) bodies += ", " + names[k];
-    if (!out.empty()) out += "; ";
-    if (law == "marder")
-      out += "the marder lattice law (body " + bodies +
-             ") has its bound from the two- and three-body stiffness over the bond lengths it allows; a lattice "
-             "driven beyond them (bonds compressed past the cutoff u_s, dashpots on fast motion) needs a smaller "
-             "safety_factor";
-    else
-      out += "the " + law + " law (body " + bodies + ") " + find_law(law)->stability_note;
-  }
-  return out;
 }
 
 }  // namespace peri

@@ -1,4 +1,4 @@
-// Simulation: the Marder lattice bodies. Their node-centred energies give forces on neighbours
+// Forces: the Marder lattice bodies. Their node-centred energies give forces on neighbours
 // that may be ghosts, so they are written into the State's ghosted force accumulator (one slot
 // per node and lattice direction, see marder.hpp) and reduced to the owners by a reverse ghost
 // update; the peridynamic bodies of the same scene keep their owner-computes loop. A scene
@@ -8,17 +8,17 @@
 #include <cmath>
 #include <sstream>
 
-#include "peri/stages/simulation.hpp"
+#include "peri/stages/forces.hpp"
 
 namespace peri {
 
-void Simulation::lattice_setup() {
-  const std::size_t nb = scene_.bodies.size();
+void Forces::lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& bodies) {
+  const std::size_t nb = scene.bodies.size();
   marder_.assign(nb, std::nullopt);
   for (std::size_t b = 0; b < nb; ++b) {
-    if (scene_.bodies[b].kind != BodyKind::Lattice) continue;
-    const Material& m = scene_.material(scene_.bodies[b].material);
-    const BodyGeometry& g = nodes_.bodies[b];
+    if (scene.bodies[b].kind != BodyKind::Lattice) continue;
+    const Material& m = scene.material(scene.bodies[b].material);
+    const BodyGeometry& g = bodies[b];
     const MarderParams& p = *m.marder;
     const double node_mass = m.density * g.cell_area * g.thickness;  // the rho of eq. (27)
     marder_[b] = marder_law(p.a, p.b, g.spacing, p.cutoff, p.fracture_separation, node_mass, p.reversible,
@@ -27,13 +27,13 @@ void Simulation::lattice_setup() {
     has_kelvin_ = has_kelvin_ || marder_[b]->dashpot > 0;
   }
   if (!has_lattice_) return;
-  for (std::size_t s = 0; s < scene_.stages.size(); ++s)
-    if (scene_.stages[s].kind != StageKind::Dynamic)
-      throw InputError(scene_.stages[s].where.str() + ": stages." + scene_.stages[s].name +
+  for (std::size_t s = 0; s < scene.stages.size(); ++s)
+    if (scene.stages[s].kind != StageKind::Dynamic)
+      throw InputError(scene.stages[s].where.str() + ": stages." + scene.stages[s].name +
                        ".kind: a scene with a lattice body runs dynamic stages only (the quasi-static "
                        "loader and the release stage use the peridynamic bond laws); got a " +
-                       (scene_.stages[s].kind == StageKind::QuasiStatic ? "quasistatic" : "release") + " stage");
-  state_->enable_force_accumulation(3 * kMarderSlots);
+                       (scene.stages[s].kind == StageKind::QuasiStatic ? "quasistatic" : "release") + " stage");
+  state_.enable_force_accumulation(3 * kMarderSlots);
   if (has_kelvin_) viscous_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);
   lattice_direction_ = marder_directions(bond_view(), domain_.owned);
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
@@ -41,15 +41,15 @@ void Simulation::lattice_setup() {
     if (!law) continue;
     const std::int64_t b0 = domain_.bonds.offsets[i], b1 = domain_.bonds.offsets[i + 1];
     if (b1 - b0 > kMarderMaxNeighbours)
-      throw InputError(scene_.bodies[domain_.body[i]].where.str() + ": bodies." +
-                       scene_.bodies[domain_.body[i]].name + ": a lattice node has " + std::to_string(b1 - b0) +
+      throw InputError(scene.bodies[domain_.body[i]].where.str() + ": bodies." +
+                       scene.bodies[domain_.body[i]].name + ": a lattice node has " + std::to_string(b1 - b0) +
                        " neighbours; a triangular lattice has at most 6");
     // Pre-cracks stay cut in the reversible mode too.
     if (law->reversible)
       for (std::int64_t k = b0; k < b1; ++k)
         if (domain_.bonds.broken[k]) domain_.bonds.broken[k] |= kMarderCut;
     // Bonds with an end outside the breakable box never break (same decision at both ends).
-    const auto& box = scene_.bodies[domain_.body[i]].breakable;
+    const auto& box = scene.bodies[domain_.body[i]].breakable;
     if (!box) continue;
     auto inside = [&](std::int32_t l) {
       for (int c = 0; c < 3; ++c)
@@ -62,9 +62,9 @@ void Simulation::lattice_setup() {
   domain_.bonds.summarize_rows();
 }
 
-void Simulation::lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
+void Forces::lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
                                 const double* velocity) {
-  LocalArray f(state_->force_accumulator());
+  LocalArray f(state_.force_accumulator());
   if (interior) std::fill(f.data(), f.data() + 3 * kMarderSlots * static_cast<std::size_t>(domain_.local()), 0.0);
   for (std::size_t b = 0; b < marder_.size(); ++b) {
     if (!marder_[b]) continue;
@@ -74,14 +74,14 @@ void Simulation::lattice_forces(const BondView& view, bool interior, bool with_e
   }
 }
 
-void Simulation::lattice_reduce() {
-  state_->reverse_begin();
-  state_->reverse_end();
-  const double* f;
-  PERI_PETSC(VecGetArrayRead(state_->force_accumulator(), &f));
+void Forces::lattice_reduce() {
+  state_.reverse_begin();
+  state_.reverse_end();
+  const VecArrayRead slots(state_.force_accumulator());
+  const double* f = slots.data();
   // Forces [N] -> force densities [N/m^3], the unit of force_; the dashpot force (computed by the
   // node's own row, never on a ghost) added after the slot sum, also kept apart (viscous_) for
-  // the dissipation booked by step().
+  // the dissipation booked by the explicit update.
   for (std::size_t b = 0; b < marder_.size(); ++b) {
     if (!marder_[b]) continue;
     const bool dashpots = marder_[b]->dashpot > 0;
@@ -98,10 +98,9 @@ void Simulation::lattice_reduce() {
         }
     }
   }
-  PERI_PETSC(VecRestoreArrayRead(state_->force_accumulator(), &f));
 }
 
-double Simulation::lattice_energy(const BondView& view) {
+double Forces::lattice_energy(const BondView& view) {
   double e = 0;
   for (std::size_t b = 0; b < marder_.size(); ++b) {
     if (!marder_[b]) continue;
@@ -109,33 +108,6 @@ double Simulation::lattice_energy(const BondView& view) {
       e += marder_energy(*marder_[b], view, rows->data(), rows->size());
   }
   return e;
-}
-
-void Simulation::lattice_derived(std::size_t b) {
-  const MarderLaw& law = *marder_[b];
-  const std::string p = scene_.bodies[b].name + ".";
-  // Stretches of the initial homogeneous deformation along x and y (F = I + displacement gradient).
-  const std::array<double, 9>& G = scene_.initial.displacement_gradient;
-  const double lx = std::hypot(1 + G[0], G[3]), ly = std::hypot(G[1], 1 + G[4]);
-  const WaveSpeeds along_x = mooney_rivlin_wave_speeds(law.a, law.b, lx, ly);
-  const WaveSpeeds along_y = mooney_rivlin_wave_speeds(law.a, law.b, ly, lx);
-  summary_.derived.push_back({p + "A", law.A});
-  summary_.derived.push_back({p + "B", law.B});
-  summary_.derived.push_back({p + "node_mass", law.mass});
-  summary_.derived.push_back({p + "initial_stretch_x", lx});
-  summary_.derived.push_back({p + "initial_stretch_y", ly});
-  // Reference-frame speeds (reference distance per time) at the initial stretch.
-  summary_.derived.push_back({p + "longitudinal_wave_speed_x", along_x.longitudinal});
-  summary_.derived.push_back({p + "longitudinal_wave_speed_y", along_y.longitudinal});
-  summary_.derived.push_back({p + "shear_wave_speed", along_x.shear});
-  // The lattice's own long-wave speeds at that stretch (differ from the Mooney-Rivlin ones where
-  // bonds are near u_c or on the cutoff branch; README "Marder lattice").
-  const WaveSpeeds lat_x = marder_lattice_wave_speeds(law, lx, ly), lat_y = marder_lattice_wave_speeds(law, ly, lx, true);
-  summary_.derived.push_back({p + "lattice_longitudinal_speed_x", lat_x.longitudinal});
-  summary_.derived.push_back({p + "lattice_shear_speed_x", lat_x.shear});
-  summary_.derived.push_back({p + "lattice_longitudinal_speed_y", lat_y.longitudinal});
-  summary_.derived.push_back({p + "lattice_shear_speed_y", lat_y.shear});
-  summary_.derived.push_back({p + "nodes", double(nodes_.bodies[b].count)});
 }
 
 }  // namespace peri

@@ -1,0 +1,60 @@
+// Health of the explicit integration: the checks that stop a run which has gone wrong before
+// anything non-finite reaches a file. The Verlet update notes a node that moved more than
+// stability.motion_per_step spacings in one step (no stable step does that); check() then stops
+// the run with RuntimeFailure naming it, or a node whose displacement or velocity is no longer
+// finite; check_energy() stops a run whose energy balance error grows beyond
+// stability.energy_error. The messages name the likely cause and the law's behaviour near its
+// stable bound.
+#pragma once
+#include <mpi.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "peri/diagnostics/energies.hpp"
+#include "peri/models/law.hpp"
+#include "peri/partition/domain.hpp"
+#include "peri/scene/scene.hpp"
+
+namespace peri {
+
+class HealthCheck {
+ public:
+  /// `laws`: per body (empty for lattice bodies), for the messages.
+  HealthCheck(const Scene& scene, const Domain& domain, const std::vector<BondLaw>& laws, MPI_Comm comm);
+
+  /// (stability.motion_per_step x the body's spacing)^2, or infinity when the check is off.
+  double motion_limit2(int body) const { return motion_limit2_[body]; }
+  /// Natural id of the node noted as moving too far (the first noted), or -1.
+  std::int64_t unstable_node() const { return unstable_node_; }
+  /// The Verlet update found node `natural` moved `motion` [m] in one step (kept if the first).
+  void note_unstable(std::int64_t natural, double motion) {
+    if (unstable_node_ >= 0) return;
+    unstable_node_ = natural;
+    unstable_motion_ = motion;
+  }
+
+  /// RuntimeFailure if a node moved too far in a step since the run began, or an owned node's
+  /// displacement or velocity (u, v: 3 per owned node) is not finite. Collective.
+  void check(std::int64_t step, double time, const double* u, const double* v, double dt, double dt_stable) const;
+  /// RuntimeFailure if `error`, the balance error of `row` against the total `e0`, exceeds
+  /// stability.energy_error (when that is set).
+  void check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable) const;
+  /// How the laws behave near the stable bound: of body `body`, or of every body (-1).
+  std::string law_note(int body) const;
+
+ private:
+  std::array<double, 3> reference_position(std::int64_t natural) const;  // of any node (collective)
+
+  const Scene& scene_;
+  const Domain& domain_;
+  const std::vector<BondLaw>& laws_;
+  MPI_Comm comm_;
+  std::vector<double> motion_limit2_;  // per body
+  std::int64_t unstable_node_ = -1;    // natural id of a node that moved too far in one step
+  double unstable_motion_ = 0;
+};
+
+}  // namespace peri

@@ -1,0 +1,67 @@
+// The files of a run in its output directory: scene.resolved.yaml, frames.h5 + frames.xdmf,
+// series.csv, tips.csv (rank 0) and summary.json, written last (its presence marks a complete
+// run); and the steps that get a frame. A fresh run first removes every file of an earlier run
+// in the directory; a resumed one continues them, dropping frames and rows after its checkpoint.
+#pragma once
+#include <mpi.h>
+
+#include <cstdint>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "peri/io/output.hpp"
+#include "peri/scene/scene.hpp"
+
+namespace peri {
+
+class RunOutput {
+ public:
+  /// The frames of a run of `total_steps` steps: output.frames of them evenly spaced from step 0
+  /// to the last, at most one per step (rank 0 warns when fewer than asked).
+  RunOutput(const Output& output, std::int64_t total_steps, int rank);
+
+  /// Opens the files in `dir` (collective): a fresh run (resume_step < 0) removes an earlier
+  /// run's files first; a resumed one continues them up to resume_step. Series columns beside
+  /// the energies: `series_columns` (comma-separated); `tips`: write tips.csv.
+  void open(const std::string& dir, const Domain& domain, State& state, const std::string& resolved_scene,
+            bool write_velocity, std::int64_t resume_step, const std::string& series_columns, bool tips,
+            MPI_Comm comm);
+  /// Whether files are written (open() was called).
+  bool writes() const { return frames_ != nullptr; }
+
+  /// Whether a frame is due at `step`: files are written and the next frame's step is at most
+  /// `step`.
+  bool frame_due(std::int64_t step) const {
+    return frames_ && next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step;
+  }
+  /// The frames due up to `step` are taken (written now, or before a checkpoint).
+  void skip_frames_through(std::int64_t step) {
+    while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step) ++next_frame_;
+  }
+  /// One frame (owned arrays, local order), and the frames due up to `step` are taken. Collective.
+  void write_frame(std::int64_t step, double time, const double* u, const double* v, const double* damage,
+                   const double* energy_density);
+  int frames() const { return frames_ ? frames_->frames() : 0; }
+
+  /// One row of series.csv: the energies, then the other columns' values (`extra`).
+  void write_series(const EnergyRow& row, const std::string& extra) {
+    if (series_) series_->write(row, extra);
+  }
+  /// Rows of tips.csv (rank 0; the other ranks write nothing).
+  void write_tips(const std::string& rows);
+  /// summary.json (rank 0), the run's last file.
+  void write_summary(const std::string& json) const;
+
+ private:
+  std::string dir_;
+  int rank_ = 0;
+  std::vector<std::int64_t> frame_steps_;
+  std::size_t next_frame_ = 0;
+  std::unique_ptr<FrameWriter> frames_;
+  std::unique_ptr<SeriesWriter> series_;
+  std::unique_ptr<std::ofstream> tips_;  // rank 0
+};
+
+}  // namespace peri

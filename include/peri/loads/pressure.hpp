@@ -1,0 +1,41 @@
+// Internal pressure of sphere bodies (Silling & Bobaru 7.2, the balloon), a follower load: each
+// geodesic triangle of the sphere carries p(t) times its current area vector, a third to each
+// corner whose bonds to the other two corners are intact (a torn triangle holds no gas). p rises
+// linearly from 0 over the body's pressure_ramp_time. Work: the mean of the two forces of a node
+// times its displacement between two booked evaluations (trapezoidal).
+#pragma once
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "peri/geometry/discretization.hpp"
+#include "peri/loads/load.hpp"
+#include "peri/partition/domain.hpp"
+#include "peri/scene/scene.hpp"
+
+namespace peri {
+
+class Pressure final : public Load {
+ public:
+  /// The loaded sphere bodies' triangles (bodies: per body, with their triangles) at this rank's
+  /// owned corners. `domain`: this rank's nodes and bonds, read at every evaluation.
+  Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, const Domain& domain);
+  /// Whether no body is loaded (the scene needs no pressure load).
+  bool empty() const { return loads_.empty(); }
+  void add_forces(double t, const LoadTarget& target, bool book, EnergyLedger& ledger) override;
+
+ private:
+  struct Sphere {
+    double pressure = 0, ramp = 0;
+    std::vector<std::int32_t> node;                   // owned loaded nodes (local)
+    std::vector<std::int64_t> begin{0};               // per loaded node, into the lists below
+    std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
+    std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to them (-1: none)
+    std::vector<double> force_prev, x_prev;           // per loaded node: last force [N], position
+    bool started = false;
+  };
+  const Domain& domain_;
+  std::vector<Sphere> loads_;
+};
+
+}  // namespace peri

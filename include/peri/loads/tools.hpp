@@ -1,0 +1,66 @@
+// Rigid tools (Silling & Bobaru 7.4 and 7.2: a blunt cylinder pushed through a membrane, a
+// fragment striking a balloon): a penalty force pushes the nodes inside a tool out, with Coulomb
+// friction (contact.hpp). The tools' motion is prescribed, so they do work on the body (their
+// force times their velocity, trapezoidal over the step); friction dissipates (booked once the
+// step's end velocity is known); the penalty's energy counts as strain energy.
+#pragma once
+#include <mpi.h>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "peri/loads/contact.hpp"
+#include "peri/loads/load.hpp"
+#include "peri/partition/domain.hpp"
+#include "peri/scene/scene.hpp"
+#include "peri/state/state.hpp"
+
+namespace peri {
+
+class Tools final : public Load {
+ public:
+  /// The scene's tools, with a penalty stiffness per unit mass of `stiffness` times the stiffest
+  /// node's bond stiffness (2 rho / dt_bound^2 at the stable bound dt_bound of the bodies), so
+  /// that the bound with contact is at least dt_bound / sqrt(1 + stiffness) (stable_step).
+  /// inv_density: per owned node. Velocities are read from `state` at each evaluation.
+  Tools(const Scene& scene, double dt_bound, const State& state, const Domain& domain,
+        const std::vector<double>& inv_density, MPI_Comm comm);
+  bool empty() const { return tools_.empty(); }
+  /// Whether some tool has friction (its forces are then part of a checkpoint: save_friction).
+  bool friction() const;
+  /// The stable step of the bodies with the tools' penalty: dt_bound / sqrt(1 + largest stiffness).
+  double stable_step(double dt_bound) const;
+
+  void add_forces(double t, const LoadTarget& target, bool book, EnergyLedger& ledger) override;
+  /// Friction: the force found at t + dt acts between v(t + dt/2) and v(t + 3dt/2), whose mean is
+  /// the velocity at the step's end.
+  void end_step(double dt, const double* v, EnergyLedger& ledger) override;
+
+  /// Series columns per tool: its axis (a sphere: centre) position and the total force on the
+  /// nodes (the reaction on the tool is its negative). Names, comma-separated.
+  std::string series_columns() const;
+  /// Their values at `time` (comma-separated; with `leading_comma` one before the first).
+  /// Collective.
+  std::string series_values(double time, bool leading_comma) const;
+
+  /// The friction forces of the last evaluation, (natural id, tool, force) per node, gathered on
+  /// rank 0 (checkpoints). Collective.
+  std::vector<double> save_friction() const;
+  /// A resumed run's first evaluation applies the friction forces the interrupted run computed
+  /// from its half-step velocities, which a checkpoint does not hold (nullptr: none stored).
+  void restore_friction(const std::vector<double>* flat);
+
+ private:
+  const State& state_;
+  const Domain& domain_;
+  const std::vector<double>& inv_density_;
+  MPI_Comm comm_;
+  std::vector<RigidTool> tools_;           // stiffness per unit mass
+  std::vector<std::string> names_;
+  std::vector<ContactTally> contact_;      // per tool: this rank's contact at the last evaluation
+  std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
+  double stiffest_ = 0;                    // largest relative stiffness
+};
+
+}  // namespace peri

@@ -1,0 +1,139 @@
+// The force model of a run: each body's bond law by the one bond loop (kernels/), with the
+// displacement halo exchange overlapped by the rows that need no ghost; the Marder lattice
+// bodies' two- and three-body forces, reduced onto their owners (forces_lattice.cpp); long-range
+// pair forces between fiber nodes (every rank gathers the fiber nodes' positions). Built once by
+// the setup; only the force terms the scene names exist.
+//
+// Also the other passes over the bonds: the strain energy of a state, each node's energy
+// density and damage, the stable step of each body, and for the quasi-static loader the
+// reference stiffness and the tangent.
+#pragma once
+#include <mpi.h>
+#include <petscmat.h>
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "peri/kernels/forces.hpp"
+#include "peri/geometry/discretization.hpp"
+#include "peri/models/long_range.hpp"
+#include "peri/models/marder.hpp"
+#include "peri/partition/domain.hpp"
+#include "peri/scene/scene.hpp"
+#include "peri/state/state.hpp"
+
+namespace peri {
+
+/// Long-range forces (scene long_range): every rank holds the table of all fiber nodes and, at
+/// each force evaluation, their current positions (gathered); it evaluates the pairs of its own.
+struct LongRangeForces {
+  LongRangeForces(PairLaw l, LongRangeTable t) : law(l), table(std::move(t)) {}
+  PairLaw law;
+  LongRangeTable table;
+  std::vector<std::int64_t> mine;         // table indices of this rank's owned fiber nodes
+  std::vector<std::int32_t> mine_local;   // their local (owned) indices
+  std::vector<int> counts, displs;        // per rank: how many, where in the gathered order
+  std::vector<std::int64_t> gathered;     // gathered order -> table index
+  std::vector<double> send, recv, x, force;
+  LongRangeList list;
+};
+
+/// The long-range table of the scene's fibers, from the global node arrays (before they are
+/// freed); InputError when the cutoff takes in too many pairs. Collective.
+LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm);
+
+class Forces {
+ public:
+  /// bodies, laws: per body (laws: empty for lattice bodies). Lattice bodies get their laws, accumulators and
+  /// bond flags here (InputError for what a lattice cannot run), then every peridynamic body its
+  /// bond loop's plans.
+  Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Domain& domain, State& state,
+         std::vector<BondLaw> laws, std::optional<LongRangeForces> long_range, MPI_Comm comm);
+  Forces(const Forces&) = delete;
+  Forces& operator=(const Forces&) = delete;
+
+  /// Force densities [N/m^3] of every owned node at the current displacement (halos exchanged
+  /// here) into force(); with `intact`, by laws that never break (quasi-static residuals). Adds
+  /// the bonds dissipated and broken to `tally`, sets its strain energy (with_energy: also each
+  /// node's energy density, for energy_density()).
+  void compute(bool with_energy, bool intact, BondTally& tally);
+  double* force() { return force_.data(); }
+  const double* force() const { return force_.data(); }
+  /// Current positions of the local nodes (planes x, y, z position_stride() apart), as of the
+  /// last pass over the bonds.
+  const double* positions() const { return positions_.data(); }
+  std::int64_t position_stride() const { return position_stride_; }
+  /// Lattice dashpot force densities of the last evaluation (3 per owned node), or nullptr when
+  /// no lattice body has dashpots.
+  const double* viscous() const { return has_kelvin_ ? viscous_.data() : nullptr; }
+
+  /// This rank's strain energy of the current state: a separate, non-breaking pass. Collective
+  /// only where the long-range term gathers.
+  double strain_energy();
+  /// Strain energy per unit volume of each owned node (bonds, long-range pairs; lattice nodes:
+  /// 0), from the last force evaluation when it was an energy call on this state.
+  const double* energy_density();
+  /// Damage of each owned node from the bond flags.
+  const double* damage();
+  /// The stable time step of each body on this rank (infinity where it has no rows); density:
+  /// per body.
+  std::vector<double> stable_time_steps(const std::vector<double>& density);
+  /// The bond loop's plans forget what they keep of the broken flags: after flags are written
+  /// other than by the loop (release stage, restart).
+  void flags_changed();
+  /// Whether owned row `row` has an intact bond.
+  bool has_intact_bond(std::int32_t row) const {
+    for (std::int64_t b = domain_.bonds.offsets[row]; b < domain_.bonds.offsets[row + 1]; ++b)
+      if (!(domain_.bonds.broken[b] & 1)) return true;  // bit 0: broken (lattices keep other bits)
+    return false;
+  }
+  /// The current displacement changed other than by the explicit update (quasi-static loader):
+  /// energy densities are recomputed.
+  void displacement_changed() { density_current_ = false; }
+
+  const std::vector<BondLaw>& laws() const { return laws_; }
+  /// The lattice law of body b, or nullptr for a peridynamic body.
+  const MarderLaw* marder(std::size_t b) const { return marder_[b] ? &*marder_[b] : nullptr; }
+  /// This rank's bond arrays, positions as of the last pass (u filled by the caller).
+  BondView bond_view();
+
+  // Quasi-static loader (intact laws).
+  /// Sum over this rank's rows of each row's reference stiffness.
+  double reference_stiffness_sum();
+  /// Adds K = -d(F V)/du at the current displacement to J (ghosts current).
+  void add_tangent(Mat J);
+
+ private:
+  void lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& bodies);
+  void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
+                      const double* velocity);
+  void lattice_reduce();
+  double lattice_energy(const BondView& view);
+  void gather_fiber_positions(const double* u);  // every rank: current positions of all fiber nodes (lr.x)
+  double add_long_range_forces(const double* u, bool with_energy);  // returns this rank's energy share
+
+  Domain& domain_;
+  State& state_;
+  MPI_Comm comm_;
+  std::vector<BondLaw> laws_;         // per body
+  std::vector<BondLaw> intact_laws_;  // same, never breaking (quasi-static residuals, tangents)
+  std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
+  bool has_lattice_ = false;
+  bool has_kelvin_ = false;                      // some lattice body has bond dashpots (velocity halo)
+  std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
+  std::vector<double> viscous_;                  // dashpot force densities, 3 * local (owned rows written)
+  std::optional<LongRangeForces> long_range_;
+  std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
+  std::vector<RowBlocks> interior_plan_, boundary_plan_;  // the same rows grouped for the bond loop
+  std::vector<double> force_;                    // force densities, 3 * owned
+  std::vector<double> positions_;  // current positions X + u, planes x, y, z of local() each (bond kernel input)
+  std::int64_t position_stride_ = 0;  // doubles from one plane of positions_ to the next
+  std::vector<double> energy_density_;  // owned: strain energy per unit volume (frames)
+  // Whether energy_density_ holds the bond energies of the current state: written by the bond
+  // loop in energy calls (compute), so a frame needs no separate pass over the bonds.
+  bool density_current_ = false;
+  std::vector<double> damage_;  // owned
+};
+
+}  // namespace peri

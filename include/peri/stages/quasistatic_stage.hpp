@@ -1,0 +1,40 @@
+// A quasi-static stage of the run: the problem as the quasi-static loader sees it (its
+// displacement, the force model's intact laws and tangent, its breaking pass), the loader sized
+// for the problem's bonds, and the stage itself: the constrained components moved to their
+// targets, the rest to equilibrium, then the body at rest.
+#pragma once
+#include <memory>
+
+#include "peri/diagnostics/energies.hpp"
+#include "peri/stages/problem.hpp"
+#include "peri/stages/quasistatic.hpp"
+
+namespace peri {
+
+/// The problem as an EquilibriumModel; the breaking pass books its breaks in the ledger.
+class ProblemEquilibrium final : public EquilibriumModel {
+ public:
+  ProblemEquilibrium(Problem& p, EnergyLedger& ledger) : p_(p), ledger_(ledger) {}
+  void set_displacement(const double* u_owned) override;
+  void get_displacement(double* u_owned) override;
+  void internal_force(double* f_owned) override;
+  void add_tangent(Mat J) override;
+  std::int64_t break_bonds() override;
+
+ private:
+  Problem& p_;
+  EnergyLedger& ledger_;
+};
+
+/// A loader for `stage`, sized for the problem's bonds (its stiffness scale the mean reference
+/// stiffness of a row, its length scale the finest spacing). Collective.
+std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& stage);
+
+/// Runs quasi-static `stage` on `model` (the problem's): the boundaries' prescribed components
+/// and, for an in-plane stage, the flat membranes' out-of-plane components are constrained; the
+/// body ends at rest. This rank's support work goes to the ledger; the figures returned hold
+/// the work of all ranks. Collective.
+QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, EquilibriumModel& model, EnergyLedger& ledger,
+                                 bool verbose);
+
+}  // namespace peri

@@ -1,0 +1,41 @@
+// The setup's checks: derived quantities that extreme scene values would make overflow, vanish
+// or grow without bound (node masses, energy scales, the stable step, step counts, motion per
+// step, a tool's overlap with the body at t = 0, a sphere's wall stress) are refused with
+// InputError naming the keys that made them and the bound; scenes that run but are likely not
+// what was meant get a warning (rank 0). Each verdict is the same on every rank (global data, or
+// reductions), and all come before anything is written. docs/user/limits.md lists them.
+#pragma once
+#include <mpi.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "peri/geometry/discretization.hpp"
+#include "peri/models/law.hpp"
+#include "peri/scene/scene.hpp"
+
+namespace peri {
+
+struct Problem;
+
+/// StopRequested on every rank when a stop signal reached any rank during the setup. Collective.
+void stop_point(MPI_Comm comm);
+/// Warns (rank 0) of a horizon that gives nodes very large families.
+void warn_large_families(const Scene& scene, const SizeEstimate& e, int rank);
+/// Warns (rank 0) of boundaries that share nodes but move them differently. regions: per
+/// boundary, its nodes (natural ids, ascending).
+void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vector<std::int64_t>>& regions, int rank);
+/// Node measures, masses and each body's energy scale within the doubles' range (global node
+/// arrays). laws, density: per body.
+void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector<BondLaw>& laws,
+                       const std::vector<double>& density);
+/// The run's stable step from each body's on this rank (dt_body), refused when absurdly small or
+/// not finite. Collective.
+double check_stable_step(const Problem& p, const std::vector<double>& dt_body);
+/// Stage s's damping and step count with time steps dt.
+void check_stage(const Scene& scene, std::size_t s, double dt, double dt_stable);
+/// The initial state (initial conditions applied to the problem's state), boundaries and tools:
+/// displacements, tools clear of the body, motion per step, sphere wall stress. Collective.
+void check_initial_state(const Problem& p);
+
+}  // namespace peri

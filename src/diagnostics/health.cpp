@@ -1,0 +1,125 @@
+#include "peri/diagnostics/health.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+#include "peri/core/error.hpp"
+
+namespace peri {
+namespace {
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << std::setprecision(6) << v;
+  return s.str();
+}
+
+}  // namespace
+
+HealthCheck::HealthCheck(const Scene& scene, const Domain& domain, const std::vector<BondLaw>& laws, MPI_Comm comm)
+    : scene_(scene), domain_(domain), laws_(laws), comm_(comm) {
+  for (const Body& body : scene.bodies) {
+    const double limit = scene.stability.motion_per_step * body.spacing;
+    motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
+  }
+}
+
+std::array<double, 3> HealthCheck::reference_position(std::int64_t natural) const {
+  double local[3] = {0, 0, 0}, x[3];
+  for (std::int32_t i = 0; i < domain_.owned; ++i)
+    if (domain_.natural[i] == natural)
+      for (int c = 0; c < 3; ++c) local[c] = domain_.X[3 * static_cast<std::size_t>(i) + c];
+  MPI_Allreduce(local, x, 3, MPI_DOUBLE, MPI_SUM, comm_);  // one rank owns it
+  return {x[0], x[1], x[2]};
+}
+
+void HealthCheck::check(std::int64_t step, double time, const double* u, const double* v, double dt,
+                        double dt_stable) const {
+  // Collective: first non-finite node (natural id), and the node that moved too far.
+  long long bad = std::numeric_limits<long long>::max();
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    bool ok = true;
+    for (int c = 0; c < 3; ++c) ok &= std::isfinite(u[3 * i + c]) && std::isfinite(v[3 * i + c]);
+    if (!ok) bad = std::min<long long>(bad, domain_.natural[i]);
+  }
+  const long long none = std::numeric_limits<long long>::max();
+  long long local[2] = {bad, unstable_node_ >= 0 ? unstable_node_ : none}, global[2];
+  MPI_Allreduce(local, global, 2, MPI_LONG_LONG, MPI_MIN, comm_);
+  const long long bad_global = global[0];
+  if (global[1] != none && bad_global == none) {
+    const long long node = global[1];
+    double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
+    MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
+    const std::array<double, 3> X = reference_position(node);
+    int body = -1, body_any = -1;  // of the node, from the rank that owns it
+    for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
+      if (domain_.natural[i] == node) body = domain_.body[i];
+    MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
+    std::ostringstream msg;
+    msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
+        << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
+        << ") moved " << fmt(moved_max) << " m in one step, more than stability.motion_per_step = "
+        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
+    if (dt > dt_stable)
+      msg << "the time step " << fmt(dt) << " s is above the stable bound " << fmt(dt_stable)
+          << " s (accepted because of allow_unstable_dt)";
+    else
+      msg << "the time step " << fmt(dt) << " s is too large for the current state (stable bound "
+          << fmt(dt_stable) << " s at the reference state; " << law_note(body_any)
+          << "), or a boundary velocity too violent for the resolution";
+    msg << ". Positions and velocities are still finite; nothing non-finite was written";
+    throw RuntimeFailure(msg.str());
+  }
+  if (bad_global != none) {
+    const std::array<double, 3> X = reference_position(bad_global);
+    std::ostringstream msg;
+    msg << "non-finite displacement or velocity at step " << step << " (t = " << fmt(time)
+        << " s), node " << bad_global << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1])
+        << ", " << fmt(X[2]) << "); likely cause: time step " << fmt(dt) << " s above the stable bound "
+        << fmt(dt_stable) << " s, or a boundary velocity too violent for the resolution";
+    throw RuntimeFailure(msg.str());
+  }
+}
+
+void HealthCheck::check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable) const {
+  const double tolerance = scene_.stability.energy_error;
+  if (!(tolerance > 0) || error <= tolerance) return;
+  std::ostringstream msg;
+  msg << "energy balance error " << fmt(error) << " at step " << row.step << " (t = " << fmt(row.time)
+      << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
+      << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt)
+      << " s, stable bound " << fmt(dt_stable) << " s at the reference state; " << law_note(-1)
+      << "), or boundary motion too violent for the resolution";
+  throw RuntimeFailure(msg.str());
+}
+
+std::string HealthCheck::law_note(int body) const {
+  // Each law once, with the bodies that use it (in the order first met).
+  std::vector<std::pair<std::string, std::vector<std::string>>> laws;  // law name, bodies
+  for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
+    if (body >= 0 && static_cast<int>(b) != body) continue;
+    const std::string name = scene_.bodies[b].kind == BodyKind::Lattice ? "marder" : laws_[b].name();
+    auto it = std::find_if(laws.begin(), laws.end(), [&](const auto& l) { return l.first == name; });
+    if (it == laws.end()) it = laws.insert(laws.end(), {name, {}});
+    it->second.push_back("'" + scene_.bodies[b].name + "'");
+  }
+  std::string out;
+  for (const auto& [law, names] : laws) {
+    std::string bodies = names[0];
+    for (std::size_t k = 1; k < names.size(); ++k) bodies += ", " + names[k];
+    if (!out.empty()) out += "; ";
+    if (law == "marder")
+      out += "the marder lattice law (body " + bodies +
+             ") has its bound from the two- and three-body stiffness over the bond lengths it allows; a lattice "
+             "driven beyond them (bonds compressed past the cutoff u_s, dashpots on fast motion) needs a smaller "
+             "safety_factor";
+    else
+      out += "the " + law + " law (body " + bodies + ") " + find_law(law)->stability_note;
+  }
+  return out;
+}
+
+}  // namespace peri

@@ -1,0 +1,237 @@
+#include "peri/io/run_checkpoint.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "peri/core/build_info.hpp"
+#include "peri/core/error.hpp"
+#include "peri/core/petsc.hpp"
+#include "peri/io/restart.hpp"
+
+namespace peri {
+
+void CheckpointExtras::add(std::string name, std::function<std::vector<double>()> save,
+                           std::function<void(const std::vector<double>*)> restore) {
+  extras_.push_back({std::move(name), std::move(save), std::move(restore)});
+}
+
+void CheckpointExtras::save(Checkpoint& c, bool root) const {
+  for (const Extra& e : extras_) {
+    std::vector<double> values = e.save();
+    if (root) c.extras[e.name] = std::move(values);
+  }
+}
+
+void CheckpointExtras::restore(const Checkpoint& c) const {
+  for (const Extra& e : extras_) {
+    const auto it = c.extras.find(e.name);
+    e.restore(it == c.extras.end() ? nullptr : &it->second);
+  }
+}
+
+Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& state, const EnergyLedger& ledger,
+                           const RunPosition& at, const RunSummary& summary, const CheckpointExtras& extras,
+                           MPI_Comm comm) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  Checkpoint c;
+  c.peridrive_version = version();
+  c.git_revision = git_revision();
+  c.scene = emit_scene(scene);
+  c.scene_hash = fnv1a64(c.scene.data(), c.scene.size());
+  c.nodes = domain.global_nodes;
+  c.ordered_bonds = summary.ordered_bonds;
+  c.step = at.step;
+  c.time = at.time;
+  c.stage = static_cast<std::int64_t>(at.stage);
+  c.stage_step = at.stage_step;
+  c.initial_total_energy = summary.initial_total_energy;
+  c.ranks = ranks;
+  const bool root = rank == 0;
+  c.dissipated.resize(root ? ranks : 0);
+  c.damping_work.resize(root ? ranks : 0);
+  c.external_work.resize(root ? ranks : 0);
+  c.newly_broken.resize(root ? ranks : 0);
+  c.owner_hash.resize(root ? ranks : 0);
+  const std::uint64_t own = ownership_hash(domain);
+  MPI_Gather(&ledger.bonds.dissipated, 1, MPI_DOUBLE, c.dissipated.data(), 1, MPI_DOUBLE, 0, comm);
+  MPI_Gather(&ledger.damping_work, 1, MPI_DOUBLE, c.damping_work.data(), 1, MPI_DOUBLE, 0, comm);
+  MPI_Gather(&ledger.external_work, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm);
+  MPI_Gather(&ledger.bonds.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm);
+  MPI_Gather(&own, 1, MPI_UINT64_T, c.owner_hash.data(), 1, MPI_UINT64_T, 0, comm);
+  {
+    const VecArrayRead u(state.displacement());
+    c.displacement = gather_natural_to_root(state, domain, u.data(), 3, comm);
+  }
+  {
+    const VecArrayRead v(state.velocity());
+    c.velocity = gather_natural_to_root(state, domain, v.data(), 3, comm);
+  }
+  c.broken = gather_broken_to_root(domain, comm);
+  extras.save(c, root);
+  // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
+  // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
+  c.extras["summary.precrack_bonds"] = {double(summary.precrack_bonds)};
+  c.extras["summary.run_initial_total_energy"] = {summary.run_initial_total_energy};
+  for (std::size_t k = 0; k < summary.quasistatic.size(); ++k) {
+    const auto& [name, q] = summary.quasistatic[k];
+    double stage = -1;
+    for (std::size_t s = 0; s < scene.stages.size(); ++s)
+      if (scene.stages[s].name == name) stage = double(s);
+    std::vector<double> v = {stage, double(q.cutbacks), double(q.newton_iterations), double(q.linear_iterations),
+                             double(q.broken), q.external_work, q.seconds, summary.quasistatic_work_error[k]};
+    for (const LoadIncrement& inc : q.increments)
+      v.insert(v.end(), {inc.load_factor, double(inc.newton_iterations), double(inc.linear_iterations),
+                         double(inc.break_passes), double(inc.broken), inc.residual});
+    c.extras["summary.quasistatic." + std::to_string(k)] = std::move(v);
+  }
+  return c;
+}
+
+void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, std::int64_t ordered_bonds,
+                   const std::vector<std::int64_t>& stage_steps) {
+  const std::string what = "checkpoint (step " + std::to_string(c.step) + ")";
+  // The physics must be the checkpoint's: only progress and checkpoint cadence may differ.
+  Scene stored = parse_scene(c.scene, "checkpoint scene");
+  Scene mine = scene;
+  mine.output.progress_seconds = stored.output.progress_seconds;
+  mine.output.checkpoint_every_steps = stored.output.checkpoint_every_steps;
+  mine.output.checkpoint_every_seconds = stored.output.checkpoint_every_seconds;
+  const std::string a = emit_scene(stored), b = emit_scene(mine);
+  if (a != b) {
+    std::istringstream sa(a), sb(b);
+    std::string la, lb;
+    int line = 0;
+    while (true) {
+      ++line;
+      const bool ga = static_cast<bool>(std::getline(sa, la)), gb = static_cast<bool>(std::getline(sb, lb));
+      if (!ga || !gb || la != lb) break;
+    }
+    throw InputError(what + " was written by a different scene: resolved scene line " + std::to_string(line) +
+                     " is '" + la + "' in the checkpoint and '" + lb +
+                     "' here (only output.progress_seconds and output.checkpoint_every_* may change on resume)");
+  }
+  if (c.nodes != nodes || c.ordered_bonds != ordered_bonds)
+    throw InputError(what + " holds " + std::to_string(c.nodes) + " nodes and " + std::to_string(c.ordered_bonds) +
+                     " ordered bonds; this scene has " + std::to_string(nodes) + " and " +
+                     std::to_string(ordered_bonds));
+  std::int64_t before = 0;
+  const bool stage_ok = c.stage >= 0 && static_cast<std::size_t>(c.stage) < stage_steps.size() &&
+                        c.stage_step <= stage_steps[c.stage];
+  if (stage_ok)
+    for (std::int64_t s = 0; s < c.stage; ++s) before += stage_steps[s];
+  if (!stage_ok || before + c.stage_step != c.step || scene.stages[c.stage].kind != StageKind::Dynamic)
+    throw InputError(what + ": stage " + std::to_string(c.stage) + " step " + std::to_string(c.stage_step) +
+                     " does not fit this scene's stages");
+}
+
+void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedger& ledger, MPI_Comm comm) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  {
+    const VecArray u(state.displacement()), v(state.velocity());
+    for (std::int32_t l = 0; l < domain.owned; ++l) {
+      const std::size_t n = 3 * static_cast<std::size_t>(domain.natural[l]);
+      for (int k = 0; k < 3; ++k) {
+        u[3 * l + k] = c.displacement[n + k];
+        v[3 * l + k] = c.velocity[n + k];
+      }
+    }
+  }
+  long long found = apply_broken_pairs(domain, c.broken), found_all = 0;
+  MPI_Allreduce(&found, &found_all, 1, MPI_LONG_LONG, MPI_SUM, comm);
+  if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
+    throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +
+                     " broken bonds, but only " + std::to_string(found_all / 2) + " are bonds of this scene");
+
+  // Tallies: per rank when the ownership is the checkpoint's (sums continue bit for bit), else
+  // their totals on rank 0.
+  int same = c.ranks == ranks && c.owner_hash[rank] == ownership_hash(domain), all_same = 0;
+  MPI_Allreduce(&same, &all_same, 1, MPI_INT, MPI_MIN, comm);
+  if (all_same) {
+    ledger.bonds.dissipated = c.dissipated[rank];
+    ledger.damping_work = c.damping_work[rank];
+    ledger.external_work = c.external_work[rank];
+    ledger.bonds.newly_broken = c.newly_broken[rank];
+  } else {
+    ledger.bonds = BondTally{};
+    ledger.damping_work = 0;
+    ledger.external_work = 0;
+    if (rank == 0)
+      for (int r = 0; r < c.ranks; ++r) {
+        ledger.bonds.dissipated += c.dissipated[r];
+        ledger.damping_work += c.damping_work[r];
+        ledger.external_work += c.external_work[r];
+        ledger.bonds.newly_broken += c.newly_broken[r];
+      }
+  }
+}
+
+void restore_summary(const Checkpoint& c, const Scene& scene, RunSummary& summary) {
+  // Written by make_checkpoint; absent extras leave the figures as the setup set them.
+  if (const auto it = c.extras.find("summary.precrack_bonds"); it != c.extras.end() && it->second.size() == 1)
+    summary.precrack_bonds = std::llround(it->second[0]);
+  // (Checkpoints without it: the explicit part's start, as before quasi-static stages were counted.)
+  summary.run_initial_total_energy = c.initial_total_energy;
+  if (const auto it = c.extras.find("summary.run_initial_total_energy"); it != c.extras.end() && it->second.size() == 1)
+    summary.run_initial_total_energy = it->second[0];
+  for (std::size_t k = 0;; ++k) {
+    const auto it = c.extras.find("summary.quasistatic." + std::to_string(k));
+    if (it == c.extras.end()) break;
+    const std::vector<double>& v = it->second;
+    if (v.size() < 8 || (v.size() - 8) % 6 != 0 || !(v[0] >= 0 && v[0] < double(scene.stages.size()))) break;
+    QuasiStaticStats q;
+    q.cutbacks = static_cast<int>(v[1]);
+    q.newton_iterations = static_cast<long>(v[2]);
+    q.linear_iterations = static_cast<long>(v[3]);
+    q.broken = static_cast<std::int64_t>(v[4]);
+    q.external_work = v[5];
+    q.seconds = v[6];
+    for (std::size_t p = 8; p < v.size(); p += 6) {
+      LoadIncrement inc;
+      inc.load_factor = v[p];
+      inc.newton_iterations = static_cast<int>(v[p + 1]);
+      inc.linear_iterations = static_cast<int>(v[p + 2]);
+      inc.break_passes = static_cast<int>(v[p + 3]);
+      inc.broken = static_cast<std::int64_t>(v[p + 4]);
+      inc.residual = v[p + 5];
+      q.increments.push_back(inc);
+    }
+    summary.quasistatic.push_back({scene.stages[static_cast<std::size_t>(v[0])].name, q});
+    summary.quasistatic_work_error.push_back(v[7]);
+  }
+}
+
+CheckpointCadence::CheckpointCadence(const Output& output, bool enabled, MPI_Comm comm)
+    : output_(output), enabled_(enabled), comm_(comm) {
+  MPI_Comm_rank(comm, &rank_);
+}
+
+void CheckpointCadence::start(std::int64_t step) {
+  last_ = std::chrono::steady_clock::now();
+  last_step_ = step;
+}
+
+bool CheckpointCadence::due(std::int64_t step, bool poll) {
+  bool due = output_.checkpoint_every_steps > 0 && step % output_.checkpoint_every_steps == 0;
+  if (poll) {
+    // One collective verdict: a signal on any rank stops all; rank 0's clock decides the cadence.
+    const double since = std::chrono::duration<double>(std::chrono::steady_clock::now() - last_).count();
+    int local[2] = {stop_signal() != 0,
+                    rank_ == 0 && output_.checkpoint_every_seconds > 0 && since >= output_.checkpoint_every_seconds};
+    int global[2];
+    MPI_Allreduce(local, global, 2, MPI_INT, MPI_MAX, comm_);
+    stopped_ = global[0] != 0;
+    due = due || global[0] || global[1];
+  }
+  return due && enabled_ && step != last_step_;
+}
+
+void CheckpointCadence::written(std::int64_t step) {
+  last_step_ = step;
+  last_ = std::chrono::steady_clock::now();
+}
+
+}  // namespace peri

@@ -1,0 +1,64 @@
+#include "peri/io/run_output.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "peri/core/error.hpp"
+#include "peri/diagnostics/crack_tip_monitor.hpp"
+#include "peri/io/run_dir.hpp"
+
+namespace peri {
+
+RunOutput::RunOutput(const Output& output, std::int64_t total_steps, int rank) : rank_(rank) {
+  // More frames than steps would repeat steps: one per step at most (the same frames are written).
+  const int frames = static_cast<int>(std::clamp<std::int64_t>(output.frames, 1, total_steps + 1));
+  if (frames < output.frames && rank == 0)
+    std::fprintf(stderr, "peridrive: warning: output.frames: %d frames asked for a run of %lld steps; writing %d, "
+                 "one per step\n", output.frames, static_cast<long long>(total_steps), frames);
+  for (int k = 0; k < frames; ++k)
+    frame_steps_.push_back(frames == 1 ? total_steps : std::llround(double(k) * total_steps / (frames - 1)));
+}
+
+void RunOutput::open(const std::string& dir, const Domain& domain, State& state, const std::string& resolved_scene,
+                     bool write_velocity, std::int64_t resume_step, const std::string& series_columns, bool tips,
+                     MPI_Comm comm) {
+  dir_ = dir;
+  make_output_dir(dir, comm);
+  if (rank_ == 0) {
+    // A previous run's completion marker must not vouch for this one until it finishes; a fresh
+    // run leaves nothing of an earlier one (checkpoints, tips, temporaries) to be mixed with its own.
+    const std::vector<std::string> stale =
+        resume_step >= 0 ? std::vector<std::string>{"summary.json", "FAILED"} : run_file_names();
+    for (const std::string& name : stale) std::remove((dir + "/" + name).c_str());
+    write_text_file(dir + "/scene.resolved.yaml", resolved_scene);
+  }
+  MPI_Barrier(comm);
+  frames_ = std::make_unique<FrameWriter>(dir, "frames", domain, state, resolved_scene, write_velocity, resume_step);
+  if (tips && rank_ == 0) {
+    const std::string path = dir + "/tips.csv", header = CrackTipMonitor::kCsvHeader;
+    const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
+    tips_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
+    if (!*tips_) throw Error("cannot write '" + path + "'");
+    *tips_ << kept;
+  }
+  series_ = std::make_unique<SeriesWriter>(dir + "/series.csv", rank_ == 0, series_columns, resume_step);
+}
+
+void RunOutput::write_frame(std::int64_t step, double time, const double* u, const double* v, const double* damage,
+                            const double* energy_density) {
+  frames_->write(step, time, u, v, damage, energy_density);
+  skip_frames_through(step);
+}
+
+void RunOutput::write_tips(const std::string& rows) {
+  if (!tips_) return;
+  *tips_ << rows;
+  tips_->flush();
+}
+
+void RunOutput::write_summary(const std::string& json) const {
+  if (!dir_.empty() && rank_ == 0) write_text_file(dir_ + "/summary.json", json);
+}
+
+}  // namespace peri

@@ -1,0 +1,270 @@
+#include "peri/stages/forces.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <limits>
+#include <sstream>
+
+#include "peri/core/error.hpp"
+#include "peri/kernels/tangent.hpp"
+#include "peri/stages/events.hpp"
+
+namespace peri {
+namespace {
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << std::setprecision(6) << v;
+  return s.str();
+}
+
+}  // namespace
+
+LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm) {
+  int ranks = 1;
+  MPI_Comm_size(comm, &ranks);
+  LongRangeForces lr(PairLaw(*scene.long_range), long_range_table(nodes));
+  for (std::int32_t i = 0; i < domain.owned; ++i) {
+    const std::int64_t p = lr.table.index_of(domain.natural[i]);
+    if (p < 0) continue;
+    lr.mine.push_back(p);
+    lr.mine_local.push_back(i);
+  }
+  const int n = static_cast<int>(lr.mine.size());
+  lr.counts.resize(ranks);
+  lr.displs.assign(ranks, 0);
+  MPI_Allgather(&n, 1, MPI_INT, lr.counts.data(), 1, MPI_INT, comm);
+  for (int r = 1; r < ranks; ++r) lr.displs[r] = lr.displs[r - 1] + lr.counts[r - 1];
+  lr.gathered.resize(lr.table.size());
+  MPI_Allgatherv(lr.mine.data(), n, MPI_INT64_T, lr.gathered.data(), lr.counts.data(), lr.displs.data(),
+                 MPI_INT64_T, comm);
+  for (int r = 0; r < ranks; ++r) {  // positions travel as 3 doubles per node
+    lr.counts[r] *= 3;
+    lr.displs[r] *= 3;
+  }
+  lr.send.resize(3 * static_cast<std::size_t>(n));
+  lr.recv.resize(3 * static_cast<std::size_t>(lr.table.size()));
+  lr.x.resize(lr.recv.size());
+  lr.force.resize(lr.send.size());
+  // The list at the reference positions: a cutoff that takes in most of the scene would hold
+  // O(N^2) pairs (12 bytes each); refuse it before anything is written.
+  long_range_forces(lr.law, lr.table, lr.table.X.data(), lr.mine, lr.force.data(), lr.list, false);
+  double pairs = static_cast<double>(lr.list.partner.size()), all_pairs = 0;
+  MPI_Allreduce(&pairs, &all_pairs, 1, MPI_DOUBLE, MPI_SUM, comm);
+  const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
+  if (all_pairs > 2e8 || per_node > 5000) {
+    std::ostringstream msg;
+    msg << scene.long_range->where.str() << ": long_range.cutoff: " << fmt(lr.law.cutoff) << " m takes in "
+        << all_pairs << " node pairs, " << fmt(per_node) << " per node (with the Verlet list's skin of a quarter "
+        << "cutoff) at the reference positions; expected a cutoff of a few a (length " << fmt(lr.law.length)
+        << " m): at most 5000 pairs per node and 2e8 in all";
+    throw InputError(msg.str());
+  }
+  std::fill(lr.force.begin(), lr.force.end(), 0.0);
+  return lr;
+}
+
+Forces::Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Domain& domain, State& state,
+               std::vector<BondLaw> laws, std::optional<LongRangeForces> long_range, MPI_Comm comm)
+    : domain_(domain), state_(state), comm_(comm), laws_(std::move(laws)), long_range_(std::move(long_range)) {
+  const std::size_t nb = scene.bodies.size();
+  for (const BondLaw& law : laws_) intact_laws_.push_back(law.empty() ? BondLaw{} : law.intact());
+  force_.assign(3 * static_cast<std::size_t>(domain_.owned), 0.0);
+  position_stride_ = position_plane_stride(domain_.local());
+  positions_.assign(3 * static_cast<std::size_t>(position_stride_), 0.0);
+  damage_.assign(domain_.owned, 0.0);
+  interior_by_body_.resize(nb);
+  boundary_by_body_.resize(nb);
+  for (std::int32_t r : domain_.interior_rows) interior_by_body_[domain_.body[r]].push_back(r);
+  for (std::int32_t r : domain_.boundary_rows) boundary_by_body_[domain_.body[r]].push_back(r);
+  lattice_setup(scene, bodies);
+  interior_plan_.resize(nb);
+  boundary_plan_.resize(nb);
+  PetscLogEventBegin(events().plans, 0, 0, 0, 0);
+  {
+    const BondView topology = bond_view();
+    for (std::size_t b = 0; b < nb; ++b) {
+      if (marder_[b]) continue;
+      interior_plan_[b] = plan_rows(topology, interior_by_body_[b].data(), interior_by_body_[b].size());
+      boundary_plan_[b] = plan_rows(topology, boundary_by_body_[b].data(), boundary_by_body_[b].size());
+    }
+  }
+  PetscLogEventEnd(events().plans, 0, 0, 0, 0);
+}
+
+BondView Forces::bond_view() {
+  return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
+                  domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
+                  positions_.data(), position_stride_, domain_.bonds.row_broken.data()};
+}
+
+void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
+  PetscLogEventBegin(events().forces, 0, 0, 0, 0);
+  const std::vector<BondLaw>& laws = intact ? intact_laws_ : laws_;
+  BondView view = bond_view();
+  BondTally t;
+  if (with_energy) {  // the bond loop writes each bond row's energy density (lattice rows: 0)
+    energy_density_.assign(domain_.owned, 0.0);
+    view.energy_density = energy_density_.data();
+  }
+  density_current_ = with_energy;
+  if (has_kelvin_) {  // ghost velocities for the dashpots (not overlapped: the two ghosted Vecs
+    state_.velocity_halo_begin();  // share one scatter, which holds one exchange at a time)
+    state_.velocity_halo_end();
+  }
+  state_.halo_begin();  // interior rows need no ghost: overlap them with the exchange
+  {
+    LocalArray u(state_.displacement());
+    std::optional<LocalArray> vel;
+    if (has_kelvin_) vel.emplace(state_.velocity());
+    view.u = u.data();
+    current_positions(domain_.X.data(), u.data(), 0, domain_.owned, position_stride_, positions_.data());
+    for (std::size_t b = 0; b < laws_.size(); ++b)
+      if (!marder_[b]) bond_forces(laws[b], view, interior_plan_[b], force_.data(), with_energy, t);
+    if (has_lattice_) lattice_forces(view, true, with_energy, t, vel ? vel->data() : nullptr);
+  }
+  PetscLogEventBegin(events().halo, 0, 0, 0, 0);
+  state_.halo_end();
+  PetscLogEventEnd(events().halo, 0, 0, 0, 0);
+  {
+    LocalArray u(state_.displacement());
+    std::optional<LocalArray> vel;
+    if (has_kelvin_) vel.emplace(state_.velocity());
+    view.u = u.data();
+    current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), position_stride_, positions_.data());
+    for (std::size_t b = 0; b < laws_.size(); ++b)
+      if (!marder_[b]) bond_forces(laws[b], view, boundary_plan_[b], force_.data(), with_energy, t);
+    if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
+  }
+  if (has_lattice_) lattice_reduce();
+  if (long_range_) {
+    LocalArray u(state_.displacement());
+    t.strain_energy += add_long_range_forces(u.data(), with_energy);
+  }
+  tally.dissipated += t.dissipated;
+  tally.newly_broken += t.newly_broken;
+  tally.strain_energy = t.strain_energy;
+  PetscLogEventEnd(events().forces, 0, 0, 0, 0);
+}
+
+void Forces::gather_fiber_positions(const double* u) {
+  LongRangeForces& lr = *long_range_;
+  for (std::size_t k = 0; k < lr.mine.size(); ++k)
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t i = static_cast<std::size_t>(lr.mine_local[k]);
+      lr.send[3 * k + c] = domain_.X[3 * i + c] + u[3 * i + c];
+    }
+  MPI_Allgatherv(lr.send.data(), static_cast<int>(lr.send.size()), MPI_DOUBLE, lr.recv.data(), lr.counts.data(),
+                 lr.displs.data(), MPI_DOUBLE, comm_);
+  for (std::size_t g = 0; g < lr.gathered.size(); ++g)
+    for (int c = 0; c < 3; ++c) lr.x[3 * lr.gathered[g] + c] = lr.recv[3 * g + c];
+}
+
+double Forces::add_long_range_forces(const double* u, bool with_energy) {
+  LongRangeForces& lr = *long_range_;
+  gather_fiber_positions(u);
+  std::fill(lr.force.begin(), lr.force.end(), 0.0);
+  const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), lr.list, with_energy);
+  for (std::size_t k = 0; k < lr.mine.size(); ++k)
+    for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(lr.mine_local[k]) + c] += lr.force[3 * k + c];
+  return energy;
+}
+
+void Forces::flags_changed() {
+  for (const RowBlocks& plan : interior_plan_) plan.forget_broken();
+  for (const RowBlocks& plan : boundary_plan_) plan.forget_broken();
+}
+
+double Forces::strain_energy() {
+  BondView view = bond_view();
+  double strain = 0;
+  LocalArray u(state_.displacement());
+  view.u = u.data();
+  current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
+  if (has_lattice_) strain += lattice_energy(view);
+  for (std::size_t b = 0; b < laws_.size(); ++b) {
+    if (marder_[b]) continue;
+    strain += bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size());
+    strain += bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size());
+  }
+  return strain;
+}
+
+const double* Forces::energy_density() {
+  // Bonds (lattice bodies: 0, their energy is kept per bond direction, not per node), then the
+  // long-range pairs; the current ghost displacements are those of the last force evaluation.
+  BondView view = bond_view();
+  LocalArray u(state_.displacement());
+  view.u = u.data();
+  if (!density_current_) {  // else the last force evaluation's (an energy call on this state)
+    current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
+    energy_density_.assign(domain_.owned, 0.0);
+    for (std::size_t b = 0; b < laws_.size(); ++b) {
+      if (marder_[b]) continue;
+      bond_energy(laws_[b], view, interior_by_body_[b].data(), interior_by_body_[b].size(), energy_density_.data());
+      bond_energy(laws_[b], view, boundary_by_body_[b].data(), boundary_by_body_[b].size(), energy_density_.data());
+    }
+  }
+  if (long_range_) {
+    LongRangeForces& lr = *long_range_;
+    gather_fiber_positions(u.data());
+    std::vector<double> scratch(lr.force.size(), 0.0), share(lr.mine.size(), 0.0);
+    long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, scratch.data(), lr.list, true, share.data());
+    for (std::size_t k = 0; k < lr.mine.size(); ++k) energy_density_[lr.mine_local[k]] += share[k];
+  }
+  density_current_ = false;  // it holds the long-range shares now: a second call starts over
+  return energy_density_.data();
+}
+
+const double* Forces::damage() {
+  const BondView view = bond_view();
+  for (const std::vector<std::int32_t>* rows : {&domain_.interior_rows, &domain_.boundary_rows})
+    node_damage(view, rows->data(), rows->size(), damage_.data());
+  return damage_.data();
+}
+
+std::vector<double> Forces::stable_time_steps(const std::vector<double>& density) {
+  const BondView view = bond_view();
+  const std::size_t nb = laws_.size();
+  std::vector<double> dt_body(nb, std::numeric_limits<double>::infinity());
+  for (std::size_t b = 0; b < nb; ++b) {
+    if (marder_[b]) {
+      if (!interior_by_body_[b].empty() || !boundary_by_body_[b].empty())
+        dt_body[b] = marder_stable_time_step(*marder_[b]);
+      continue;
+    }
+    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
+      dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density[b], view, rows->data(), rows->size()));
+  }
+  return dt_body;
+}
+
+double Forces::reference_stiffness_sum() {
+  const BondView view = bond_view();
+  double sum = 0;
+  for (std::size_t b = 0; b < laws_.size(); ++b)
+    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
+      sum += peri::reference_stiffness_sum(laws_[b], view, rows->data(), rows->size());
+  return sum;
+}
+
+void Forces::add_tangent(Mat J) {
+  BondView view = bond_view();
+  LocalArray u(state_.displacement());  // ghosts current: the loader's displacement was exchanged
+  view.u = u.data();
+  current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
+  std::vector<std::int32_t> cols;
+  std::vector<PetscInt> global_cols;
+  std::vector<double> blocks;
+  for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    row_tangent(intact_laws_[domain_.body[i]], view, i, cols, blocks);
+    global_cols.resize(cols.size());
+    for (std::size_t k = 0; k < cols.size(); ++k) global_cols[k] = static_cast<PetscInt>(domain_.global[cols[k]]);
+    const PetscInt row = static_cast<PetscInt>(domain_.global[i]);
+    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, static_cast<PetscInt>(cols.size()), global_cols.data(), blocks.data(),
+                                   ADD_VALUES));
+  }
+}
+
+}  // namespace peri

@@ -1,0 +1,81 @@
+#include "peri/stages/quasistatic_stage.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "peri/core/petsc.hpp"
+
+namespace peri {
+
+void ProblemEquilibrium::set_displacement(const double* u_owned) {
+  {
+    const VecArray u(p_.state->displacement());
+    std::copy(u_owned, u_owned + 3 * static_cast<std::size_t>(p_.domain.owned), u.data());
+  }
+  p_.forces->displacement_changed();
+  p_.state->halo_begin();
+  p_.state->halo_end();
+}
+
+void ProblemEquilibrium::get_displacement(double* u_owned) {
+  const VecArrayRead u(p_.state->displacement());
+  std::copy(u.data(), u.data() + 3 * static_cast<std::size_t>(p_.domain.owned), u_owned);
+}
+
+void ProblemEquilibrium::internal_force(double* f_owned) {
+  p_.forces->compute(false, true, ledger_.bonds);
+  const double* force = p_.forces->force();
+  for (std::int32_t i = 0; i < p_.domain.owned; ++i)
+    for (int c = 0; c < 3; ++c) f_owned[3 * i + c] = force[3 * i + c] * p_.domain.volume[i];
+}
+
+void ProblemEquilibrium::add_tangent(Mat J) { p_.forces->add_tangent(J); }
+
+std::int64_t ProblemEquilibrium::break_bonds() {
+  const std::int64_t before = ledger_.bonds.newly_broken;
+  p_.forces->compute(false, false, ledger_.bonds);
+  long long local = ledger_.bonds.newly_broken - before, global = 0;
+  MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, p_.comm);
+  return global / 2;
+}
+
+std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& stage) {
+  const Domain& d = p.domain;
+  std::vector<PetscInt> d_nnz(d.owned), o_nnz(d.owned);
+  for (std::int32_t i = 0; i < d.owned; ++i) {
+    PetscInt in = 1, out = 0;
+    for (std::int64_t b = d.bonds.offsets[i]; b < d.bonds.offsets[i + 1]; ++b) (d.bonds.neighbor[b] < d.owned ? in : out) += 1;
+    d_nnz[i] = in;
+    o_nnz[i] = out;
+  }
+  double local[2] = {p.forces->reference_stiffness_sum(), double(d.owned)}, global[2];
+  MPI_Allreduce(local, global, 2, MPI_DOUBLE, MPI_SUM, p.comm);
+  double spacing = INFINITY;
+  for (const Body& b : p.scene.bodies) spacing = std::min(spacing, b.spacing);
+  return std::make_unique<QuasiStaticLoader>(p.comm, d.owned, d_nnz, o_nnz, global[0] / std::max(global[1], 1.0),
+                                             spacing, stage);
+}
+
+QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, EquilibriumModel& model, EnergyLedger& ledger,
+                                 bool verbose) {
+  const std::size_t n = 3 * static_cast<std::size_t>(p.domain.owned);
+  std::vector<std::uint8_t> constrained(n, 0);
+  std::vector<double> increment(n, 0.0);
+  p.boundaries->quasistatic_targets(stage, p.domain, constrained, increment);
+  // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
+  if (stage.in_plane)
+    for (std::int32_t i = 0; i < p.domain.owned; ++i)
+      if (p.scene.bodies[p.domain.body[i]].kind == BodyKind::Membrane) constrained[3 * static_cast<std::size_t>(i) + 2] = 1;
+  std::unique_ptr<QuasiStaticLoader> loader = make_loader(p, stage);
+  QuasiStaticStats stats = loader->run(model, constrained, increment, verbose);
+  ledger.external_work += stats.external_work;
+  // Equilibrium: at rest.
+  PERI_PETSC(VecSet(p.state->velocity(), 0.0));
+  double work = 0, local = stats.external_work;
+  MPI_Allreduce(&local, &work, 1, MPI_DOUBLE, MPI_SUM, p.comm);
+  stats.external_work = work;
+  return stats;
+}
+
+}  // namespace peri
