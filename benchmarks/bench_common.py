@@ -10,7 +10,10 @@ What they guarantee, so that a figure can be trusted on a shared 2-core VM:
     default) through /proc/stat; while other processes keep them busier than a threshold the run
     waits (up to a limit), and then runs anyway, marked `loaded`. During the run the same counters
     give the share of those cores' time taken by other processes (busy time minus the CPU time of
-    the run's own processes) and the hypervisor's steal; a run above the threshold is marked too;
+    the run's own processes) and the hypervisor's steal; a run above the threshold is marked too.
+    Other people's `nice` does not shield a run: with the kernel's autogroup scheduling
+    (/proc/sys/kernel/sched_autogroup_enabled = 1, as on these VMs) each session gets an equal
+    share of a busy core whatever its processes' nice values;
   * order: a round runs every (code, ranks) combination once; successive rounds rotate the order
     (which code first, which rank count first) so that no combination always runs first or last;
   * statistics from pairs: a ratio (code against code at one rank count, or 1 rank against P ranks
