@@ -235,31 +235,34 @@ def machine_description():
 def wrap(argv):
     """--wrap FILE CPUS -- cmd...: pin this rank to CPUS[rank] (comma list; '-' for no pinning),
     run cmd, write FILE.<rank> as JSON: peak RSS (kB) of cmd and the CPU list its process had
-    (the reading seen most often)."""
+    (the one it showed longest)."""
     out, cpus, cmd = argv[0], argv[1], argv[3:]
     rank = int(os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")))
     if cpus != "-":
         lst = [int(c) for c in cpus.split(",")]
         os.sched_setaffinity(0, {lst[rank % len(lst)]})
     p = subprocess.Popen(cmd)
-    # The code's own CPU list, read every 0.25 s while it runs (MPI initialisation may move a
-    # process for a moment: hwloc's topology probe visits every core).
-    seen = []
+    # The code's own CPU list, read while it runs: every 50 ms for its first 2 s, then every 0.5 s.
+    # MPI initialisation moves a process for a moment (hwloc's topology probe visits every core:
+    # about 150 ms on these VMs), so the list it showed longest is recorded.
+    held = {}
+    t = 0.0
     while True:
+        dt = 0.05 if t < 2.0 else 0.5
         try:
-            p.wait(timeout=0.25)
+            p.wait(timeout=dt)
             break
         except subprocess.TimeoutExpired:
+            t += dt
             try:
                 for line in read(f"/proc/{p.pid}/status").splitlines():
                     if line.startswith("Cpus_allowed_list:"):
-                        seen.append(line.split(":", 1)[1].strip())
+                        cpu_list = line.split(":", 1)[1].strip()
+                        held[cpu_list] = held.get(cpu_list, 0.0) + dt
             except OSError:
                 pass
-    # The reading seen most often (the last of equals); none when it finished within 0.25 s: it
-    # inherited this process' set.
-    allowed = max(reversed(seen), key=seen.count) if seen else ",".join(
-        str(c) for c in sorted(os.sched_getaffinity(0)))
+    # None read when it finished within 50 ms: it inherited this process' set.
+    allowed = max(held, key=held.get) if held else ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
     with open(f"{out}.{rank}", "w") as f:
         json.dump(dict(rank=rank, rss_kb=resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
                        cpus=allowed), f)
