@@ -6,11 +6,15 @@ What they guarantee, so that a figure can be trusted on a shared 2-core VM:
     first R of --cpus) by the launcher wrapper before it starts the code (sched_setaffinity, as
     `taskset -c` does; mpirun itself binds nothing), the same rule for every code; the core set
     each rank's process actually had is read back from /proc/PID/status and recorded;
-  * machine load: before each measured run the cores it will use are watched for a window (1 s by
-    default) through /proc/stat; while other processes keep them busier than a threshold the run
-    waits (up to a limit), and then runs anyway, marked `loaded`. During the run the same counters
-    give the share of those cores' time taken by other processes (busy time minus the CPU time of
-    the run's own processes) and the hypervisor's steal; a run above the threshold is marked too;
+  * machine load: before each measured run the machine's cores (--load-scope run: only those the
+    run will use) are watched for a window (1 s by default) through /proc/stat; while other
+    processes keep any of them busier than a threshold the run waits (up to a limit), and then
+    runs anyway, marked `loaded`. During the run the same counters give the share of those cores'
+    time taken by other processes (busy time minus the CPU time of the run's own processes) and
+    the hypervisor's steal; a run above the threshold is marked too.
+    Other people's `nice` does not shield a run: with the kernel's autogroup scheduling
+    (/proc/sys/kernel/sched_autogroup_enabled = 1, as on these VMs) each session gets an equal
+    share of a busy core whatever its processes' nice values;
   * order: a round runs every (code, ranks) combination once; successive rounds rotate the order
     (which code first, which rank count first) so that no combination always runs first or last;
   * statistics from pairs: a ratio (code against code at one rank count, or 1 rank against P ranks
@@ -152,8 +156,13 @@ def fmt_stat(xs, spec=".3g"):
 class LoadWatch:
     """Load of a set of CPUs before and during a run (see the module docstring)."""
 
-    def __init__(self, threshold=0.10, window=1.0, max_wait=60.0):
-        self.threshold, self.window, self.max_wait = threshold, window, max_wait
+    def __init__(self, threshold=0.10, window=1.0, max_wait=60.0, scope="all"):
+        """scope 'all': watch every CPU of the machine (a 1-rank run shares caches and memory
+        bandwidth with the other cores); 'run': only the cores the run is pinned to."""
+        self.threshold, self.window, self.max_wait, self.scope = threshold, window, max_wait, scope
+
+    def watched(self, cpus):
+        return sorted(parse_proc_stat(read("/proc/stat"))) if self.scope == "all" else list(cpus)
 
     def idle_check(self, cpus):
         """Waits until other processes use each listed CPU less than `threshold` over `window`
@@ -202,7 +211,7 @@ def load_summary(recs):
     run = [r["run_others"] for r in recs]
     st = [max(r["pre_steal"], r["run_steal"]) for r in recs]
     flagged = sum(1 for r in recs if r["loaded"])
-    return (f"loadavg(1 min) {min(la):.2f}-{max(la):.2f}; others' share of the run's cores before a run "
+    return (f"loadavg(1 min) {min(la):.2f}-{max(la):.2f}; others' share of the watched cores before a run "
             f"median {statistics.median(pre):.0%} (max {max(pre):.0%}), during it median "
             f"{statistics.median(run):.0%} (max {max(run):.0%}); steal max {max(st):.0%}; "
             f"waited {sum(r['waited'] for r in recs):.0f} s in all; {flagged} of {len(recs)} runs marked loaded")
@@ -225,29 +234,35 @@ def machine_description():
 
 def wrap(argv):
     """--wrap FILE CPUS -- cmd...: pin this rank to CPUS[rank] (comma list; '-' for no pinning),
-    run cmd, write FILE.<rank> as JSON: peak RSS (kB) of cmd and the CPU list its process had."""
+    run cmd, write FILE.<rank> as JSON: peak RSS (kB) of cmd and the CPU list its process had
+    (the one it showed longest)."""
     out, cpus, cmd = argv[0], argv[1], argv[3:]
     rank = int(os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")))
     if cpus != "-":
         lst = [int(c) for c in cpus.split(",")]
         os.sched_setaffinity(0, {lst[rank % len(lst)]})
     p = subprocess.Popen(cmd)
-    # The code's own CPU list, read every 0.25 s while it runs; the last reading is recorded (MPI
-    # initialisation may move a process for a moment: hwloc's topology probe visits every core).
-    allowed = None
+    # The code's own CPU list, read while it runs: every 50 ms for its first 2 s, then every 0.5 s.
+    # MPI initialisation moves a process for a moment (hwloc's topology probe visits every core:
+    # about 150 ms on these VMs), so the list it showed longest is recorded.
+    held = {}
+    t = 0.0
     while True:
+        dt = 0.05 if t < 2.0 else 0.5
         try:
-            p.wait(timeout=0.25)
+            p.wait(timeout=dt)
             break
         except subprocess.TimeoutExpired:
+            t += dt
             try:
                 for line in read(f"/proc/{p.pid}/status").splitlines():
                     if line.startswith("Cpus_allowed_list:"):
-                        allowed = line.split(":", 1)[1].strip()
+                        cpu_list = line.split(":", 1)[1].strip()
+                        held[cpu_list] = held.get(cpu_list, 0.0) + dt
             except OSError:
                 pass
-    if allowed is None:  # finished within 0.25 s: it inherited this process' set
-        allowed = ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
+    # None read when it finished within 50 ms: it inherited this process' set.
+    allowed = max(held, key=held.get) if held else ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
     with open(f"{out}.{rank}", "w") as f:
         json.dump(dict(rank=rank, rss_kb=resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
                        cpus=allowed), f)
@@ -295,12 +310,15 @@ def add_common_options(ap, default_reps):
     ap.add_argument("--load-window", type=float, default=1.0, help="seconds of the idle check (default 1)")
     ap.add_argument("--max-wait", type=float, default=60.0,
                     help="seconds to wait for quiet cores before running anyway, marked (default 60)")
+    ap.add_argument("--load-scope", choices=["all", "run"], default="all",
+                    help="cores whose load is checked: all of the machine's (default; they share caches and "
+                         "memory bandwidth) or only those the run is pinned to")
     ap.add_argument("--mpirun", default=shutil.which("mpirun") or "mpirun")
 
 
 def measure_round(watch, cpus, ranks, fn):
     """Idle check, then fn() between the load counters; returns (fn's result, load record)."""
-    use = cpus[:ranks]
+    use = watch.watched(cpus[:ranks])
     rec = watch.idle_check(use)
     mark = watch.start(use)
     res = fn()

@@ -248,13 +248,14 @@ def main():
     cpus = bc.run_cpus(a.cpus)
     if max(a.ranks) > len(cpus):
         sys.exit(f"{max(a.ranks)} ranks need as many cores to pin to; --cpus gives {cpus}")
-    watch = bc.LoadWatch(a.load_threshold, a.load_window, a.max_wait)
+    watch = bc.LoadWatch(a.load_threshold, a.load_window, a.max_wait, a.load_scope)
     rng = bc.new_rng(a.seed)
     codes = [PD, CPD] if exe else [PD]
     cells = tuple(a.cells)
     expect, per = lattice_bonds(cells)
     print(f"machine: {bc.machine_description()}; cores {cpus} (rank r on the r-th); order {a.order}; "
-          f"load threshold {a.load_threshold:.0%} of a core over {a.load_window:g} s, wait up to {a.max_wait:g} s")
+          f"load threshold {a.load_threshold:.0%} of a core over {a.load_window:g} s ({a.load_scope} cores), "
+          f"wait up to {a.max_wait:g} s")
     print(f"plate {cells[0]} x {cells[1]} x {cells[2]} cells ({cells[0] * cells[1] * cells[2]} points), "
           f"{per} neighbours in the bulk, {expect} ordered bonds on the lattice; c = {micromodulus():.6g}, "
           f"s0 = {critical_stretch():.6g}; {a.steps} steps of {DT:g} s")

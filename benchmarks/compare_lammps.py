@@ -15,10 +15,11 @@ steps_timed. Setup is in neither.
 
 Method (benchmarks/bench_common.py): every run is pinned, rank r to the r-th core of --cpus (the
 wrapper sets the affinity before it starts the code, the same for both codes; the binding each rank
-had is read back from /proc and printed); before each run the cores it will use are watched for
---load-window s and the run waits (up to --max-wait s) while other processes use more than
---load-threshold of a core, and is marked `loaded` if they still do, or did during the run (their
-share = the cores' busy time less the run's own CPU time), or the hypervisor stole as much. A round
+had is read back from /proc and printed); before each run the machine's cores (--load-scope run:
+those the run will use) are watched for --load-window s and the run waits (up to --max-wait s)
+while other processes use more than --load-threshold of a core, and is marked `loaded` if they
+still do, or did during the run (their share = the cores' busy time less the run's own CPU time),
+or the hypervisor stole as much. A round
 runs each code on each rank count once; the order rotates from round to round (--order). The
 LAMMPS/peridrive time ratio and the parallel efficiency t_1 / (P t_P) are formed within each round
 (runs seconds apart) and reported as median [first quartile, third quartile] of the per-round
@@ -253,11 +254,12 @@ def main():
     cpus = bc.run_cpus(a.cpus)
     if max(a.ranks) > len(cpus):
         sys.exit(f"{max(a.ranks)} ranks need as many cores to pin to; --cpus gives {cpus}")
-    watch = bc.LoadWatch(a.load_threshold, a.load_window, a.max_wait)
+    watch = bc.LoadWatch(a.load_threshold, a.load_window, a.max_wait, a.load_scope)
     rng = bc.new_rng(a.seed)
     codes = [PD, LMP] if a.lmp else [PD]
     print(f"machine: {bc.machine_description()}; cores {cpus} (rank r on the r-th); order {a.order}; "
-          f"load threshold {a.load_threshold:.0%} of a core over {a.load_window:g} s, wait up to {a.max_wait:g} s")
+          f"load threshold {a.load_threshold:.0%} of a core over {a.load_window:g} s ({a.load_scope} cores), "
+          f"wait up to {a.max_wait:g} s")
     rows = []
     for n in a.sizes:
         samples = []
