@@ -235,17 +235,18 @@ def machine_description():
 def wrap(argv):
     """--wrap FILE CPUS -- cmd...: pin this rank to CPUS[rank] (comma list; '-' for no pinning),
     run cmd, write FILE.<rank> as JSON: peak RSS (kB) of cmd and the CPU list its process had
-    (the one it showed longest)."""
+    (at the last reading, within 50 ms of its end for runs under 2 s, 0.5 s for longer ones)."""
     out, cpus, cmd = argv[0], argv[1], argv[3:]
     rank = int(os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")))
     if cpus != "-":
         lst = [int(c) for c in cpus.split(",")]
         os.sched_setaffinity(0, {lst[rank % len(lst)]})
     p = subprocess.Popen(cmd)
-    # The code's own CPU list, read while it runs: every 50 ms for its first 2 s, then every 0.5 s.
-    # MPI initialisation moves a process for a moment (hwloc's topology probe visits every core:
-    # about 150 ms on these VMs), so the list it showed longest is recorded.
-    held = {}
+    # The code's own CPU list, read while it runs: every 50 ms for its first 2 s, then every 0.5 s,
+    # and the last reading recorded (its binding while it steps). MPI initialisation moves a
+    # process for a while: hwloc's topology probe visits every core, and holds rank 1 of a 2-rank
+    # run on core 0 for about 200 ms on these VMs, a third of a short run's life.
+    allowed = None
     t = 0.0
     while True:
         dt = 0.05 if t < 2.0 else 0.5
@@ -257,12 +258,11 @@ def wrap(argv):
             try:
                 for line in read(f"/proc/{p.pid}/status").splitlines():
                     if line.startswith("Cpus_allowed_list:"):
-                        cpu_list = line.split(":", 1)[1].strip()
-                        held[cpu_list] = held.get(cpu_list, 0.0) + dt
+                        allowed = line.split(":", 1)[1].strip()
             except OSError:
                 pass
-    # None read when it finished within 50 ms: it inherited this process' set.
-    allowed = max(held, key=held.get) if held else ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
+    if allowed is None:  # finished within 50 ms: it inherited this process' set
+        allowed = ",".join(str(c) for c in sorted(os.sched_getaffinity(0)))
     with open(f"{out}.{rank}", "w") as f:
         json.dump(dict(rank=rank, rss_kb=resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
                        cpus=allowed), f)
