@@ -7,18 +7,9 @@
 #include <sstream>
 
 #include "peri/core/error.hpp"
+#include "peri/core/format.hpp"
 
 namespace peri {
-namespace {
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s << std::setprecision(6) << v;
-  return s.str();
-}
-
-}  // namespace
-
 HealthCheck::HealthCheck(const Scene& scene, const Domain& domain, const std::vector<BondLaw>& laws, MPI_Comm comm)
     : scene_(scene), domain_(domain), laws_(laws), comm_(comm) {
   for (const Body& body : scene.bodies) {
@@ -59,16 +50,16 @@ void HealthCheck::check(std::int64_t step, double time, const double* u, const d
       if (domain_.natural[i] == node) body = domain_.body[i];
     MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
     std::ostringstream msg;
-    msg << "unstable explicit integration detected by step " << step << " (t = " << fmt(time) << " s): node "
-        << node << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1]) << ", " << fmt(X[2])
-        << ") moved " << fmt(moved_max) << " m in one step, more than stability.motion_per_step = "
-        << fmt(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
+    msg << "unstable explicit integration detected by step " << step << " (t = " << number_text(time) << " s): node "
+        << node << " at reference position (" << number_text(X[0]) << ", " << number_text(X[1]) << ", " << number_text(X[2])
+        << ") moved " << number_text(moved_max) << " m in one step, more than stability.motion_per_step = "
+        << number_text(scene_.stability.motion_per_step) << " of the grid spacing; likely cause: ";
     if (dt > dt_stable)
-      msg << "the time step " << fmt(dt) << " s is above the stable bound " << fmt(dt_stable)
+      msg << "the time step " << number_text(dt) << " s is above the stable bound " << number_text(dt_stable)
           << " s (accepted because of allow_unstable_dt)";
     else
-      msg << "the time step " << fmt(dt) << " s is too large for the current state (stable bound "
-          << fmt(dt_stable) << " s at the reference state; " << law_note(body_any)
+      msg << "the time step " << number_text(dt) << " s is too large for the current state (stable bound "
+          << number_text(dt_stable) << " s at the reference state; " << law_note(body_any)
           << "), or a boundary velocity too violent for the resolution";
     msg << ". Positions and velocities are still finite; nothing non-finite was written";
     throw RuntimeFailure(msg.str());
@@ -76,10 +67,10 @@ void HealthCheck::check(std::int64_t step, double time, const double* u, const d
   if (bad_global != none) {
     const std::array<double, 3> X = reference_position(bad_global);
     std::ostringstream msg;
-    msg << "non-finite displacement or velocity at step " << step << " (t = " << fmt(time)
-        << " s), node " << bad_global << " at reference position (" << fmt(X[0]) << ", " << fmt(X[1])
-        << ", " << fmt(X[2]) << "); likely cause: time step " << fmt(dt) << " s above the stable bound "
-        << fmt(dt_stable) << " s, or a boundary velocity too violent for the resolution";
+    msg << "non-finite displacement or velocity at step " << step << " (t = " << number_text(time)
+        << " s), node " << bad_global << " at reference position (" << number_text(X[0]) << ", " << number_text(X[1])
+        << ", " << number_text(X[2]) << "); likely cause: time step " << number_text(dt) << " s above the stable bound "
+        << number_text(dt_stable) << " s, or a boundary velocity too violent for the resolution";
     throw RuntimeFailure(msg.str());
   }
 }
@@ -88,10 +79,10 @@ void HealthCheck::check_energy(const EnergyRow& row, double error, double e0, do
   const double tolerance = scene_.stability.energy_error;
   if (!(tolerance > 0) || error <= tolerance) return;
   std::ostringstream msg;
-  msg << "energy balance error " << fmt(error) << " at step " << row.step << " (t = " << fmt(row.time)
-      << " s) exceeds stability.energy_error = " << fmt(tolerance) << " (total energy " << fmt(row.total())
-      << " J, " << fmt(e0) << " J at the start); likely cause: an unstable time step (dt = " << fmt(dt)
-      << " s, stable bound " << fmt(dt_stable) << " s at the reference state; " << law_note(-1)
+  msg << "energy balance error " << number_text(error) << " at step " << row.step << " (t = " << number_text(row.time)
+      << " s) exceeds stability.energy_error = " << number_text(tolerance) << " (total energy " << number_text(row.total())
+      << " J, " << number_text(e0) << " J at the start); likely cause: an unstable time step (dt = " << number_text(dt)
+      << " s, stable bound " << number_text(dt_stable) << " s at the reference state; " << law_note(-1)
       << "), or boundary motion too violent for the resolution";
   throw RuntimeFailure(msg.str());
 }

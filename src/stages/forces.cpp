@@ -7,20 +7,11 @@
 #include <sstream>
 
 #include "peri/core/error.hpp"
+#include "peri/core/format.hpp"
 #include "peri/kernels/tangent.hpp"
 #include "peri/stages/events.hpp"
 
 namespace peri {
-namespace {
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s << std::setprecision(6) << v;
-  return s.str();
-}
-
-}  // namespace
-
 LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm) {
   int ranks = 1;
   MPI_Comm_size(comm, &ranks);
@@ -55,9 +46,9 @@ LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Do
   const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
   if (all_pairs > 2e8 || per_node > 5000) {
     std::ostringstream msg;
-    msg << scene.long_range->where.str() << ": long_range.cutoff: " << fmt(lr.law.cutoff) << " m takes in "
-        << all_pairs << " node pairs, " << fmt(per_node) << " per node (with the Verlet list's skin of a quarter "
-        << "cutoff) at the reference positions; expected a cutoff of a few a (length " << fmt(lr.law.length)
+    msg << scene.long_range->where.str() << ": long_range.cutoff: " << number_text(lr.law.cutoff) << " m takes in "
+        << all_pairs << " node pairs, " << number_text(per_node) << " per node (with the Verlet list's skin of a quarter "
+        << "cutoff) at the reference positions; expected a cutoff of a few a (length " << number_text(lr.law.length)
         << " m): at most 5000 pairs per node and 2e8 in all";
     throw InputError(msg.str());
   }

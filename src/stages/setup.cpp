@@ -14,6 +14,7 @@
 
 #include "peri/bonds/bonds.hpp"
 #include "peri/core/error.hpp"
+#include "peri/core/format.hpp"
 #include "peri/core/petsc.hpp"
 #include "peri/core/resources.hpp"
 #include "peri/io/restart.hpp"
@@ -27,12 +28,6 @@
 
 namespace peri {
 namespace {
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s << std::setprecision(6) << v;
-  return s.str();
-}
 
 /// The nodes of every body, after the checks that need only the scene (family sizes, memory).
 Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, MPI_Comm comm, int rank) {
@@ -123,8 +118,8 @@ StagePlan plan_stages(const Scene& scene, double dt_stable) {
     check_stage(scene, s, dt, dt_stable);
     if (dt > dt_stable && !st.allow_unstable_dt) {
       std::ostringstream msg;
-      msg << st.where.str() << ": stages." << s << ".dt: time step " << fmt(dt) << " s exceeds the stable bound "
-          << fmt(dt_stable) << " s (Silling & Askari 2005); expected dt <= " << fmt(dt_stable)
+      msg << st.where.str() << ": stages." << s << ".dt: time step " << number_text(dt) << " s exceeds the stable bound "
+          << number_text(dt_stable) << " s (Silling & Askari 2005); expected dt <= " << number_text(dt_stable)
           << ", or allow_unstable_dt: true to run anyway";
       throw InputError(msg.str());
     }
