@@ -24,6 +24,7 @@ What they guarantee, so that a figure can be trusted on a shared 2-core VM:
 Pure parts (parse_proc_stat, cpu_shares, parse_loadavg, quartiles, paired_ratios, round_order) are
 checked by tests/bench_common_test.py.
 """
+import csv
 import json
 import os
 import random
@@ -331,6 +332,14 @@ def describe_load(rec):
     return (f"others {rec['pre_busy']:.0%} before (waited {rec['waited']:.0f} s), {rec['run_others']:.0%} during, "
             f"steal {max(rec['pre_steal'], rec['run_steal']):.0%}, loadavg {rec['loadavg']:.2f}"
             + (" LOADED" if rec["loaded"] else ""))
+
+
+def write_csv(path, rows):
+    """The rows (dicts) as CSV, the union of their keys as sorted columns."""
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=sorted({k for r in rows for k in r}))
+        w.writeheader()
+        w.writerows(rows)
 
 
 def new_rng(seed):

@@ -38,7 +38,6 @@ s/step and parallel efficiency), exit status 0.
   /usr/bin/python3 benchmarks/compare_cabanapd.py --quick          # 100 x 40 x 8, 20 steps, 1 round
 """
 import argparse
-import csv
 import json
 import math
 import os
@@ -329,10 +328,7 @@ def main():
         print(f"  {row['ranks']} rank(s): pinned peridrive {row.get('pd_binding', '-')}"
               + (f", CabanaPD {row['cpd_binding']}" if "cpd_binding" in row else "") + f"; {row['load']}")
     if a.csv:
-        with open(a.csv, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=sorted({k for r in rows for k in r}))
-            w.writeheader()
-            w.writerows(rows)
+        bc.write_csv(a.csv, rows)
     return 0
 
 

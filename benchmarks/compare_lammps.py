@@ -324,10 +324,7 @@ def main():
               "  exceeds s0 and removes it from the next step on; peridrive removes it in that step (a one-step\n"
               "  lag in LAMMPS, first order in dt).")
     if a.csv:
-        with open(a.csv, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=sorted({k for r in rows for k in r}))
-            w.writeheader()
-            w.writerows(rows)
+        bc.write_csv(a.csv, rows)
     return 0
 
 
