@@ -108,6 +108,20 @@ expect network_direction "bodies.net.network.families.0.direction: expected one 
 expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'
 expect network_step "bodies.net.network.step: a fiber would take more than 1e6 steps" -- "$network" --set bodies.net.network.step=1e-16
 expect sphere_absurd "the scene cannot fit in memory" -- "$balloon" --set bodies.balloon.spacing=1e-9
+# A straight pre-crack cuts sheets and fibers; a scene of solids alone refuses it (it cut nothing).
+cat > "$work/solid_crack.yaml" <<'YAML'
+name: solid-crack
+materials:
+  m: {model: pmb, density: 1000, bulk_modulus: 1.0e9, critical_stretch: 0.01}
+bodies:
+  block: {kind: solid, material: m, origin: [0, 0, 0], size: [0.01, 0.01, 0.01], spacing: 0.001}
+cracks:
+  - {from: [0.002, 0.005, 0.005], to: [0.008, 0.005, 0.005]}
+stages:
+  - {name: run, steps: 5}
+YAML
+expect solid_crack "$work/solid_crack.yaml:7: cracks.0: a pre-crack is a straight segment, which cuts the bonds of sheets and fibers; every body of this scene is a volume (kind: solid)" -- "$work/solid_crack.yaml"
+expect solid_thickness "bodies.block.thickness: not used by a solid body (a box of simple-cubic points); expected one of: kind, material, origin, size, spacing, grid, horizon_factor, horizon, quadrature" -- "$work/solid_crack.yaml" --set bodies.block.thickness=0.001
 expect network_and_path "bodies.net.network: give either path (one fiber) or network (many), not both" -- "$network" --set 'bodies.net.path=[[0,0,0],[1e-8,0,0]]'
 
 # A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,

@@ -140,6 +140,17 @@ else bad "overlapping_boundaries: expected one warning '$want'"; fi
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "clamps_sharing_corners: no warning"
 else bad "clamps_sharing_corners: exit status or warning"; fi
 
+# Pre-cracks that cross no bond (here: beside the sheet) are named in a warning; the run goes on.
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}]' --dry-run \
+  > "$work/stdout" 2> "$work/stderr"
+want="cracks: the pre-cracks broken at the start ('astray') cut no bond"
+if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "crack_cuts_nothing: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "crack_cuts_nothing: expected one warning '$want'"; cat "$work/stderr"; fi
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "cut no bond" "$work/stderr"; then ok "crack_cuts_bonds: no warning"
+else bad "crack_cuts_bonds: exit status or warning"; fi
+
 # A horizon that covers the whole sheet: the estimate counts every other node, not pi m^2 (which
 # would claim 3.9e9 bonds for 2500 nodes and refuse the scene); --dry-run then builds them.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.horizon_factor=1000 --dry-run > "$work/stdout" 2> "$work/stderr"

@@ -212,7 +212,7 @@ inline void tangent_row_is_the_derivative_of_the_forces(const Sample& s) {
 inline double energy_density(const BondLaw& law, const BodyGeometry& g, double l1, double l2, double l3) {
   const double dx = g.spacing;
   const int M = static_cast<int>(std::ceil(g.horizon / dx)) + 1;
-  const bool solid = g.kind == BodyKind::Solid;
+  const bool solid = g.traits.dimension == 3;
   const double cell = solid ? dx * dx * dx : g.cell_area * g.thickness;
   double W = 0;
   for (int k = solid ? -M : 0; k <= (solid ? M : 0); ++k)
@@ -236,7 +236,7 @@ inline void calibration_stores_the_continuum_energy(const Sample& s) {
   int tested = 0;
   for (bool solid : {false, true}) {
     BodyGeometry g;
-    g.kind = solid ? BodyKind::Solid : BodyKind::Membrane;
+    g.traits = find_body_kind(solid ? "solid" : "membrane")->traits;
     g.horizon = 1.0;
     g.spacing = solid ? 0.1 : 1.0 / 24;
     g.thickness = solid ? 0.0 : 1e-3;

@@ -121,9 +121,9 @@ struct LinearSpringLaw {
 //   fiber (section A):      W = A c R_2 e^2 / 2 = E e^2 / 2.
 double mu_or_e_per_c(const BodyGeometry& g) {
   const double pi = 3.14159265358979323846;
-  switch (g.kind) {
-    case BodyKind::Fiber: return g.area * influence_moment(2, g.horizon, false);
-    case BodyKind::Solid: return 0.6 * 2.0 * pi * influence_moment(4, g.horizon, false) / 9.0;
+  switch (g.traits.dimension) {
+    case 1: return g.area * influence_moment(2, g.horizon, false);
+    case 3: return 0.6 * 2.0 * pi * influence_moment(4, g.horizon, false) / 9.0;
     default: return pi * g.thickness * influence_moment(3, g.horizon, false) / 8.0;
   }
 }
@@ -143,7 +143,7 @@ LawEntry linear_spring_entry() {
       law.c = *m.micromodulus;
     } else {  // bulk_modulus: in-plane K = 2 mu (membranes), 3D K = 5 mu / 3, a fiber's E
       const double k = *m.bulk_modulus;
-      const double modulus = g.kind == BodyKind::Fiber ? k : g.kind == BodyKind::Solid ? 0.6 * k : 0.5 * k;
+      const double modulus = g.traits.dimension == 1 ? k : g.traits.dimension == 3 ? 0.6 * k : 0.5 * k;
       const double per_c = mu_or_e_per_c(g);
       law.c = modulus / per_c;
       check_micromodulus(m, g, where, modulus, per_c, law.c);

@@ -59,7 +59,7 @@ BondLaw reshaped(const BondLaw& base, bool conical, double critical_delta) {
 
 BodyGeometry membrane_geometry(double delta, int m, Quadrature q) {
   BodyGeometry g;
-  g.kind = BodyKind::Membrane;
+  g.traits = find_body_kind("membrane")->traits;
   g.horizon = delta;
   g.spacing = delta / m;
   g.thickness = 1.0;
@@ -75,7 +75,7 @@ double discrete_energy_density(const BondLaw& law, const BodyGeometry& g, double
                                double l3 = 1.0) {
   const double dx = g.spacing;
   const int M = static_cast<int>(std::ceil(g.horizon / dx)) + 1;
-  const bool solid = g.kind == BodyKind::Solid;
+  const bool solid = g.traits.dimension == 3;
   const double cell = solid ? dx * dx * dx : g.cell_area * g.thickness;
   double W = 0;
   for (int k = solid ? -M : 0; k <= (solid ? M : 0); ++k)
@@ -185,7 +185,7 @@ TEST(Bonds, NeighbourSearchMatchesAllPairs) {
 // The taper of LAMMPS' PERI package: 1/2 + (delta - |xi|)/dx within dx/2 of delta (delta = 3.015 dx).
 TEST(Quadrature, TaperWeightsNearTheHorizon) {
   BodyGeometry g;
-  g.kind = BodyKind::Solid;
+  g.traits = find_body_kind("solid")->traits;
   g.spacing = 1e-3;
   g.horizon = 3.015e-3;
   g.quadrature = Quadrature::Taper;
@@ -277,7 +277,7 @@ TEST(Calibration, ClosedFormsOfEachLaw) {
   EXPECT_NEAR(micromodulus(calibrate(p, g, "test")), 12 * 300e6 / (kPi * 5e-4 * std::pow(7.5e-4, 3)), 1e-6 * 12 * 300e6 / (kPi * 5e-4 * std::pow(7.5e-4, 3)));
   // PMB solid: c = 18 K / (pi delta^4).
   BodyGeometry s;
-  s.kind = BodyKind::Solid;
+  s.traits = find_body_kind("solid")->traits;
   s.horizon = 3.015e-3;
   s.spacing = 1e-3;
   p.bulk_modulus = 14.9e9;
@@ -310,7 +310,7 @@ TEST(Calibration, DiscreteSmallStrainEnergyMatchesModuli) {
     Material m = make_material("pmb");
     m.bulk_modulus = 14.9e9;
     BodyGeometry g;
-    g.kind = BodyKind::Solid;
+    g.traits = find_body_kind("solid")->traits;
     g.horizon = 1.0;
     g.spacing = 1.0 / 10;
     g.quadrature = Quadrature::PartialArea;

@@ -304,8 +304,11 @@ def plot_crack_speed(run):
 
 
 def dynamic_release_rate(outdir):
-    """Dissipated energy per unit new crack area while two tips (tracks 0 and 1) run, against
-    eq. (30) G = 2 h w_0 delta^3 / 3 (one membrane body, g = 1, constant lambda_0): printed."""
+    """Dissipated energy per unit new crack area while two tips (tracks 0 and 1) run, against the
+    energy of the bonds a unit of crack cuts, G = 2 h int_0^delta w_0(xi) xi^2 dxi (one sheet, g = 1,
+    constant critical value): eq. (30) G = 2 h w_0 delta^3 / 3 for the membrane law, whose w_0 is
+    the same for every bond, and G = h c s_0^2 delta^4 / 4 for PMB bonds (w_0 = c s_0^2 xi / 2).
+    Printed."""
     import re
     try:
         scene = open(os.path.join(outdir, "scene.resolved.yaml")).read()
@@ -313,11 +316,13 @@ def dynamic_release_rate(outdir):
         l0 = [float(v) for v in re.findall(r"^\s+critical_stretch: (\S+)", scene, re.M)]
         c = [float(v) for v in re.findall(r"micromodulus = (\S+)", scene)]
         delta = [float(v) for v in re.findall(r"\.horizon = (\S+)", scene)]
+        models = re.findall(r"^\s+model: (\S+)", scene, re.M)
         with open(os.path.join(outdir, "series.csv")) as f:
             rows = [r for r in csv.DictReader(f) if r.get("tip0_x") and r.get("tip1_x")]
     except (OSError, ValueError):
         return
-    if not (len(h) == len(l0) == len(c) == len(delta) == 1) or "influence: constant" not in scene or len(rows) < 10:
+    if not (len(h) == len(l0) == len(c) == len(delta) == len(models) == 1) or models[0] not in ("membrane", "pmb") \
+            or "influence: constant" not in scene or "critical_stretch_at_horizon" in scene or len(rows) < 10:
         return
     length = np.array([abs(float(r["tip1_x"]) - float(r["tip0_x"])) for r in rows])
     dissipated = np.array([float(r["dissipated_energy"]) for r in rows])
@@ -327,10 +332,13 @@ def dynamic_release_rate(outdir):
     if sel.sum() < 3:
         return
     slope = np.polyfit(length[sel], dissipated[sel], 1)[0]
-    w0 = c[0] * (l0[0] ** 2 + l0[0] ** -2 - 2)
-    g30 = 2 * h[0] * w0 * delta[0] ** 3 / 3
+    if models[0] == "membrane":
+        w0 = c[0] * (l0[0] ** 2 + l0[0] ** -2 - 2)
+        g, name = 2 * h[0] * w0 * delta[0] ** 3 / 3, "eq. (30) G"
+    else:
+        g, name = h[0] * c[0] * l0[0] ** 2 * delta[0] ** 4 / 4, "PMB's G = h c s_0^2 delta^4 / 4"
     print(f"dissipated energy per new crack area over the middle half of the growth: {slope / h[0]:.4g} J/m^2 "
-          f"= {slope / h[0] / g30:.3f} x eq. (30) G = {g30:.4g} J/m^2")
+          f"= {slope / h[0] / g:.3f} x {name} = {g:.4g} J/m^2")
 
 
 if __name__ == "__main__":

@@ -13,16 +13,16 @@ namespace peri {
 
 double reach(const BodyGeometry& g) {
   if (g.quadrature == Quadrature::Full || g.quadrature == Quadrature::Taper) return g.horizon;
-  return g.horizon + g.spacing * (g.kind == BodyKind::Solid ? 0.8660254037844387 : 0.7071067811865476);
+  return g.horizon + g.spacing * (g.traits.dimension == 3 ? 0.8660254037844387 : 0.7071067811865476);
 }
 
 namespace {
 
 // The grid's unit along each axis: the spacing on square and cubic grids; dx/2 and dx sqrt(3)/2
 // along x and y on hexagonal ones (the units discretize() places nodes on, the same expressions).
-// Fibers and spheres have no grid: 0, no snapping.
+// Bodies without a grid (fibers, spheres): 0, no snapping.
 std::array<double, 3> lattice_units(const BodyGeometry& g) {
-  if (g.kind == BodyKind::Fiber || g.kind == BodyKind::Shell) return {0.0, 0.0, 0.0};
+  if (!g.traits.grid) return {0.0, 0.0, 0.0};
   const double dx = g.spacing;
   const bool hex = g.grid == Grid::Hexagonal;
   return {hex ? 0.5 * dx : dx, hex ? dx * std::sqrt(3.0) / 2.0 : dx, dx};
@@ -39,7 +39,7 @@ LatticeStencil lattice_stencil(const Nodes& nodes, int body) {
   const BodyGeometry& g = nodes.bodies[body];
   LatticeStencil st;
   const std::int64_t nx = g.cells[0], ny = g.cells[1], nz = g.cells[2];
-  if (g.kind == BodyKind::Fiber || g.kind == BodyKind::Shell || g.count <= 0 || nx * ny * nz != g.count ||
+  if (!g.traits.grid || g.count <= 0 || nx * ny * nz != g.count ||
       g.first + g.count > nodes.size() || !(g.spacing > 0))
     return st;
   const std::array<double, 3> unit = lattice_units(g);
@@ -57,7 +57,7 @@ LatticeStencil lattice_stencil(const Nodes& nodes, int body) {
   const double far = reach(g) + 1e-6 * g.spacing, far2 = far * far;
   const std::int64_t mx = static_cast<std::int64_t>(std::ceil(far / g.spacing)) + 1;
   const std::int64_t my = static_cast<std::int64_t>(std::ceil(far / unit[1])) + 1;
-  const std::int64_t mz = g.kind == BodyKind::Solid ? mx : 0;
+  const std::int64_t mz = g.traits.dimension == 3 ? mx : 0;
   const int parities = g.grid == Grid::Hexagonal ? 2 : 1;
   for (int p = 0; p < parities; ++p)
     for (std::int64_t dk = -mz; dk <= mz; ++dk)  // (dk, dj, di) ascending: natural ids ascending
@@ -175,7 +175,7 @@ double quadrature_weight(const BodyGeometry& g, const double xi[3]) {
     return std::fabs(r - d) <= 0.5 * g.spacing ? 0.5 + (d - r) / g.spacing : 1.0;
   }
   const double hx = 0.5 * g.spacing;
-  if (g.kind == BodyKind::Membrane) {
+  if (g.traits.dimension == 2) {  // a sheet (grid sheets: membranes)
     // Cell of the neighbour: dx by (cell_area/dx) rectangle (square grid: dx by dx).
     const double hy = 0.5 * g.cell_area / g.spacing;
     // Cells wholly inside the disc (far corner within the horizon) or wholly outside (nearest

@@ -24,7 +24,7 @@ std::unique_ptr<CrackTipMonitor> CrackTipMonitor::create(const Scene& scene, con
   double dx = 0, delta = 0, c_l = INFINITY, c_r = INFINITY;
   std::vector<bool> tip_bodies(laws.size(), false);
   for (std::size_t b = 0; b < laws.size(); ++b) {
-    if (!laws[b].breaks() || bodies[b].kind != BodyKind::Membrane) continue;  // flat sheets only
+    if (!laws[b].breaks() || !bodies[b].traits.flat) continue;  // flat sheets only
     tip_bodies[b] = true;
     const ElasticConstants e = elastic_constants(laws[b], bodies[b], density[b]);
     dx = std::max(dx, bodies[b].spacing);

@@ -92,7 +92,7 @@ std::string HealthCheck::law_note(int body) const {
   std::vector<std::pair<std::string, std::vector<std::string>>> laws;  // law name, bodies
   for (std::size_t b = 0; b < scene_.bodies.size(); ++b) {
     if (body >= 0 && static_cast<int>(b) != body) continue;
-    const std::string name = scene_.bodies[b].kind == BodyKind::Lattice ? "marder" : laws_[b].name();
+    const std::string name = laws_[b].empty() ? "marder" : laws_[b].name();  // (lattices: the lattice's own law)
     auto it = std::find_if(laws.begin(), laws.end(), [&](const auto& l) { return l.first == name; });
     if (it == laws.end()) it = laws.insert(laws.end(), {name, {}});
     it->second.push_back("'" + scene_.bodies[b].name + "'");

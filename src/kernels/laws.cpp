@@ -22,7 +22,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 using Derived = std::vector<std::pair<std::string, double>>;
 
-bool in_plane(const BodyGeometry& g) { return g.kind == BodyKind::Membrane || g.kind == BodyKind::Shell; }
+bool in_plane(const BodyGeometry& g) { return g.traits.dimension == 2; }
 
 // Shear modulus per unit micromodulus of the membrane law (eq. 19: pi h R) and of PMB bonds
 // (membrane: pi h R3 / 8; solid: K = 2 pi R4 / 9 per unit c and mu = 3K/5).
@@ -44,7 +44,7 @@ double youngs_per_c_fiber(bool membrane_law, const BodyGeometry& g, bool conical
 double micromodulus(const Material& m, const BodyGeometry& g, const std::string& where, bool membrane_law,
                     bool conical) {
   if (m.micromodulus) return *m.micromodulus;
-  if (g.kind == BodyKind::Fiber) {  // one modulus in 1D: the bar's E (a "bulk modulus" is read as E too)
+  if (g.traits.dimension == 1) {  // one modulus in 1D: the bar's E (a "bulk modulus" is read as E too)
     double e = 0;
     if (m.wave_speed) e = m.density * *m.wave_speed * *m.wave_speed;
     if (m.bulk_modulus) e = *m.bulk_modulus;
@@ -75,7 +75,7 @@ StretchFailure failure_of(const Material& m, double to_stretch) {
 
 template <class L>
 ElasticConstants stretch_elastic(const L& law, bool membrane_law, const BodyGeometry& g, double density) {
-  if (g.kind == BodyKind::Fiber) return isotropic_constants(law.c * youngs_per_c_fiber(membrane_law, g, law.conical), g, density);
+  if (g.traits.dimension == 1) return isotropic_constants(law.c * youngs_per_c_fiber(membrane_law, g, law.conical), g, density);
   return isotropic_constants(law.c * mu_per_c(membrane_law, g, law.conical), g, density);
 }
 
@@ -94,7 +94,7 @@ constexpr const char* kMembraneStability =
 
 // The membrane law, or with a hardening key the membrane law with eq. (16)'s term.
 void calibrate_membrane(const Material& m, const BodyGeometry& g, const std::string& where, BondLaw& out) {
-  if (g.kind == BodyKind::Solid)
+  if (g.traits.dimension == 3)
     throw InputError(where + ": material '" + m.name +
                      "' uses the membrane micropotential (eq. 13), which is defined for membrane "
                      "and fiber bodies only; expected model: pmb for a solid body");

@@ -1,7 +1,8 @@
 #include "peri/loads/contact.hpp"
 
-#include <algorithm>
 #include <cmath>
+
+#include "peri/models/laws/contact.hpp"
 
 namespace peri {
 namespace {
@@ -25,14 +26,15 @@ bool penetration(const RigidTool& tool, double time, const double* xi, double& p
 void cylinder_contact(const RigidCylinder& tool, double time, double dt, const double* x, std::int64_t x_stride,
                       const double* v, const double* volume, const double* inv_density, std::int32_t n,
                       double* force, ContactTally& tally, const std::vector<NodeFriction>* given) {
+  const PenaltyContact law{tool.stiffness, tool.friction};
   std::size_t next_given = 0;
   for (std::int32_t i = 0; i < n; ++i) {
     double p, nrm[3];
     const double xi[3] = {x[i], x[x_stride + i], tool.sphere ? x[2 * x_stride + i] : 0.0};
     if (!penetration(tool, time, xi, p, nrm)) continue;
     const double rho = 1.0 / inv_density[i];
-    const double fn = rho * tool.stiffness * p;  // normal force density
-    tally.energy += 0.5 * fn * p * volume[i];
+    const double fn = law.normal(rho, p);  // normal force density
+    tally.energy += law.energy(rho, p) * volume[i];
     double f[3] = {fn * nrm[0], fn * nrm[1], fn * nrm[2]};
     if (given) {
       while (next_given < given->size() && (*given)[next_given].node < i) ++next_given;
@@ -49,7 +51,7 @@ void cylinder_contact(const RigidCylinder& tool, double time, double dt, const d
       const double t[3] = {rel[0] - vn * nrm[0], rel[1] - vn * nrm[1], rel[2] - vn * nrm[2]};
       const double speed = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
       if (speed > 0) {
-        const double ft = std::min(tool.friction * fn, 0.5 * rho * speed / dt);
+        const double ft = law.friction_force(fn, rho, speed, dt);
         NodeFriction nf{i, {-ft * t[0] / speed, -ft * t[1] / speed, -ft * t[2] / speed}};
         for (int c = 0; c < 3; ++c) f[c] += nf.force[c];
         tally.friction.push_back(nf);

@@ -11,7 +11,7 @@ namespace peri {
 CrackAdvanceEnergy crack_advance_energy(const Nodes& nodes, const CellList& cells, const BondLaw& law, int body,
                                         const Crack& advance) {
   const BodyGeometry& g = nodes.bodies.at(body);
-  if (g.kind != BodyKind::Membrane) throw InputError("crack_advance_energy: membrane bodies only");
+  if (!g.traits.flat || !g.traits.grid) throw InputError("crack_advance_energy: flat grid sheets (membranes) only");
   if (!law.breaks()) throw InputError("crack_advance_energy: the material has no critical stretch");
   const double* a = advance.from.data();
   const double* b = advance.to.data();

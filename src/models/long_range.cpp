@@ -20,7 +20,7 @@ LongRangeTable long_range_table(const Nodes& nodes) {
   int fiber = 0;
   for (std::size_t b = 0; b < nodes.bodies.size(); ++b) {
     const BodyGeometry& g = nodes.bodies[b];
-    if (g.kind != BodyKind::Fiber) continue;
+    if (!g.traits.long_range) continue;
     for (std::size_t path = 0; path + 1 < g.path_first.size(); ++path, ++fiber)
       for (std::int64_t k = g.path_first[path]; k < g.path_first[path + 1]; ++k) {
         const std::int64_t n = g.first + k;
@@ -47,17 +47,9 @@ PairLaw::PairLaw(const LongRange& spec)
   }
 }
 
-double PairLaw::energy(PairKind k, double y) const noexcept {  // eq. (33)
-  const int i = static_cast<int>(k);
-  const double r2 = (length / y) * (length / y), r6 = r2 * r2 * r2;
-  return alpha[i] * r6 * r6 - beta[i] * r6;
-}
+double PairLaw::energy(PairKind k, double y) const noexcept { return potential(k).energy(y); }
 
-double PairLaw::force(PairKind k, double y) const noexcept {  // eq. (35), second term
-  const int i = static_cast<int>(k);
-  const double r = length / y, r2 = r * r, r6 = r2 * r2 * r2;
-  return (-12.0 * alpha[i] * r6 * r6 + 6.0 * beta[i] * r6) * r / length;
-}
+double PairLaw::force(PairKind k, double y) const noexcept { return potential(k).force(y); }
 
 namespace {
 

@@ -34,11 +34,11 @@ void check_micromodulus(const Material& m, const BodyGeometry& g, const std::str
                         double per_c, double c) {
   if (usable(c)) return;
   std::ostringstream msg;
-  const std::string geometry = (g.kind == BodyKind::Fiber ? "cross-section " + number(g.area) + " m^2"
+  const std::string geometry = (g.traits.dimension == 1 ? "cross-section " + number(g.area) + " m^2"
                                                           : "thickness " + number(g.thickness) + " m") +
                                ", horizon " + number(g.horizon) + " m";
   if (!usable(modulus)) {
-    msg << m.where.str() << ": " << stiffness_input(m) << " gives " << (g.kind == BodyKind::Fiber ? "E" : "mu")
+    msg << m.where.str() << ": " << stiffness_input(m) << " gives " << (g.traits.dimension == 1 ? "E" : "mu")
         << " = " << number(modulus) << " Pa, " << (modulus > 1 ? "beyond the largest double" : "below the smallest normal double");
   } else if (!usable(per_c)) {
     msg << where << ": the body's geometry (" << geometry << ") gives a stiffness per unit micromodulus of "
@@ -73,13 +73,13 @@ double rayleigh_ratio(double a) {
 
 ElasticConstants isotropic_constants(double mu_or_e, const BodyGeometry& g, double density) {
   ElasticConstants e;
-  if (g.kind == BodyKind::Fiber) {  // a bar: E, its wave speed sqrt(E / rho); no shear
+  if (g.traits.dimension == 1) {  // a bar: E, its wave speed sqrt(E / rho); no shear
     e.youngs = e.bulk = mu_or_e;
     e.c_longitudinal = std::sqrt(e.youngs / density);
     return e;
   }
   e.mu = mu_or_e;
-  const bool membrane = g.kind == BodyKind::Membrane || g.kind == BodyKind::Shell;
+  const bool membrane = g.traits.dimension == 2;
   e.bulk = membrane ? 2.0 * e.mu : e.mu / 0.6;
   e.youngs = membrane ? 8.0 * e.mu / 3.0 : 2.5 * e.mu;
   e.c_longitudinal = std::sqrt(3.0 * e.mu / density);

@@ -77,7 +77,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   std::unordered_map<std::int64_t, std::int32_t> pattern_of_class;  // family_class -> pattern
   double longest = 0;  // bond of a body that cracks cut (not solids)
   for (const BodyGeometry& g : nodes.bodies)
-    if (g.kind != BodyKind::Solid) longest = std::max(longest, reach(g));
+    if (g.traits.cut_by_cracks()) longest = std::max(longest, reach(g));
   std::vector<const Crack*> crack_list;
   for (const Crack& c : scene.cracks) crack_list.push_back(&c);
   const CrackIndex cracks(std::move(crack_list), longest);
@@ -104,7 +104,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
       // Weights are kept to float precision, as the per-bond weights they replace were.
       if (known == pattern_of_class.end())
         measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);
-      if (nodes.bodies[nodes.body[i]].kind != BodyKind::Solid) {
+      if (nodes.bodies[nodes.body[i]].traits.cut_by_cracks()) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
         const double* c = &nodes.X[3 * std::max(i, j)];

@@ -71,6 +71,17 @@ void markdown_models(std::ostringstream& out, const std::vector<ModelDoc>& model
   out << "\n";
 }
 
+void markdown_kinds(std::ostringstream& out, const std::vector<KindDoc>& kinds) {
+  out << "Values of `kind` (each takes the keys of its section below):\n\n| kind | nodes |\n| --- | --- |\n";
+  for (const KindDoc& k : kinds) out << "| `" << k.name << "` | " << cell(k.meaning) << " |\n";
+  out << "\n";
+}
+
+void text_kinds(std::ostringstream& out, const std::vector<KindDoc>& kinds) {
+  out << "  values of kind:\n";
+  for (const KindDoc& k : kinds) out << wrapped(k.name + ": " + k.meaning, 6);
+}
+
 void text_models(std::ostringstream& out, const std::vector<ModelDoc>& models) {
   out << "  values of model:\n";
   for (const ModelDoc& m : models)
@@ -87,8 +98,10 @@ std::string describe_scene_keys(KeyFormat format) {
     for (const KeyDoc& k : s.keys)
       if (k.meaning.empty())
         throw Error("scene key '" + (s.path.empty() ? k.name : s.path + "." + k.name) +
-                    "' has no meaning in the schema (src/scene/schema.hpp); document it there");
+                    "' has no meaning in the schema (src/scene/schema.hpp, or its body kind's module in "
+                    "src/geometry/kinds/); document it there");
   const std::vector<ModelDoc> models = scene_model_docs();
+  const std::vector<KindDoc> kinds = scene_kind_docs();
   const bool markdown = format == KeyFormat::Markdown;
   std::ostringstream out;
   if (!markdown)
@@ -97,6 +110,7 @@ std::string describe_scene_keys(KeyFormat format) {
     if (markdown) {
       out << "### " << title_of(s, true) << "\n\n";
       if (s.path == "materials.<name>" && s.condition.empty()) markdown_models(out, models);
+      if (s.path == "bodies.<name>" && s.condition.empty()) markdown_kinds(out, kinds);
       out << "| key | unit | default | meaning |\n| --- | --- | --- | --- |\n";
       for (const KeyDoc& k : s.keys)
         out << "| `" << k.name << "` | " << cell(k.unit) << " | " << cell(default_of(k)) << " | "
@@ -110,6 +124,7 @@ std::string describe_scene_keys(KeyFormat format) {
         out << wrapped(k.meaning, 6);
       }
       if (s.path == "materials.<name>" && s.condition.empty()) text_models(out, models);
+      if (s.path == "bodies.<name>" && s.condition.empty()) text_kinds(out, kinds);
     }
   }
   std::string text = out.str();

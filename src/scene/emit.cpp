@@ -4,14 +4,13 @@
 #include <cstdio>
 
 #include "peri/scene/models.hpp"
+#include "peri/scene/writer.hpp"
 #include "schema.hpp"
 
 namespace peri {
-namespace {
 
-using namespace scene_detail;
+namespace scene_detail {
 
-/// A string as a YAML scalar: plain when that reads back as the same string, else double-quoted.
 std::string yaml_string(const std::string& s) {
   static const char* const reserved[] = {"true", "false", "yes",  "no",  "on",  "off",
                                          "y",    "n",     "null", "nan", "inf", "infinity"};
@@ -74,26 +73,11 @@ std::string flow(const std::array<double, 9>& m) {
          "]";
 }
 
-/// Line-oriented YAML writer: `key(indent, name, value)` writes "<indent>name: value".
-class Writer {
- public:
-  void line(int indent, const std::string& text) {
-    out_.append(static_cast<std::size_t>(indent), ' ');
-    out_ += text;
-    out_ += '\n';
-  }
-  void key(int indent, const std::string& name, const std::string& value) {
-    line(indent, name + ":" + (value.empty() ? "" : " " + value));
-  }
-  void key(int indent, const std::string& name, double value) { key(indent, name, format_number(value)); }
-  void optional(int indent, const std::string& name, const std::optional<double>& value) {
-    if (value) key(indent, name, *value);
-  }
-  std::string str() && { return std::move(out_); }
+}  // namespace scene_detail
 
- private:
-  std::string out_;
-};
+namespace {
+
+using namespace scene_detail;
 
 void emit_material(Writer& w, const Material& m) {
   w.key(2, yaml_string(m.name), "");
@@ -127,63 +111,11 @@ void emit_material(Writer& w, const Material& m) {
   }
 }
 
-// horizon and horizon_factor exclude each other: write the one in effect.
-void emit_horizon(Writer& w, const Body& b) {
-  if (b.horizon)
-    w.key(4, "horizon", *b.horizon);
-  else
-    w.key(4, "horizon_factor", b.horizon_factor);
-}
-
 void emit_body(Writer& w, const Body& b) {
-  const bool membrane = b.kind != BodyKind::Solid;
   w.key(2, yaml_string(b.name), "");
-  w.key(4, "kind", to_text(b.kind));
+  w.key(4, "kind", b.kind->name);
   w.key(4, "material", yaml_string(b.material));
-  if (b.kind == BodyKind::Shell) {
-    w.key(4, "center", flow(b.origin));
-    w.key(4, "radius", b.radius);
-    w.key(4, "thickness", b.thickness);
-    w.key(4, "spacing", b.spacing);
-    emit_horizon(w, b);
-    w.key(4, "pressure", b.pressure);
-    w.key(4, "pressure_ramp_time", b.pressure_ramp_time);
-    return;
-  }
-  if (b.kind == BodyKind::Fiber) {
-    if (b.network) {
-      const FiberNetwork& n = *b.network;
-      w.key(4, "network", "");
-      w.key(6, "box", "{min: " + flow(n.min) + ", max: " + flow(n.max) + "}");
-      std::vector<std::string> fams;
-      for (const FiberFamily& f : n.families)
-        fams.push_back(std::string("{direction: ") + (f.axis == 0 ? "x" : "y") + ", count: " + std::to_string(f.count) + "}");
-      w.key(6, "families", "[" + join(fams) + "]");
-      w.key(6, "deviation", n.deviation);
-      w.key(6, "step", n.step);
-      w.key(6, "start_band", n.start_band);
-      w.key(6, "seed", std::to_string(n.seed));
-    } else {
-      std::vector<std::string> points;
-      for (const Vec3& p : b.path) points.push_back(flow(p));
-      w.key(4, "path", "[" + join(points) + "]");
-    }
-    w.key(4, "diameter", b.diameter);
-    w.key(4, "spacing", b.spacing);
-    w.key(4, "segment_length", b.segment_length);
-    emit_horizon(w, b);
-    return;
-  }
-  w.key(4, "origin", flow(b.origin));
-  w.key(4, "size", membrane ? flow({b.size[0], b.size[1]}) : flow(b.size));
-  if (membrane) w.key(4, "thickness", b.thickness);
-  w.key(4, "spacing", b.spacing);
-  if (b.breakable)
-    w.key(4, "breakable", "{min: " + flow((*b.breakable)[0]) + ", max: " + flow((*b.breakable)[1]) + "}");
-  if (b.kind == BodyKind::Lattice) return;
-  w.key(4, "grid", to_text(b.grid));
-  emit_horizon(w, b);
-  w.key(4, "quadrature", to_text(b.quadrature));
+  b.kind->emit(w, b);  // the kind's own keys (its module)
 }
 
 void emit_boundary(Writer& w, const Boundary& b) {

@@ -1,5 +1,5 @@
 // The located YAML layer's text helpers (located_yaml.hpp).
-#include "located_yaml.hpp"
+#include "peri/scene/located_yaml.hpp"
 
 #include <cctype>
 #include <cstdio>

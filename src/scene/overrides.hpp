@@ -2,7 +2,7 @@
 // addressed by index or by name; every key path an override sets is recorded in the Context, so
 // that a message about its value reads "--set" instead of a file line.
 #pragma once
-#include "located_yaml.hpp"
+#include "peri/scene/located_yaml.hpp"
 
 namespace peri::scene_detail {
 

@@ -355,13 +355,13 @@ LongRange read_long_range(const Value& v, const std::vector<Body>& bodies) {
   const Map m(v, &kLongRangeKeys, "a map {length, cutoff, exclusion, pairs}");
   LongRange lr;
   lr.where = m.where();
-  if (std::none_of(bodies.begin(), bodies.end(), [](const Body& b) { return b.kind == BodyKind::Fiber; }))
+  if (std::none_of(bodies.begin(), bodies.end(), [](const Body& b) { return b.kind->traits.long_range; }))
     v.fail("long-range forces act between fiber nodes (eqs. 32-36); the scene has no body with kind: fiber");
   lr.length = m.at("length").positive("m");
   lr.cutoff = m.at("cutoff").positive("m");
   // Default: the largest fiber horizon (bonded neighbours do not also interact at long range).
   for (const Body& b : bodies)
-    if (b.kind == BodyKind::Fiber) lr.exclusion = std::max(lr.exclusion, b.horizon_value());
+    if (b.kind->traits.long_range) lr.exclusion = std::max(lr.exclusion, b.horizon_value());
   if (auto x = m.get("exclusion")) lr.exclusion = x->non_negative("m");
   const Value pairs = m.at("pairs");
   const std::vector<Value> rules = pairs.list("a list of pair rules {between, alpha, beta}");
@@ -402,6 +402,18 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   UniqueNames crack_names("crack");
   const auto cracks = optional_list(top, "cracks", "a list of cracks");
   for (std::size_t i = 0; i < cracks.size(); ++i) s.cracks.push_back(read_crack(cracks[i], i, crack_names));
+  // A straight segment cuts the bonds of sheets and fibers; in a volume it cuts nothing.
+  if (!cracks.empty() && std::none_of(s.bodies.begin(), s.bodies.end(),
+                                      [](const Body& b) { return b.kind->traits.cut_by_cracks(); })) {
+    std::vector<std::string> kinds;
+    for (const Body& b : s.bodies)
+      if (std::find(kinds.begin(), kinds.end(), b.kind->name) == kinds.end()) kinds.push_back(b.kind->name);
+    std::string why = "a pre-crack is a straight segment, which cuts the bonds of sheets and fibers; every body of "
+                      "this scene is a volume (kind: ";
+    why += join(kinds);
+    why += "), where a segment cuts no bond";
+    cracks[0].fail(why);
+  }
 
   UniqueNames boundary_names("boundary");
   for (const Value& v : optional_list(top, "boundaries", "a list of boundaries"))

@@ -3,7 +3,7 @@
 #pragma once
 #include <string>
 
-#include "located_yaml.hpp"
+#include "peri/scene/located_yaml.hpp"
 
 namespace peri::scene_detail {
 

@@ -3,7 +3,7 @@
 // emit.cpp.
 #include "peri/scene/scene.hpp"
 
-#include "located_yaml.hpp"
+#include "peri/scene/located_yaml.hpp"
 
 namespace peri {
 

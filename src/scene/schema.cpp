@@ -10,13 +10,6 @@
 namespace peri::scene_detail {
 
 const char* to_text(Influence k) { return k == Influence::Constant ? "constant" : "conical"; }
-const char* to_text(BodyKind k) {
-  return k == BodyKind::Membrane ? "membrane"
-         : k == BodyKind::Solid  ? "solid"
-         : k == BodyKind::Lattice ? "lattice"
-         : k == BodyKind::Fiber  ? "fiber"
-                                 : "sphere";
-}
 const char* to_text(PairKind k) {
   return k == PairKind::AdjacentSegments ? "adjacent_segments"
          : k == PairKind::DistantSegments ? "distant_segments"
@@ -86,11 +79,13 @@ std::vector<KeySection> scene_key_sections() {
                    key_docs(kMaterialKeys, [&](const Key& x) { return models_taking(x.name) == takers; })});
   }
   out.push_back({"materials.<name>.hardening", "model: " + join(models_taking("hardening")), key_docs(kHardeningKeys)});
+  // Body keys: kind and material, then each kind's own (its module's table) and its nested maps.
   out.push_back({"bodies.<name>", "", key_docs(kBodyKeys)});
-  out.push_back({"bodies.<name>.breakable", "kind: lattice", key_docs(kBoxKeys)});
-  out.push_back({"bodies.<name>.network", "kind: fiber", key_docs(kNetworkKeys)});
-  out.push_back({"bodies.<name>.network.box", "kind: fiber", key_docs(kBoxKeys)});
-  out.push_back({"bodies.<name>.network.families[i]", "kind: fiber", key_docs(kFamilyKeys)});
+  for (const BodyKind* kind : body_kinds()) {
+    out.push_back({"bodies.<name>", "kind: " + kind->name, key_docs(kind->keys)});
+    for (const auto& [key, keys] : kind->nested)
+      out.push_back({"bodies.<name>." + key, "kind: " + kind->name, key_docs(*keys)});
+  }
   out.push_back({"cracks[i]", "", key_docs(kCrackKeys)});
   out.push_back({"boundaries[i]", "", key_docs(kBoundaryKeys)});
   out.push_back({"boundaries[i].region", "", key_docs(kRegionKeys)});
@@ -117,6 +112,12 @@ std::vector<ModelDoc> scene_model_docs() {
     const MaterialModel& m = *find_material_model(name);
     out.push_back({m.name, m.description, m.stiffness});
   }
+  return out;
+}
+
+std::vector<KindDoc> scene_kind_docs() {
+  std::vector<KindDoc> out;
+  for (const BodyKind* k : body_kinds()) out.push_back({k->name, k->summary});
   return out;
 }
 

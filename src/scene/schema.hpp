@@ -9,18 +9,10 @@
 #include <map>
 #include <string>
 
-#include "located_yaml.hpp"
+#include "peri/scene/located_yaml.hpp"
+#include "peri/scene/writer.hpp"
 
 namespace peri::scene_detail {
-
-/// The text of an enum's value, as the scene writes it.
-const char* to_text(Influence k);
-const char* to_text(BodyKind k);
-const char* to_text(PairKind k);
-const char* to_text(Grid k);
-const char* to_text(Quadrature k);
-const char* to_text(StageKind k);
-const char* to_text(bool b);
 
 /// Prefix of the default names of a list's unnamed entries ("crack0", "stage1"); empty when the
 /// entries have no default name.
@@ -41,7 +33,9 @@ inline const Keys kSceneKeys = {
      .doc = "map of material name to material (`materials.<name>`); at least one"},
     {.name = "bodies", .required = true, .what = "map of body name to body",
      .doc = "map of body name to body (`bodies.<name>`); at least one"},
-    {.name = "cracks", .fallback = "none", .doc = "list of straight pre-cracks (`cracks[i]`)"},
+    {.name = "cracks", .fallback = "none",
+     .doc = "list of straight pre-cracks (`cracks[i]`); they cut sheets and fibers, so a scene whose bodies are all "
+            "solids refuses them"},
     {.name = "boundaries", .fallback = "none",
      .doc = "list of regions with prescribed velocity components, clamps included (`boundaries[i]`)"},
     {.name = "tools", .fallback = "none", .doc = "list of rigid tools acting by contact (`tools[i]`)"},
@@ -109,85 +103,14 @@ inline const Keys kHardeningKeys = {
     {.name = "exponent", .required = true, .what = "hardening exponent n, > 1", .doc = "n > 1"},
 };
 
+/// The keys of every body; each kind's own keys are its module's (scene/body_kind.hpp).
 inline const Keys kBodyKeys = {
     {.name = "kind", .fallback = "membrane",
-     .doc = "`membrane` (a flat sheet at z = origin z), `solid` (a box of simple-cubic points; pmb materials), "
-            "`lattice` (Marder's triangular lattice; marder materials), `fiber` (nodes along a path, or a "
-            "generated network) or `sphere` (a spherical membrane on a geodesic grid); a key of another kind is "
-            "refused, naming the kind that takes it"},
+     .doc = "the body kind, one of the values of kind listed with this section; it decides which other keys the "
+            "body takes (a key of another kind is refused, naming the kind that takes it)"},
     {.name = "material", .required = true, .what = "name of a material",
      .doc = "name of an entry of materials; a lattice body needs a marder material and a marder material a "
             "lattice body"},
-    {.name = "origin", .unit = "m", .fallback = "required (membrane, solid, lattice)",
-     .doc = "membrane, solid, lattice: the lower corner [x, y, z]"},
-    {.name = "size", .unit = "m", .fallback = "required (membrane, solid, lattice)",
-     .doc = "membrane, lattice: [Lx, Ly] (or [Lx, Ly, 0]), Lx, Ly > 0; solid: [Lx, Ly, Lz], all > 0"},
-    {.name = "thickness", .unit = "m", .fallback = "required (membrane, lattice, sphere)",
-     .doc = "h > 0 (a node's measure is its area times h; a lattice node's mass is density h (sqrt(3)/2) "
-            "Delta^2); refused for solids"},
-    {.name = "spacing", .unit = "m", .fallback = "required",
-     .doc = "dx > 0, at most the smallest extent of size (fiber: the path's length; sphere: the radius). Grid "
-            "nodes sit at origin + (i + 1/2) dx; a lattice's Delta; a fiber's nodes are round(L / spacing) equal "
-            "arc steps apart; a sphere's geodesic grid has about this spacing"},
-    {.name = "grid", .fallback = "square",
-     .doc = "membrane: `square` or `hexagonal` (rows along x, dx apart, rows sqrt(3)/2 dx apart); solid: `square` "
-            "only"},
-    {.name = "horizon_factor", .fallback = "3",
-     .doc = "m of delta = m dx, >= 1; not with horizon; not for lattices"},
-    {.name = "horizon", .unit = "m", .fallback = "horizon_factor x spacing",
-     .doc = "delta itself, >= spacing; not with horizon_factor; not for lattices"},
-    {.name = "quadrature", .fallback = "partial_area",
-     .doc = "membrane, solid: the weight of a neighbour inside the horizon: `partial_area` (the exact part of its "
-            "cell inside the horizon; second order), `full` (whole cells with xi <= delta) or `taper` (whole "
-            "cells, the last dx/2 before delta tapered linearly to 1/2, as LAMMPS PERI does); fibers and spheres "
-            "take full weights"},
-    {.name = "breakable", .unit = "m", .fallback = "everywhere",
-     .doc = "lattice: `{min: [x, y, z], max: [x, y, z]}`, only bonds with both ends inside this box (reference "
-            "positions) may break (`bodies.<name>.breakable`)"},
-    {.name = "path", .unit = "m", .fallback = "required (fiber) unless network",
-     .doc = "fiber: a polyline [[x, y, z], ...] of at least 2 points, each different from the one before; n = "
-            "round(L / spacing) nodes at the centres of n equal arc-length steps ds = L / n, measure A ds"},
-    {.name = "network",
-     .doc = "fiber, instead of path: many fibers generated in a box, bonded wherever they pass within the horizon "
-            "(cross-links) (`bodies.<name>.network`)"},
-    {.name = "diameter", .unit = "m", .fallback = "required (fiber)", .doc = "fiber: d > 0; cross-section A = pi d^2 / 4"},
-    {.name = "segment_length", .unit = "m", .fallback = "0 (one segment)",
-     .doc = "fiber: >= 0; node k lies in segment floor((k + 1/2) ds / segment_length), which long_range rules tell "
-            "apart"},
-    {.name = "center", .unit = "m", .fallback = "required (sphere)", .doc = "sphere: the centre [x, y, z]"},
-    {.name = "radius", .unit = "m", .fallback = "required (sphere)",
-     .doc = "sphere: R > 0; n = round(1.107 R / spacing) splits each icosahedron face into n^2 triangles, 10 n^2 + "
-            "2 nodes; a node's area is a third of its triangles', scaled to 4 pi R^2 in all"},
-    {.name = "pressure", .unit = "Pa", .fallback = "0",
-     .doc = "sphere: internal pressure p >= 0, a follower load (each geodesic triangle carries p times its current "
-            "area vector, a third to each corner whose bonds to the other two are intact); its work is external "
-            "work; wall stress p R / (2 h) at most 100 in-plane bulk moduli; refuses quasistatic stages"},
-    {.name = "pressure_ramp_time", .unit = "s", .fallback = "0",
-     .doc = "sphere: the pressure rises linearly from 0 over this time, >= 0"},
-};
-
-inline const Keys kNetworkKeys = {
-    {.name = "box", .required = true, .what = "box {min: [x, y, z], max: [x, y, z]} the fibers fill, m",
-     .doc = "the box the fibers cross, `{min: [x, y, z], max: [x, y, z]}` (`bodies.<name>.network.box`)"},
-    {.name = "families", .required = true, .what = "list of fiber families {direction: x or y, count}",
-     .doc = "non-empty list of fiber families (`bodies.<name>.network.families[i]`)"},
-    {.name = "deviation", .unit = "rad", .fallback = "0.15",
-     .doc = "standard deviation >= 0 of the Gaussian angles (in the plane and out of it) between a step's "
-            "direction and its family's; steps are mirrored back at the box's side faces"},
-    {.name = "step", .required = true, .what = "path length between direction draws, m", .unit = "m",
-     .doc = "path length between direction draws, > 0; at most 1e6 steps across the box along each family's "
-            "direction"},
-    {.name = "start_band", .unit = "m", .fallback = "5% of the box's smaller x, y extent",
-     .doc = ">= 0: each fiber starts at a uniformly random point within this distance of the box's low face normal "
-            "to its family's direction, anywhere across the other two, and walks to the far face"},
-    {.name = "seed", .fallback = "1",
-     .doc = "integer >= 0; the same seed gives the same paths on every rank (splitmix64 and Box-Muller; on another "
-            "platform up to its libm's log and cos)"},
-};
-
-inline const Keys kFamilyKeys = {
-    {.name = "direction", .required = true, .what = "x or y", .doc = "`x` or `y`: the direction the family's fibers cross the box"},
-    {.name = "count", .required = true, .what = "number of fibers, >= 1", .doc = "number of fibers, an integer in 1 .. 100000"},
 };
 
 inline const Keys kLongRangeKeys = {
@@ -213,12 +136,6 @@ inline const Keys kPairRuleKeys = {
      .doc = "coefficient of (a/y)^12, >= 0"},
     {.name = "beta", .required = true, .what = "coefficient of (a/y)^6, J/m^6 (negative: repulsive tail)",
      .unit = "J/m^6", .doc = "coefficient of (a/y)^6, any sign (negative: a repulsive 1/y^6 tail)"},
-};
-
-inline const Keys kBoxKeys = {
-    {.name = "min", .required = true, .what = "lower corner [x, y, z], m", .unit = "m", .doc = "lower corner [x, y, z]"},
-    {.name = "max", .required = true, .what = "upper corner [x, y, z], m", .unit = "m",
-     .doc = "upper corner [x, y, z], >= min in every component (> min for a network's box)"},
 };
 
 inline const Keys kCrackKeys = {

@@ -16,7 +16,7 @@ void Forces::lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& 
   const std::size_t nb = scene.bodies.size();
   marder_.assign(nb, std::nullopt);
   for (std::size_t b = 0; b < nb; ++b) {
-    if (scene.bodies[b].kind != BodyKind::Lattice) continue;
+    if (!scene.bodies[b].kind->traits.lattice) continue;
     const Material& m = scene.material(scene.bodies[b].material);
     const BodyGeometry& g = bodies[b];
     const MarderParams& p = *m.marder;

@@ -63,10 +63,10 @@ QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, EquilibriumMode
   std::vector<std::uint8_t> constrained(n, 0);
   std::vector<double> increment(n, 0.0);
   p.boundaries->quasistatic_targets(stage, p.domain, constrained, increment);
-  // Flat membranes under in-plane load have no out-of-plane stiffness at the flat state.
+  // Flat sheets under in-plane load have no out-of-plane stiffness at the flat state.
   if (stage.in_plane)
     for (std::int32_t i = 0; i < p.domain.owned; ++i)
-      if (p.scene.bodies[p.domain.body[i]].kind == BodyKind::Membrane) constrained[3 * static_cast<std::size_t>(i) + 2] = 1;
+      if (p.bodies[p.domain.body[i]].traits.flat) constrained[3 * static_cast<std::size_t>(i) + 2] = 1;
   std::unique_ptr<QuasiStaticLoader> loader = make_loader(p, stage);
   QuasiStaticStats stats = loader->run(model, constrained, increment, verbose);
   ledger.external_work += stats.external_work;

@@ -7,6 +7,7 @@
 // tools' penalty; the initial state's checks; the figures and the resolved scene.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <limits>
 #include <optional>
@@ -52,7 +53,7 @@ std::vector<BondLaw> calibrate_bodies(const Scene& scene, const Nodes& nodes, st
   std::vector<BondLaw> laws;
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const Material& m = scene.material(scene.bodies[b].material);
-    laws.push_back(scene.bodies[b].kind == BodyKind::Lattice
+    laws.push_back(nodes.bodies[b].traits.lattice
                        ? BondLaw{}
                        : calibrate(m, nodes.bodies[b], scene.bodies[b].where.str() + ": bodies." + scene.bodies[b].name));
     density.push_back(m.density);
@@ -138,6 +139,15 @@ void setup_figures(const Problem& p, const Partition& partition, PartitionMethod
   MPI_Allreduce(&local_bonds, &summary.ordered_bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
   MPI_Allreduce(&local_pre, &summary.precrack_bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
   summary.precrack_bonds /= 2;
+  // Pre-cracks broken at the start that cut nothing are misplaced (outside every sheet or fiber).
+  const auto at_start = std::find_if(p.scene.cracks.begin(), p.scene.cracks.end(),
+                                     [&](const Crack& c) { return !p.scene.released_later(c.name); });
+  if (p.rank == 0 && summary.precrack_bonds == 0 && at_start != p.scene.cracks.end())
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: cracks: the pre-cracks broken at the start ('%s'%s) cut no bond: none "
+                 "of them crosses a bond of a membrane, lattice, fiber or sphere body\n",
+                 at_start->where.str().c_str(), at_start->name.c_str(),
+                 p.scene.cracks.size() > 1 ? " and the others" : "");
   summary.nodes = d.global_nodes;
   summary.ranks = p.ranks;
   summary.steps = p.stages.total;
@@ -205,7 +215,7 @@ void derived_constants(const Problem& p, RunSummary& summary) {
     const ElasticConstants e = elastic_constants(law, g, p.density[b]);
     for (const auto& [key, value] : law.derived()) out.push_back({pre + key, value});
     out.push_back({pre + "horizon", law.horizon()});
-    if (g.kind == BodyKind::Fiber) {  // a bar: E and its wave speed only
+    if (g.traits.dimension == 1) {  // a bar: E and its wave speed only
       out.push_back({pre + "youngs_modulus", e.youngs});
       out.push_back({pre + "longitudinal_wave_speed", e.c_longitudinal});
       out.push_back({pre + "spacing_along_path", g.spacing});

@@ -30,13 +30,8 @@ std::string num(double v) {
 
 const char* beyond(double x) { return x > 1 ? "beyond the largest double" : "below the smallest normal double"; }
 
-// The keys that give a body's node measure.
-std::string measure_keys(const Body& b) {
-  const std::string p = "bodies." + b.name + ".";
-  if (b.kind == BodyKind::Fiber) return p + "diameter " + num(b.diameter) + " m, " + p + "spacing " + num(b.spacing) + " m";
-  if (b.kind == BodyKind::Solid) return p + "spacing " + num(b.spacing) + " m";
-  return p + "spacing " + num(b.spacing) + " m, " + p + "thickness " + num(b.thickness) + " m";
-}
+// The keys that give a body's node measure (its kind's).
+std::string measure_keys(const Body& b) { return b.kind->measure_keys(b); }
 
 }  // namespace
 
@@ -322,7 +317,7 @@ void check_initial_state(const Problem& p) {
   // tears any sphere at once (and overflows the forces long before that).
   for (std::size_t b = 0; b < nb; ++b) {
     const Body& body = scene.bodies[b];
-    if (body.kind != BodyKind::Shell || !(body.pressure > 0)) continue;
+    if (!(body.pressure > 0)) continue;  // (only spheres take a pressure)
     const double stress = body.pressure * body.radius / (2 * body.thickness);
     const double bulk = elastic_constants(p.forces->laws()[b], p.bodies[b], p.density[b]).bulk;
     if (stress <= kLargestWallStress * bulk) continue;  // (a NaN or inf stress is refused)

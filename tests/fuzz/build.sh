@@ -13,7 +13,8 @@ mpi_inc=$(mpicxx --showme:compile 2> /dev/null || true)
 flags=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
        -I"$src/include" -I/usr/include/eigen3 $hdf5_inc $mpi_inc)
 "$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_scene.cpp" "$src"/src/scene/*.cpp "$src/src/core/error.cpp" \
-  "$src/src/geometry/discretization.cpp" "$src/src/models/model.cpp" "$src/src/models/marder.cpp" \
+  "$src/src/geometry/discretization.cpp" "$src/src/geometry/body_kinds.cpp" "$src"/src/geometry/kinds/*.cpp \
+  "$src/src/models/model.cpp" "$src/src/models/marder.cpp" \
   "$src/src/kernels/laws.cpp" -lyaml-cpp \
   -o "$out/fuzz_scene"
 "$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_checkpoint.cpp" "$src/src/io/checkpoint.cpp" "$src/src/core/error.cpp" \
@@ -30,5 +31,6 @@ open(out, "w").write(text.replace("@PERI_DEFAULT_SCENE_TEXT@", scene))
 EOF_PY
 "$cxx" "${flags[@]}" "$src/tests/fuzz/fuzz_override.cpp" "$src"/src/scene/*.cpp "$src/src/core/error.cpp" \
   "$src/src/models/marder.cpp" "$src/src/models/model.cpp" \
-  "$src/src/geometry/discretization.cpp" "$src/src/kernels/laws.cpp" "$out/build_info.cpp" -lyaml-cpp -o "$out/fuzz_override"
+  "$src/src/geometry/discretization.cpp" "$src/src/geometry/body_kinds.cpp" "$src"/src/geometry/kinds/*.cpp \
+  "$src/src/kernels/laws.cpp" "$out/build_info.cpp" -lyaml-cpp -o "$out/fuzz_override"
 echo "built $out/fuzz_scene $out/fuzz_checkpoint $out/fuzz_crossing $out/fuzz_override"

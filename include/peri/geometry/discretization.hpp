@@ -1,11 +1,13 @@
 // Discretization: scene bodies -> nodes (reference position X in 3D, measure, body), in the
-// "natural" order: bodies in scene order, then row-major (x fastest). The natural order is
-// independent of the number of ranks; everything rank-independent (bond order, output) uses it.
+// "natural" order: bodies in scene order, then each body's own order (its kind's module in
+// src/geometry/kinds/: grids row-major, x fastest). The natural order is independent of the number
+// of ranks; everything rank-independent (bond order, output) uses it.
 #pragma once
 #include <array>
 #include <cstdint>
 #include <vector>
 
+#include "peri/scene/body_kind.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri {
@@ -13,7 +15,7 @@ namespace peri {
 /// Geometry facts of one body that later stages need.
 struct BodyGeometry {
   int material = 0;          ///< index into Scene::materials
-  BodyKind kind = BodyKind::Membrane;
+  BodyTraits traits;         ///< its kind's (scene/body_kind.hpp): dimension, grid, flat, ...
   Grid grid = Grid::Square;
   double spacing = 0.0;      ///< dx [m]
   double horizon = 0.0;      ///< delta [m]
@@ -44,6 +46,24 @@ struct Nodes {
   std::int64_t size() const { return static_cast<std::int64_t>(volume.size()); }
 };
 
+/// Where a body kind's discretize appends its nodes: the scene's node arrays, for one body.
+class NodeSink {
+ public:
+  NodeSink(Nodes& nodes, int body) : nodes_(nodes), body_(body) {}
+  /// A node at reference position (x, y, z) [m] with measure `measure` [m^3].
+  void add(double x, double y, double z, double measure) {
+    nodes_.X.insert(nodes_.X.end(), {x, y, z});
+    nodes_.volume.push_back(measure);
+    nodes_.body.push_back(body_);
+  }
+  /// Nodes of every body so far.
+  std::int64_t size() const { return nodes_.size(); }
+
+ private:
+  Nodes& nodes_;
+  int body_;
+};
+
 /// Rough size of a scene before anything is allocated (nodes, ordered bonds, bytes), and the
 /// largest family: bonds per node min(body's nodes - 1, nodes within the horizon) of the body
 /// with the most.
@@ -54,10 +74,12 @@ struct SizeEstimate {
 };
 SizeEstimate estimate_size(const Scene& scene);
 
-/// Frequency of the geodesic sphere of a sphere body: 10 n^2 + 2 nodes, edges about `spacing`.
+/// Frequency of the geodesic sphere of a sphere body: 10 n^2 + 2 nodes, edges about `spacing`
+/// (kinds/sphere.cpp).
 std::int64_t sphere_frequency(double radius, double spacing);
 
-/// The polylines of a fiber body: its path, or the paths of its network (FiberNetwork).
+/// The polylines of a fiber body: its path, or the paths of its network (FiberNetwork)
+/// (kinds/fiber.cpp).
 std::vector<std::vector<Vec3>> fiber_paths(const Body& b);
 
 /// Generate the nodes of every body. Throws InputError for absurd resolutions (more nodes than

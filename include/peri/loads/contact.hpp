@@ -1,6 +1,7 @@
-#pragma once
 // Rigid tools in contact with the nodes (Silling & Bobaru 7.4: a blunt tool, a rigid cylinder,
-// pushed edge-on through a membrane, with friction). Kernels only: no MPI, no PETSc.
+// pushed edge-on through a membrane, with friction): the loop over a rank's nodes, with the
+// contact law of models/laws/contact.hpp. Kernels only: no MPI, no PETSc.
+#pragma once
 #include <cstdint>
 #include <vector>
 

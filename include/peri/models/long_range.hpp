@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "peri/geometry/discretization.hpp"
+#include "peri/models/laws/pair.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri {
@@ -46,6 +47,11 @@ struct PairLaw {
   bool acts[3] = {false, false, false};  ///< by PairKind: some rule matches
   double alpha[3] = {0, 0, 0}, beta[3] = {0, 0, 0};  ///< beta < 0: a repulsive 1/y^6 tail
   explicit PairLaw(const LongRange& spec);
+  /// The potential of a pair kind (models/laws/pair.hpp).
+  LennardJonesPair potential(PairKind k) const noexcept {
+    const int i = static_cast<int>(k);
+    return {alpha[i], beta[i], length};
+  }
   /// w2(y) (eq. 33), unshifted.
   double energy(PairKind k, double y) const noexcept;
   /// dw2/dy: the scalar force, positive when the pair attracts.

@@ -5,8 +5,8 @@
 //   U_i = A F_i + B (G_i - H_i + 4 Delta^4) = m a [J1 + b J2]          (eqs. 22-27)
 // i.e. the 2D Mooney-Rivlin sheet W/rho = a [J1 + b J2] (eq. 6), with m the mass per node.
 //
-// Pure layer: constants, the three functions, and the loop over owned rows of a CSR neighbour
-// list. No MPI, no PETSc. The energy is a sum of node-centred terms U_i that depend only on the
+// Pure layer: the law (constants and the three functions, models/laws/marder.hpp) and the loop over
+// owned rows of a CSR neighbour list. No MPI, no PETSc. The energy is a sum of node-centred terms U_i that depend only on the
 // bond vectors d_j = x_j - x_i of row i; the loop adds -dU_i/dx to node i and to its neighbours,
 // which may be ghosts: the caller sums ghost contributions back to their owners.
 #pragma once
@@ -16,60 +16,9 @@
 #include <vector>
 
 #include "peri/kernels/forces.hpp"
+#include "peri/models/laws/marder.hpp"
 
 namespace peri {
-
-/// Constants of one lattice body (SI units: A in N/m, B in N/m^3).
-struct MarderLaw {
-  double A = 0;          ///< eq. (27): A = m a / Delta^2
-  double B = 0;          ///< eq. (27): B = 9 m a b / (8 Delta^4)
-  double delta = 0;      ///< lattice spacing Delta [m]
-  double us = 0;         ///< short-distance cutoff u_s [m]
-  double uc = 0;         ///< fracture separation u_c [m]
-  double mass = 0;       ///< m, mass per node [kg]
-  double a = 0, b = 0;   ///< Mooney-Rivlin constants of eq. (6) (a in J/kg, b dimensionless)
-  bool reversible = false;  ///< bonds heal when u < u_c again (the paper's pure functional)
-  /// Kelvin (Kelvin-Voigt) dashpot of every intact bond [kg/s]: force on i from bond ij
-  /// eta (e_ij . (v_j - v_i)) e_ij, e_ij the current bond direction. eta = 8 m nu / (3 Delta^2)
-  /// for the material's kinematic viscosity nu (docs/theory/marder.md); 0: no dashpots.
-  double dashpot = 0;
-
-  /// Constant of f that makes the reference lattice energy zero: the "+4" of eqs. (23), (24),
-  /// (31) is 4 Delta^4 B per node for Delta = 1, shared by the six pair terms of a node.
-  double f_constant() const noexcept { return 2.0 / 3.0 * B * delta * delta * delta * delta; }
-
-  /// Two-body energy f(u), eq. (31).
-  double f(double u) const noexcept {
-    const double d2 = delta * delta;
-    if (u >= uc) u = uc;
-    const double s = u * u - d2;
-    const double quartic = B / 9.0 * s * s + f_constant();
-    if (u < delta + us) return A / 6.0 * s * (u - delta) / us + quartic;
-    return A / 6.0 * s + quartic;
-  }
-  /// df/du.
-  double df(double u) const noexcept {
-    const double d2 = delta * delta;
-    if (u >= uc) return 0.0;
-    const double s = u * u - d2;
-    const double quartic = 4.0 * B / 9.0 * u * s;
-    if (u < delta + us) return A / 6.0 * (2.0 * u * (u - delta) + s) / us + quartic;
-    return A / 3.0 * u + quartic;
-  }
-  /// Three-body switch h(u), eq. (32).
-  double h(double u) const noexcept { return 1.0 / (1.0 + std::exp((u - uc) / us)); }
-  /// dh/du = -h (1 - h) / u_s.
-  double dh(double u) const noexcept {
-    const double v = h(u);
-    return -v * (1.0 - v) / us;
-  }
-  /// Three-body angular energy g(X), eq. (33).
-  double g(double X) const noexcept {
-    const double t = X + 2.0 * delta * delta;
-    return -B / 27.0 * t * t;
-  }
-  double dg(double X) const noexcept { return -2.0 * B / 27.0 * (X + 2.0 * delta * delta); }
-};
 
 /// Largest neighbour count of a lattice row (triangular lattice).
 constexpr int kMarderMaxNeighbours = 6;

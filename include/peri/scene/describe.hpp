@@ -1,6 +1,7 @@
 // The scene's keys as documentation, from the reader's own schema: every key of every map the
-// reader accepts (the key tables of src/scene/schema.hpp) with its unit, default and meaning, and the
-// material models of the law registry's catalog (scene/models.hpp). `peridrive --describe-keys
+// reader accepts (the key tables of src/scene/schema.hpp and of the body kinds' modules) with its
+// unit, default and meaning, the material models of the law registry's catalog (scene/models.hpp)
+// and the body kinds of the kind registry (scene/body_kind.hpp). `peridrive --describe-keys
 // [--format markdown|text]` prints it; the Markdown form is the generated part of
 // docs/user/scene-reference.md, which the ctest `scene_reference` compares with it.
 #pragma once
@@ -34,11 +35,19 @@ struct ModelDoc {
   std::vector<std::string> stiffness;  ///< the stiffness keys it calibrates from
 };
 
+/// A body kind of the registry, for the table of `kind:` values.
+struct KindDoc {
+  std::string name;
+  std::string meaning;
+};
+
 /// Every map of a scene, in the order of a scene file (defined beside the key tables, in
 /// src/scene/schema.cpp).
 std::vector<KeySection> scene_key_sections();
 /// The material models the reader accepts, in the catalog's order.
 std::vector<ModelDoc> scene_model_docs();
+/// The body kinds the reader accepts, in the registry's order.
+std::vector<KindDoc> scene_kind_docs();
 
 enum class KeyFormat { Markdown, Text };
 

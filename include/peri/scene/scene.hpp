@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "peri/core/error.hpp"
+#include "peri/scene/body_kind.hpp"
 
 namespace peri {
 
@@ -25,14 +26,6 @@ enum class Quadrature {
   Full,         ///< weight 1 for |xi| <= delta, 0 beyond
   PartialArea,  ///< exact fraction of the neighbour's cell (square of side dx) inside the disc
   Taper,        ///< 1 inside, falling linearly to 1/2 at |xi| = delta over the last dx/2 (Parks et al.)
-};
-
-enum class BodyKind {
-  Membrane,  ///< flat rectangle of nodes, measure = cell area * thickness
-  Solid,     ///< box of simple-cubic points, measure = dx^3
-  Lattice,   ///< triangular lattice of spacing Delta, nearest neighbours (Marder model)
-  Fiber,     ///< nodes along a polyline, measure = cross-section area * arc length (eq. 31)
-  Shell,     ///< spherical membrane (scene kind "sphere"): geodesic nodes, measure = area * thickness
 };
 
 enum class Grid { Square, Hexagonal };
@@ -100,7 +93,7 @@ struct FiberNetwork {
 struct Body {
   std::string name;
   SourceLoc where;
-  BodyKind kind = BodyKind::Membrane;
+  const BodyKind* kind = nullptr;  ///< its kind (scene/body_kind.hpp): membrane, solid, lattice, fiber, sphere, ...
   std::string material;       ///< name of an entry of Scene::materials
   Vec3 origin{0, 0, 0};       ///< lower corner [m]
   Vec3 size{0, 0, 0};         ///< extent [m]; membranes use x, y (z must be 0)

@@ -1,7 +1,7 @@
 // The scene reader's located YAML: values that know their key path and source line, and turn
 // every problem into one InputError "<file>:<line>: <dotted.key.path>: <what is wrong>" ("--set"
-// instead of "<file>:<line>" for a value an override set). The readers (readers.cpp), the
-// overrides (overrides.cpp) and the emitter (emit.cpp) share these.
+// instead of "<file>:<line>" for a value an override set). The readers (src/scene/readers.cpp and
+// each body kind's module, src/geometry/kinds/), the overrides and the emitter share these.
 //
 // Conventions of the reader:
 //  - every map's keys are checked against the schema (unknown key -> error listing the allowed
@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "peri/core/error.hpp"
+#include "peri/scene/keys.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri::scene_detail {
@@ -88,19 +89,6 @@ class Context {
   std::string file_;
   std::vector<std::string> overridden_;
 };
-
-/// One allowed key of a map: its name, whether it must be given, and what it is (for the
-/// "missing required key" message); and its documentation (scene/describe.hpp): SI unit, default
-/// (what an absent key means) and meaning.
-struct Key {
-  const char* name;
-  bool required = false;
-  const char* what = "";
-  const char* unit = "";
-  const char* fallback = "";
-  const char* doc = "";
-};
-using Keys = std::vector<Key>;
 
 /// A YAML value at a known key path; converts it to the expected type or throws.
 class Value {
@@ -210,12 +198,12 @@ class Value {
   /// One of a fixed set of words.
   template <class E>
   E choice(std::initializer_list<std::pair<const char*, E>> options) const {
-    std::vector<std::string> names;
-    for (const auto& [word, e] : options) {
-      if (node_.IsScalar() && !quoted() && node_.Scalar() == word) return e;
-      names.emplace_back(word);
-    }
-    fail("expected one of: " + join(names) + "; got " + got());
+    return choice_of(options);
+  }
+  /// One of a set of words known at run time (e.g. the registered body kinds).
+  template <class E>
+  E choice(const std::vector<std::pair<std::string, E>>& options) const {
+    return choice_of(options);
   }
 
   /// The entries of a list.
@@ -271,6 +259,16 @@ class Value {
   }
 
  private:
+  template <class Options>
+  auto choice_of(const Options& options) const {
+    std::vector<std::string> names;
+    for (const auto& [word, e] : options) {
+      if (node_.IsScalar() && !quoted() && node_.Scalar() == word) return e;
+      names.emplace_back(word);
+    }
+    fail("expected one of: " + join(names) + "; got " + got());
+  }
+
   /// Quoted (or otherwise non-plain) scalars are strings, never numbers or booleans.
   bool quoted() const { return node_.Tag() == "!"; }
 

@@ -1,0 +1,93 @@
+// Body kind `solid`: a box of simple-cubic points at the centres of dx-cubes, measure dx^3 (3D
+// PMB solids).
+#include <algorithm>
+
+#include "common.hpp"
+#include "kinds.hpp"
+
+namespace peri::kinds {
+namespace {
+
+using scene_detail::format_number;
+using scene_detail::join;
+
+void read(const Map& m, Body& b, const Material&) {
+  b.origin = m.at("origin").vec3("m");
+  const Value size = m.at("size");
+  const std::string expected = "a solid size [Lx, Ly, Lz] with all entries > 0 [m]";
+  const auto xs = size.numbers(3, 3, expected, "m");
+  if (!(xs[0] > 0 && xs[1] > 0 && xs[2] > 0))
+    size.fail("expected " + expected + ", got [" + join({format_number(xs[0]), format_number(xs[1]), format_number(xs[2])}) +
+              "]");
+  b.size = {xs[0], xs[1], xs[2]};
+  const Value spacing = m.at("spacing");
+  b.spacing = spacing.positive("m");
+  const double smallest = std::min({b.size[0], b.size[1], b.size[2]});
+  if (b.spacing > smallest)
+    spacing.fail("spacing must not exceed the smallest extent of size (" + format_number(smallest) + " m), got " +
+                 spacing.got());
+  if (auto x = m.get("grid")) {
+    b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
+    if (b.grid != Grid::Square) x->fail("a solid body supports only grid square, got " + x->got());
+  }
+  read_horizon(m, b);
+  if (auto x = m.get("quadrature"))
+    b.quadrature = x->choice<Quadrature>(
+        {{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}, {"taper", Quadrature::Taper}});
+}
+
+void emit(Writer& w, const Body& b) {
+  w.key(4, "origin", scene_detail::flow(b.origin));
+  w.key(4, "size", scene_detail::flow(b.size));
+  w.key(4, "spacing", b.spacing);
+  w.key(4, "grid", scene_detail::to_text(b.grid));
+  emit_horizon(w, b);
+  w.key(4, "quadrature", scene_detail::to_text(b.quadrature));
+}
+
+// Cell-centred cubic grid, x fastest, then y, then z.
+void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
+  const double dx = b.spacing;
+  const std::int64_t nx = count_along(b.size[0], dx), ny = count_along(b.size[1], dx), nz = count_along(b.size[2], dx);
+  g.cells = {nx, ny, nz};
+  for (std::int64_t k = 0; k < nz; ++k)
+    for (std::int64_t j = 0; j < ny; ++j)
+      for (std::int64_t i = 0; i < nx; ++i)
+        sink.add(b.origin[0] + (i + 0.5) * dx, b.origin[1] + (j + 0.5) * dx, b.origin[2] + (k + 0.5) * dx, dx * dx * dx);
+}
+
+double node_estimate(const Body& b) {
+  double n = 1;
+  for (int d = 0; d < 3; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
+  return n;
+}
+
+}  // namespace
+
+BodyKind solid_kind() {
+  BodyKind k;
+  k.name = "solid";
+  k.summary = "a box of simple-cubic points";
+  k.traits = {.dimension = 3, .grid = true};
+  k.keys = {
+      {.name = "origin", .required = true, .what = "lower corner [x, y, z], m", .unit = "m",
+       .doc = "the lower corner [x, y, z]"},
+      {.name = "size", .required = true, .what = "extent [Lx, Ly, Lz] of the box, m", .unit = "m",
+       .doc = "[Lx, Ly, Lz], all > 0"},
+      {.name = "spacing", .required = true, .what = "grid spacing, m", .unit = "m",
+       .doc = "dx > 0, at most the smallest extent of size; nodes sit at origin + (i + 1/2) dx, measure dx^3"},
+      {.name = "grid", .fallback = "square", .doc = "`square` only (simple cubic)"},
+      kHorizonFactorKey,
+      kHorizonKey,
+      quadrature_key(),
+  };
+  k.read = read;
+  k.emit = emit;
+  k.measure_keys = [](const Body& b) { return key_text(b, "spacing", b.spacing); };
+  k.node_estimate = node_estimate;
+  k.family_estimate = [](const Body& b) { return grid_family(b, 3); };
+  k.discretize = discretize;
+  return k;
+}
+
+}  // namespace peri::kinds
