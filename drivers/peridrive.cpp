@@ -8,6 +8,7 @@
 
 #include <cctype>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <filesystem>
@@ -81,7 +82,8 @@ once); while the scene is read or the run set up (and in --dry-run) they stop at
 nothing. mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
 odls_base_sigkill_timeout). Ranks started by mpirun end at once (SIGKILL) if mpirun dies.
 exit status: 0 success, 2 invalid input (command line, scene, output directory, checkpoint;
-nothing written), 3 failure during the run (numerical; DIR/FAILED), 4 internal error (MPI_ABORT),
+nothing written), 3 failure during the run (numerical, or output that cannot be written, e.g. on a
+full disk; DIR/FAILED), 4 internal error (MPI_ABORT),
 5 stopped by SIGTERM/SIGINT (after a final checkpoint once the run has begun: continue with
 --resume DIR). See docs/user/running.md; limits and checks of scene values: docs/user/limits.md.
 )";
@@ -308,7 +310,10 @@ int main(int argc, char** argv) {
         try {
           sim.run();
         } catch (const peri::RuntimeFailure& e) {
-          if (rank == 0) peri::write_text_file(opt.out_dir + "/FAILED", std::string(e.what()) + "\n");
+          try {  // (on a full disk the marker may not fit either: the message below still says why)
+            if (rank == 0) peri::write_text_file(opt.out_dir + "/FAILED", std::string(e.what()) + "\n");
+          } catch (const peri::Error&) {
+          }
           throw;
         }
         const peri::RunSummary& s = sim.summary();
@@ -341,6 +346,13 @@ int main(int argc, char** argv) {
   } catch (const peri::RuntimeFailure& e) {
     if (rank == 0) std::fprintf(stderr, "peridrive: error: %s\n", e.what());
     status = 3;
+    if (peri::abandoned_output_files()) {
+      // A file whose parallel writes failed is left open: HDF5 1.10 would crash closing it at
+      // MPI_Finalize. Every rank is here (the failure was agreed on); end without finalizing.
+      std::fflush(nullptr);
+      MPI_Barrier(PETSC_COMM_WORLD);
+      std::_Exit(status);
+    }
   } catch (const std::exception& e) {
     // Possibly raised on this rank alone: abort the job rather than leave others waiting.
     std::fprintf(stderr, "peridrive: internal error on rank %d: %s\n", rank, e.what());

@@ -1,5 +1,7 @@
 #include "peri/io/output.hpp"
 
+#include <sys/resource.h>
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -10,11 +12,14 @@
 #include <sstream>
 
 #include "peri/core/build_info.hpp"
+#include "peri/core/collective.hpp"
 #include "peri/core/error.hpp"
 #include "peri/core/hdf5.hpp"
 
 namespace peri {
 namespace {
+
+bool g_abandoned = false;  // a frame writer gave up its file (abandoned_output_files)
 
 void check_h5(herr_t status, const char* what) {
   if (status < 0) throw Error(std::string("HDF5 call failed: ") + what);
@@ -70,6 +75,8 @@ std::string frame_name(int k) {
 
 }  // namespace
 
+bool abandoned_output_files() { return g_abandoned; }
+
 void make_output_dir(const std::string& dir, MPI_Comm comm) {
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
@@ -89,7 +96,12 @@ void write_text_file(const std::string& path, const std::string& text) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     out << text;
     out.flush();
-    if (!out) throw Error("cannot write '" + tmp + "': " + std::strerror(errno));
+    if (!out) {
+      const std::string why = std::strerror(errno);
+      out.close();
+      std::remove(tmp.c_str());
+      throw Error("cannot write '" + tmp + "': " + why);
+    }
   }
   if (std::rename(tmp.c_str(), path.c_str()) != 0)
     throw Error("cannot rename '" + tmp + "' to '" + path + "': " + std::strerror(errno));
@@ -119,7 +131,7 @@ H5Id FrameWriter::create(const std::string& path, hid_t fapl, const std::string&
   const Domain& domain = domain_;
   State& state = state_;
   H5Id file(H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), H5Fclose);
-  if (!file.ok()) throw Error("cannot create HDF5 file '" + path + "'");
+  agree(file.ok(), "creating the file");
   string_attribute(file.get(), "peridrive_version", version());
   string_attribute(file.get(), "git_revision", git_revision());
   text_dataset(file.get(), "scene", resolved_scene, domain.rank == 0);
@@ -287,24 +299,71 @@ void FrameWriter::write_dataset(hid_t group, const char* name, const void* slice
   const hsize_t n = static_cast<hsize_t>(domain_.global_nodes);
   hsize_t dims[2] = {n, static_cast<hsize_t>(bs)};
   const H5Id filespace = owned(H5Screate_simple(bs == 1 ? 1 : 2, dims, nullptr), H5Sclose, "H5Screate_simple");
-  const H5Id dset =
-      owned(H5Dcreate2(group, name, type, filespace.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose, name);
+  // Creating and writing a dataset are collective: every rank learns of a failure on any, and all
+  // stop at the same call (a full disk is seen by the ranks whose data did not fit).
+  const H5Id dset(H5Dcreate2(group, name, type, filespace.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  agree(dset.ok(), std::string("creating dataset ") + name);
   hsize_t start[2] = {static_cast<hsize_t>(state_.natural_begin()), 0};
   hsize_t count[2] = {static_cast<hsize_t>(state_.natural_count()), static_cast<hsize_t>(bs)};
   check_h5(H5Sselect_hyperslab(filespace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), "hyperslab");
   const H5Id memspace = owned(H5Screate_simple(bs == 1 ? 1 : 2, count, nullptr), H5Sclose, "memspace");
   const H5Id dxpl = owned(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "dxpl");
   check_h5(H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE), "H5Pset_dxpl_mpio");
-  check_h5(H5Dwrite(dset.get(), type, memspace.get(), filespace.get(), dxpl.get(), slice), name);
+  agree(H5Dwrite(dset.get(), type, memspace.get(), filespace.get(), dxpl.get(), slice) >= 0,
+        std::string("writing dataset ") + name);
+}
+
+// Why a write may have failed on this rank beyond a full disk: the file size limit (ulimit -f).
+std::string FrameWriter::local_reason() const {
+  struct rlimit lim;
+  if (getrlimit(RLIMIT_FSIZE, &lim) != 0 || lim.rlim_cur == RLIM_INFINITY) return "";
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(dir_ + "/" + stem_ + ".h5", ec);
+  if (ec || static_cast<double>(size) + frame_bytes() < static_cast<double>(lim.rlim_cur)) return "";
+  return ": the file reached this process's file size limit (ulimit -f) of " + std::to_string(lim.rlim_cur) + " bytes";
+}
+
+double FrameWriter::frame_bytes() const {
+  const int values = 3 + 3 + (write_velocity_ ? 3 : 0) + 1 + 1;  // position, displacement, velocity, damage, energy
+  return 8.0 * values * static_cast<double>(domain_.global_nodes) + 65536.0;  // + metadata
+}
+
+void FrameWriter::agree(bool ok, const std::string& what) {
+  const std::string verdict = agree_on_message(ok ? "" : what + " failed" + local_reason(), state_.comm());
+  if (verdict.empty()) return;
+  // HDF5 1.10 may crash closing a file whose MPI-IO writes failed: the run ends without closing
+  // it (the frames before are whole on disk: each was flushed).
+  file_.abandon();
+  g_abandoned = true;
+  const double free = free_bytes(dir_);
+  std::string why = dir_ + "/" + stem_ + ".h5: " + verdict;
+  if (free >= 0 && free < frame_bytes())
+    why += "; no space left: the file system holding '" + dir_ + "' has " + std::to_string(static_cast<long long>(free)) +
+           " bytes free, a frame takes about " + std::to_string(static_cast<long long>(frame_bytes()));
+  else if (free >= 0)
+    why += "; the file system holding '" + dir_ + "' has " + std::to_string(static_cast<long long>(free)) + " bytes free";
+  throw RuntimeFailure(frames() > 0 ? why + "; " + stem_ + ".xdmf lists the frames written before it" : why);
 }
 
 void FrameWriter::write(std::int64_t step, double time, const double* u, const double* v,
                         const double* damage, const double* energy_density) {
   const int k = frames();
   const std::string name = frame_name(k);
+  const std::string frame = "the frame of step " + std::to_string(step) + ": ";
   {
-    const H5Id g = owned(H5Gcreate2(file_.get(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose,
-                         name.c_str());
+    // Room for the frame first, decided on rank 0 for all (a full disk stops the run here, with
+    // the file whole).
+    double free = -1;
+    if (domain_.rank == 0) free = free_bytes(dir_);
+    MPI_Bcast(&free, 1, MPI_DOUBLE, 0, state_.comm());
+    if (free >= 0 && free < frame_bytes())
+      throw RuntimeFailure(dir_ + "/" + stem_ + ".h5: no space left for the frame of step " + std::to_string(step) +
+                           ": it takes about " + std::to_string(static_cast<long long>(frame_bytes())) +
+                           " bytes and the file system holding '" + dir_ + "' has " +
+                           std::to_string(static_cast<long long>(free)) + " free; " + stem_ +
+                           ".xdmf lists the frames written before it");
+    const H5Id g(H5Gcreate2(file_.get(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+    agree(g.ok(), frame + "creating group " + name);
     scalar_attribute<long long>(g.get(), "step", H5T_NATIVE_LLONG, step);
     scalar_attribute<double>(g.get(), "time", H5T_NATIVE_DOUBLE, time);
     const std::size_t n3 = 3 * static_cast<std::size_t>(domain_.owned);
@@ -316,7 +375,7 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
     write_dataset(g.get(), "damage", state_.to_natural(damage, 1), 1);
     write_dataset(g.get(), "strain_energy_density", state_.to_natural(energy_density, 1), 1);
   }
-  check_h5(H5Fflush(file_.get(), H5F_SCOPE_GLOBAL), "H5Fflush");
+  agree(H5Fflush(file_.get(), H5F_SCOPE_GLOBAL) >= 0, frame + "flushing");
   times_.push_back(time);
   steps_.push_back(step);
   if (domain_.rank == 0) write_xdmf();
@@ -383,9 +442,10 @@ SeriesWriter::SeriesWriter(const std::string& path, bool active, const std::stri
     out_.open(path, std::ios::trunc);
     out_ << header;
   }
-  if (!out_) throw Error("cannot write '" + path + "': " + std::strerror(errno));
-  out_ << std::setprecision(12);
+  out_ << std::setprecision(12);  // (a file that cannot be written shows in good(): RunOutput reports it)
 }
+
+bool SeriesWriter::good() const { return !active_ || static_cast<bool>(out_); }
 
 void SeriesWriter::write(const EnergyRow& r, const std::string& extra) {
   if (!active_) return;

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "peri/core/collective.hpp"
 #include "peri/core/error.hpp"
 
 namespace peri {
@@ -27,25 +28,6 @@ extern "C" void on_stop_signal(int sig) {
   g_stop_signal = sig;
 }
 
-/// One verdict for all ranks: empty when no rank has a message, else the message of the lowest
-/// failing rank (naming that rank when it is not rank 0). Collective.
-std::string agree_on_message(const std::string& mine, MPI_Comm comm) {
-  int rank = 0;
-  MPI_Comm_rank(comm, &rank);
-  int failed = mine.empty() ? 0 : 1, any = 0;
-  MPI_Allreduce(&failed, &any, 1, MPI_INT, MPI_MAX, comm);
-  if (!any) return "";
-  // Rank 0's message if it has one, else the first failing rank's.
-  int first = failed ? rank : 1 << 30, lowest = 0;
-  MPI_Allreduce(&first, &lowest, 1, MPI_INT, MPI_MIN, comm);
-  long len = rank == lowest ? static_cast<long>(mine.size()) : 0;
-  MPI_Bcast(&len, 1, MPI_LONG, lowest, comm);
-  std::string msg = rank == lowest ? mine : std::string(static_cast<std::size_t>(len), ' ');
-  MPI_Bcast(msg.data(), static_cast<int>(len), MPI_CHAR, lowest, comm);
-  if (lowest != 0) msg += " (on rank " + std::to_string(lowest) + ")";
-  return msg;
-}
-
 }  // namespace
 
 void install_stop_handlers() {
@@ -56,6 +38,9 @@ void install_stop_handlers() {
   sa.sa_flags = SA_RESTART;
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
+  // A file grown past the process's size limit (ulimit -f) fails its write with EFBIG, which the
+  // writers report, instead of killing the rank with SIGXFSZ mid-write.
+  std::signal(SIGXFSZ, SIG_IGN);
 }
 
 int stop_signal() { return g_stop_signal; }
@@ -178,7 +163,14 @@ void store_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm com
     try {
       write_checkpoint(path, c);
     } catch (const std::exception& e) {
+      // The previous checkpoint stays current; the partial one goes (it would hold the space).
+      std::remove((path + ".tmp").c_str());
       error = e.what();
+      const std::string dir = std::filesystem::path(path).parent_path().string();
+      const double free = free_bytes(dir.empty() ? "." : dir);
+      if (free >= 0)
+        error += "; the file system holding it has " + std::to_string(static_cast<long long>(free)) +
+                 " bytes free; the previous checkpoint, if any, is kept";
     }
   }
   const std::string verdict = agree_on_message(error, comm);

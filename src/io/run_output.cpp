@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "peri/core/collective.hpp"
 #include "peri/core/error.hpp"
 #include "peri/diagnostics/crack_tip_monitor.hpp"
 #include "peri/io/run_dir.hpp"
@@ -24,29 +25,50 @@ void RunOutput::open(const std::string& dir, const Domain& domain, State& state,
                      bool write_velocity, std::int64_t resume_step, const std::string& series_columns, bool tips,
                      MPI_Comm comm) {
   dir_ = dir;
+  comm_ = comm;
   make_output_dir(dir, comm);
+  std::string error;
   if (rank_ == 0) {
     // A previous run's completion marker must not vouch for this one until it finishes; a fresh
     // run leaves nothing of an earlier one (checkpoints, tips, temporaries) to be mixed with its own.
     const std::vector<std::string> stale =
         resume_step >= 0 ? std::vector<std::string>{"summary.json", "FAILED"} : run_file_names();
     for (const std::string& name : stale) std::remove((dir + "/" + name).c_str());
-    write_text_file(dir + "/scene.resolved.yaml", resolved_scene);
+    try {
+      write_text_file(dir + "/scene.resolved.yaml", resolved_scene);
+    } catch (const Error& e) {
+      error = e.what();
+    }
   }
-  MPI_Barrier(comm);
+  const std::string verdict = agree_on_message(error, comm);  // (also the barrier before the frames)
+  if (!verdict.empty()) throw RuntimeFailure(verdict);
   frames_ = std::make_unique<FrameWriter>(dir, "frames", domain, state, resolved_scene, write_velocity, resume_step);
   if (tips && rank_ == 0) {
     const std::string path = dir + "/tips.csv", header = CrackTipMonitor::kCsvHeader;
     const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
     tips_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
-    if (!*tips_) throw Error("cannot write '" + path + "'");
     *tips_ << kept;
   }
+  // (A tips.csv that cannot be written is reported with the next frame, on every rank.)
   series_ = std::make_unique<SeriesWriter>(dir + "/series.csv", rank_ == 0, series_columns, resume_step);
+  check_text_files();
+}
+
+void RunOutput::check_text_files() const {
+  std::string error;
+  if (rank_ == 0 && series_ && !series_->good()) error = dir_ + "/series.csv: a row could not be written";
+  if (rank_ == 0 && error.empty() && tips_ && !*tips_) error = dir_ + "/tips.csv: a row could not be written";
+  if (!error.empty()) {
+    const double free = free_bytes(dir_);
+    if (free >= 0) error += " (the file system holding '" + dir_ + "' has " + std::to_string(static_cast<long long>(free)) + " bytes free)";
+  }
+  const std::string verdict = agree_on_message(error, comm_);
+  if (!verdict.empty()) throw RuntimeFailure(verdict);
 }
 
 void RunOutput::write_frame(std::int64_t step, double time, const double* u, const double* v, const double* damage,
                             const double* energy_density) {
+  check_text_files();
   frames_->write(step, time, u, v, damage, energy_density);
   skip_frames_through(step);
 }
@@ -58,7 +80,18 @@ void RunOutput::write_tips(const std::string& rows) {
 }
 
 void RunOutput::write_summary(const std::string& json) const {
-  if (!dir_.empty() && rank_ == 0) write_text_file(dir_ + "/summary.json", json);
+  if (dir_.empty()) return;
+  check_text_files();
+  std::string error;
+  if (rank_ == 0) {
+    try {
+      write_text_file(dir_ + "/summary.json", json);
+    } catch (const Error& e) {
+      error = e.what();
+    }
+  }
+  const std::string verdict = agree_on_message(error, comm_);
+  if (!verdict.empty()) throw RuntimeFailure(verdict);
 }
 
 }  // namespace peri

@@ -25,6 +25,10 @@ class H5Id {
   ~H5Id() { close(); }
   hid_t get() const { return id_; }
   bool ok() const { return id_ >= 0; }
+  /// Give the identifier up without closing it: for a file whose writes failed, which HDF5 1.10
+  /// may crash closing (its metadata flush meets the failed MPI-IO file). The owner then holds
+  /// nothing.
+  hid_t abandon() { return std::exchange(id_, -1); }
   /// Close now and report failure (a file's close flushes it); the owner then holds nothing.
   bool close() {
     const herr_t r = id_ >= 0 ? close_(id_) : 0;

@@ -20,6 +20,10 @@ namespace peri {
 /// Create `dir` (and parents) on rank 0; InputError naming it if that fails. Collective.
 void make_output_dir(const std::string& dir, MPI_Comm comm);
 
+/// Whether a frame writer has abandoned its file after writes that failed (see FrameWriter): the
+/// process must then end without MPI_Finalize, at which HDF5 would close that file and may crash.
+bool abandoned_output_files();
+
 /// Write a small text file atomically (temporary name, then rename). Rank 0 only.
 void write_text_file(const std::string& path, const std::string& text);
 
@@ -44,6 +48,13 @@ class FrameWriter {
   void write_dataset(hid_t group, const char* name, const void* natural_slice, int bs,
                      hid_t type = H5T_NATIVE_DOUBLE);
   void write_connectivity(hid_t mesh);  ///< /mesh/connectivity: 0..N-1, collective
+  /// About how many bytes a frame adds to the file.
+  double frame_bytes() const;
+  /// Collective: throws RuntimeFailure on every rank, naming the file, `what` and the free space,
+  /// when `ok` is false on any rank.
+  void agree(bool ok, const std::string& what);
+  /// This rank's reason for a failed write that the free space does not show, or "".
+  std::string local_reason() const;
   void write_xdmf() const;
   bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
   /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
@@ -75,6 +86,8 @@ class SeriesWriter {
                std::int64_t resume_step = -1);
   /// `extra`: the values of the extra columns, comma-separated, in header order.
   void write(const EnergyRow& row, const std::string& extra = "");
+  /// False once a row could not be written (a full disk); true on inactive ranks.
+  bool good() const;
 
  private:
   std::ofstream out_;

@@ -19,7 +19,8 @@ namespace peri {
 inline constexpr int kExitStopped = 5;
 
 /// Install SIGTERM and SIGINT handlers that record a stop request; a second signal ends the
-/// process at once (default action). Call after PetscInitialize, which installs its own.
+/// process at once (default action). SIGXFSZ is ignored (a write past ulimit -f fails instead).
+/// Call after PetscInitialize, which installs its own.
 void install_stop_handlers();
 /// The signal that requested a stop on this rank, or 0.
 int stop_signal();

@@ -40,7 +40,9 @@ class RunOutput {
   void skip_frames_through(std::int64_t step) {
     while (next_frame_ < frame_steps_.size() && frame_steps_[next_frame_] <= step) ++next_frame_;
   }
-  /// One frame (owned arrays, local order), and the frames due up to `step` are taken. Collective.
+  /// One frame (owned arrays, local order), and the frames due up to `step` are taken. Collective:
+  /// a frame that cannot be written, or a row of series.csv or tips.csv that could not be written
+  /// since the last frame (a full disk), raises RuntimeFailure on every rank.
   void write_frame(std::int64_t step, double time, const double* u, const double* v, const double* damage,
                    const double* energy_density);
   int frames() const { return frames_ ? frames_->frames() : 0; }
@@ -51,12 +53,18 @@ class RunOutput {
   }
   /// Rows of tips.csv (rank 0; the other ranks write nothing).
   void write_tips(const std::string& rows);
-  /// summary.json (rank 0), the run's last file.
+  /// summary.json (written by rank 0), the run's last file. Collective: a failure to write it,
+  /// or an earlier row of series.csv or tips.csv that could not be written, raises RuntimeFailure
+  /// on every rank.
   void write_summary(const std::string& json) const;
 
  private:
+  /// RuntimeFailure on every rank when rank 0's series or tips could not be written. Collective.
+  void check_text_files() const;
+
   std::string dir_;
   int rank_ = 0;
+  MPI_Comm comm_ = MPI_COMM_NULL;
   std::vector<std::int64_t> frame_steps_;
   std::size_t next_frame_ = 0;
   std::unique_ptr<FrameWriter> frames_;
