@@ -373,7 +373,7 @@ double BondFamilies::bytes_per_bond() const {
                        broken.size() + row_broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
                        patterns.begin.size() * sizeof(std::int64_t) +
                        (patterns.xi2.size() + patterns.inv_xi.size() + patterns.measure.size() +
-                        patterns.measure_per_xi2.size()) * sizeof(double);
+                        patterns.measure_per_xi2.size() + history.size()) * sizeof(double);
   return bytes / static_cast<double>(neighbor.size());
 }
 

@@ -136,6 +136,77 @@ std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pair
   return found;
 }
 
+std::vector<double> gather_history_to_root(const Domain& d, MPI_Comm comm) {
+  const int s = d.bonds.history_stride;
+  std::vector<double> mine;
+  for (std::int32_t r = 0; r < d.owned; ++r)
+    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
+      const double* h = d.bonds.history.data() + b * s;
+      if (std::all_of(h, h + s, [](double x) { return x == 0.0; })) continue;
+      mine.push_back(static_cast<double>(d.natural[r]));
+      mine.push_back(static_cast<double>(d.natural[d.bonds.neighbor[b]]));
+      mine.insert(mine.end(), h, h + s);
+    }
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &ranks);
+  const long long n = static_cast<long long>(mine.size());
+  std::vector<long long> counts(ranks);
+  MPI_Gather(&n, 1, MPI_LONG_LONG, counts.data(), 1, MPI_LONG_LONG, 0, comm);
+  std::vector<int> c32(ranks), displs(ranks, 0);
+  long long total = 0;
+  for (int r = 0; r < ranks; ++r) {
+    if (rank == 0 && total + counts[r] > (1ll << 31) - 1) throw Error("too much bond history for one checkpoint gather");
+    c32[r] = static_cast<int>(counts[r]);
+    displs[r] = static_cast<int>(total);
+    total += counts[r];
+  }
+  std::vector<double> all(rank == 0 ? total : 0);
+  MPI_Gatherv(mine.data(), static_cast<int>(n), MPI_DOUBLE, all.data(), c32.data(), displs.data(), MPI_DOUBLE, 0, comm);
+  if (rank != 0) return all;
+  const std::size_t width = 2 + static_cast<std::size_t>(s), rows = all.size() / width;
+  std::vector<std::size_t> order(rows);
+  for (std::size_t k = 0; k < rows; ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return std::make_pair(all[a * width], all[a * width + 1]) < std::make_pair(all[b * width], all[b * width + 1]);
+  });
+  std::vector<double> sorted;
+  sorted.reserve(all.size());
+  for (std::size_t k : order) sorted.insert(sorted.end(), all.begin() + k * width, all.begin() + (k + 1) * width);
+  return sorted;
+}
+
+std::int64_t apply_history(Domain& d, const std::vector<double>& rows) {
+  const int s = d.bonds.history_stride;
+  const std::size_t width = 2 + static_cast<std::size_t>(s);
+  if (rows.size() % width != 0)
+    throw InputError("checkpoint: the bond history holds " + std::to_string(rows.size()) +
+                     " values, not whole rows of (i, j) and " + std::to_string(s) + " values");
+  std::fill(d.bonds.history.begin(), d.bonds.history.end(), 0.0);
+  const std::size_t n = rows.size() / width;
+  std::int64_t used = 0;
+  for (std::int32_t r = 0; r < d.owned; ++r) {
+    const double i = static_cast<double>(d.natural[r]);
+    // This row's entries: a range of the sorted rows.
+    std::size_t lo = 0, hi = n;
+    while (lo < hi) {
+      const std::size_t mid = lo + (hi - lo) / 2;
+      if (rows[mid * width] < i) lo = mid + 1;
+      else hi = mid;
+    }
+    for (std::size_t k = lo; k < n && rows[k * width] == i; ++k) {
+      const double j = rows[k * width + 1];
+      for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b)
+        if (static_cast<double>(d.natural[d.bonds.neighbor[b]]) == j) {
+          std::copy(rows.begin() + k * width + 2, rows.begin() + (k + 1) * width, d.bonds.history.begin() + b * s);
+          ++used;
+          break;
+        }
+    }
+  }
+  return used;
+}
+
 std::uint64_t ownership_hash(const Domain& d) {
   return fnv1a64(d.natural.data(), sizeof(std::int64_t) * static_cast<std::size_t>(d.owned));
 }

@@ -69,6 +69,10 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
     c.velocity = gather_natural_to_root(state, domain, v.data(), 3, comm);
   }
   c.broken = gather_broken_to_root(domain, comm);
+  if (domain.bonds.history_stride > 0) {  // laws with per-bond history
+    std::vector<double> history = gather_history_to_root(domain, comm);
+    if (root) c.extras["bonds.history"] = std::move(history);
+  }
   extras.save(c, root);
   // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
   // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
@@ -145,6 +149,16 @@ void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedg
   if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
     throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +
                      " broken bonds, but only " + std::to_string(found_all / 2) + " are bonds of this scene");
+  if (domain.bonds.history_stride > 0) {  // the laws' per-bond history (none kept: all zero)
+    const auto it = c.extras.find("bonds.history");
+    const std::vector<double> none;
+    const std::vector<double>& rows = it == c.extras.end() ? none : it->second;
+    long long used = apply_history(domain, rows), used_all = 0;
+    MPI_Allreduce(&used, &used_all, 1, MPI_LONG_LONG, MPI_SUM, comm);
+    if (used_all * (2 + domain.bonds.history_stride) != static_cast<long long>(rows.size()))
+      throw InputError("checkpoint (step " + std::to_string(c.step) + ") holds the history of bonds that are not "
+                       "bonds of this scene");
+  }
 
   // Tallies: per rank when the ownership is the checkpoint's (sums continue bit for bit), else
   // their totals on rank 0.

@@ -85,15 +85,21 @@ Forces::Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Doma
 }
 
 BondView Forces::bond_view() {
-  return BondView{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
-                  domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
-                  positions_.data(), position_stride_, domain_.bonds.row_broken.data()};
+  BondView v{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
+             domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,
+             positions_.data(), position_stride_, domain_.bonds.row_broken.data()};
+  if (domain_.bonds.history_stride > 0) {  // laws with per-bond history read it; force passes commit
+    v.history = domain_.bonds.history.data();
+    v.history_stride = domain_.bonds.history_stride;
+  }
+  return v;
 }
 
 void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
   PetscLogEventBegin(events().forces, 0, 0, 0, 0);
   const std::vector<BondLaw>& laws = intact ? intact_laws_ : laws_;
   BondView view = bond_view();
+  view.commit_history = !intact;  // (quasi-static residuals evaluate, they do not load the bonds)
   BondTally t;
   if (with_energy) {  // the bond loop writes each bond row's energy density (lattice rows: 0)
     energy_density_.assign(domain_.owned, 0.0);

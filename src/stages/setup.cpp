@@ -62,6 +62,16 @@ std::vector<BondLaw> calibrate_bodies(const Scene& scene, const Nodes& nodes, st
   return laws;
 }
 
+/// The per-bond history of laws that keep one: the largest number of values any body's law keeps,
+/// per ordered bond, zero at the start (rows of laws that keep fewer use the first ones).
+void allocate_history(Domain& d, const std::vector<BondLaw>& laws) {
+  int stride = 0;
+  for (const BondLaw& law : laws)
+    if (!law.empty()) stride = std::max(stride, law.entry().history);
+  d.bonds.history_stride = stride;
+  d.bonds.history.assign(static_cast<std::size_t>(stride) * static_cast<std::size_t>(d.bonds.size()), 0.0);
+}
+
 /// A partitioner without a graph (rcb) reports no edge cut: the bonds to ghost nodes are it.
 void count_edge_cut(Partition& partition, const Domain& domain, MPI_Comm comm) {
   if (partition.edge_cut >= 0) return;
@@ -305,6 +315,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   PetscLogEventEnd(events().bonds, 0, 0, 0, 0);
   stop_point(comm);  // before anything reads a domain the stop left unfinished
   count_edge_cut(partition, p.domain, comm);
+  allocate_history(p.domain, laws);
   mark_memory(summary, "domain", comm);
 
   // What each rank keeps of the global node arrays, which end here: every rank keeps its own

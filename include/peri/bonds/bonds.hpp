@@ -161,6 +161,10 @@ struct BondFamilies {
   /// bytes of rows whose byte is 0.
   std::vector<std::uint8_t> row_broken;
   FamilyPatterns patterns;               ///< reference |xi|^2 and w_ij V_j of every bond
+  /// Per-bond history of laws that keep one (LawEntry::history): history_stride values per
+  /// ordered bond, zero at the start; empty when no body's law keeps any.
+  std::vector<double> history;
+  int history_stride = 0;
   std::int64_t rows() const { return static_cast<std::int64_t>(offsets.size()) - 1; }
   std::int64_t size() const { return static_cast<std::int64_t>(neighbor.size()); }
   /// Recomputes row_broken from the flags.

@@ -44,6 +44,15 @@ std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm);
 /// Returns how many of this rank's ordered bonds are in `pairs` (over all ranks: 2 per pair).
 std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pairs);
 
+/// The per-bond history (BondFamilies::history) of every ordered bond that has one not all zero,
+/// on rank 0: rows (natural i, natural j, its history_stride values), sorted by (i, j); empty
+/// elsewhere. Collective.
+std::vector<double> gather_history_to_root(const Domain& d, MPI_Comm comm);
+
+/// Sets the history of this rank's bonds from such rows (bonds not listed: zero); returns how
+/// many rows it used. Throws InputError when the rows' width is not 2 + history_stride.
+std::int64_t apply_history(Domain& d, const std::vector<double>& rows);
+
 /// fnv1a64 of this rank's owned natural ids: equal on restart means equal ownership.
 std::uint64_t ownership_hash(const Domain& d);
 

@@ -12,6 +12,7 @@
 
 #include "peri/core/simd.hpp"
 #include "peri/kernels/forces.hpp"
+#include "peri/models/laws/bond_lanes.hpp"
 
 namespace peri {
 
@@ -80,6 +81,8 @@ typename E::Bonds scalar_bond(const E& law, const BondView& v, std::int32_t i, c
   b.measure_per_xi2 = bond.measure_per_xi2();
   fill_slots<simd::Scalar>(law, b);
   b.dead = bond.broken() ? 1u : 0u;
+  if constexpr (requires { b.history; })  // a law with per-bond history: read only, unless forces() commits
+    b.history = BondHistory{v.history ? v.history + bond.at() * v.history_stride : nullptr, false, nullptr};
   return b;
 }
 
@@ -90,7 +93,8 @@ inline typename P::V squared_length(const B& b) {
 }
 
 /// Force densities of rows (law E on the Scalar pack): each row's bonds in CSR order, a bond
-/// reaching the failure test flagged and its energy at failure (critical_energy) booked.
+/// reaching the failure test flagged and its energy at failure (critical_energy) booked. A law
+/// with per-bond history updates it here when the view commits, and books what it dissipates.
 template <class E, class Law>
 void forces(const E& law, const Law& constants, const BondView& v, const std::int32_t* rows, std::size_t n,
             double* force, BondTally& tally) {
@@ -100,7 +104,11 @@ void forces(const E& law, const Law& constants, const BondView& v, const std::in
     double f0 = 0, f1 = 0, f2 = 0, w = 0, diss = 0;
     int newly = 0;
     for (const FamilyBond& bond : family(v, i)) {
-      const typename E::Bonds b = scalar_bond(law, v, i, bond);
+      typename E::Bonds b = scalar_bond(law, v, i, bond);
+      if constexpr (requires { b.history; }) {
+        b.history.commit = v.commit_history;
+        b.history.dissipated = &diss;
+      }
       const auto p = law.front(b, squared_length<simd::Scalar>(b));
       unsigned fresh = 0;
       const double coef = law.coefficient(b, p, w, fresh);
@@ -124,6 +132,8 @@ void forces(const E& law, const Law& constants, const BondView& v, const std::in
       tally.dissipated += 0.5 * v.volume[i] * diss;
       tally.newly_broken += newly;
       if (v.row_broken) v.row_broken[i] = 1;
+    } else if constexpr (requires(typename E::Bonds b) { b.history; }) {
+      tally.dissipated += 0.5 * v.volume[i] * diss;  // a law with history dissipates without breaking too
     }
   }
 }

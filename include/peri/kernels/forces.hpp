@@ -28,6 +28,11 @@ struct BondView {
   /// Energy calls of bond_forces: where each row's strain energy density 1/2 sum_j w V_j
   /// [J/m^3] is written (frames), or nullptr.
   double* energy_density = nullptr;
+  /// Per-bond history of laws that keep one (BondFamilies::history): history_stride values per
+  /// ordered bond, or nullptr; commit_history: this force pass may change it.
+  double* history = nullptr;
+  int history_stride = 0;
+  bool commit_history = false;
 
   /// Reference |xi|^2 of bond b of row i.
   double xi2(std::int32_t i, std::int64_t b) const noexcept {

@@ -10,6 +10,9 @@
 //   double reference_stiffness(double xi2) const                df/dy at y = |xi| (stable step)
 //   void make_intact()                                          switch failure off
 //   static constexpr bool kVectorized                           Lanes works on vector packs
+//   static constexpr int kHistory (optional)                    values kept per ordered bond; its
+//                                                               Lanes' Bonds are HistoryBondLanes and
+//                                                               it runs in the portable walk
 #pragma once
 #include <string>
 #include <type_traits>
@@ -17,6 +20,7 @@
 #include "peri/kernels/bond_loop.hpp"
 #include "peri/kernels/fast_loop.hpp"
 #include "peri/models/law.hpp"
+#include "peri/models/laws/bond_lanes.hpp"
 
 namespace peri {
 namespace law_entry {
@@ -62,10 +66,12 @@ void each_row(const RowBlocks& rows, F&& f) {
 template <class L>
 LawEntry make_law_entry(std::string name, std::string description) {
   static_assert(std::is_trivially_copyable_v<L>, "a law's constants are copied by value");
+  static_assert(!(L::kVectorized && law_history<L>() > 0), "a law with per-bond history runs in the portable walk");
   using namespace law_entry;
   LawEntry e;
   e.name = std::move(name);
   e.description = std::move(description);
+  e.history = law_history<L>();
 #if defined(PERI_AVX2)
   e.vectorized = L::kVectorized;
 #endif

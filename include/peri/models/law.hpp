@@ -41,6 +41,10 @@ struct LawEntry {
   std::string name;
   std::string description;  ///< one line for --describe-keys and the docs
   bool vectorized = false;  ///< the bond loop's SIMD path serves it (else the portable walk)
+  /// Values the law keeps per ordered bond (its kHistory: e.g. the largest stretch reached),
+  /// zero at the start, changed only by the force passes that commit (explicit steps, quasi-static
+  /// break passes) and kept in checkpoints; 0: none.
+  int history = 0;
   /// What an unstable explicit step means for this law, completing "the <name> law (body ...) ":
   /// the instability messages' likely cause.
   std::string stability_note;

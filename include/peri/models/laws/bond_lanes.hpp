@@ -40,6 +40,34 @@ struct BondLanes<P, 0> {
   unsigned dead;
 };
 
+/// What a law with per-bond history (L::kHistory values per ordered bond, models/law.hpp) sees of
+/// a bond beside its lanes, on the Scalar pack (such laws run in the portable walk): the bond's
+/// history values (nullptr: none kept, read as zeros), whether this evaluation may change them
+/// (the force pass of an explicit step or of a quasi-static break pass; never an energy, tangent
+/// or residual evaluation), and where it books the energy it dissipates (per unit measure times
+/// the bond's measure w_ij V_j, summed over the row like the critical energies of breaking bonds;
+/// nullptr: not booked).
+struct BondHistory {
+  double* values = nullptr;
+  bool commit = false;
+  double* dissipated = nullptr;
+};
+
+/// The lanes of a law with per-bond history: BondLanes and the bond's BondHistory.
+template <class P, int Slots>
+struct HistoryBondLanes : BondLanes<P, Slots> {
+  BondHistory history;
+};
+
+/// Per-bond history values of law L (its kHistory; 0 for laws without).
+template <class L>
+constexpr int law_history() {
+  if constexpr (requires { L::kHistory; })
+    return L::kHistory;
+  else
+    return 0;
+}
+
 /// Sets b's slot constants (those b carries) from its reference slot, with law E's slot_values on
 /// pack Q (Scalar once per bond, or the lanes of a gathered group).
 template <class Q, class E, class B>
