@@ -6,7 +6,9 @@
 #                   the first frame that does not fit, naming frames.h5 and the dataset; FAILED
 #                   says why, there is no summary.json, and frames.xdmf lists only whole frames,
 #                   each readable
-#  full_disk        a 4 MB tmpfs (when this machine lets root mount one): the frame that does
+#  full_disk        a 4 MB tmpfs (when this machine lets root mount one): a run whose predicted
+#                   output exceeds it is refused at the start (exit 2, nothing written); told not
+#                   to check (output.check_free_space: false), the frame that does
 #                   not fit is refused before it is begun, naming the free bytes; the file keeps
 #                   its whole frames. Then a checkpoint that does not fit: refused with its partial
 #                   file removed and the previous checkpoint kept, from which the run resumes
@@ -68,8 +70,19 @@ grep -qF "frames.h5: writing dataset" "$out/FAILED" 2> /dev/null || bad "file_si
 # --- full_disk --------------------------------------------------------------------------------------
 mkdir -p "$mnt"
 if mount -t tmpfs -o size=4m tmpfs "$mnt" 2> /dev/null; then
+  # The predicted output (40 frames of 0.95 MB) does not fit: refused before anything is written.
   out=$mnt/run
   timeout -s KILL 120 "${mpi[@]}" "$peridrive" "${coarse[@]}" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+  rc=$?
+  want="output: the run would write about 38.4 MB to '$out' (40 frames of 0.946 MB, the mesh 0.546 MB) and its file system has"
+  if [ "$rc" -eq 2 ] && [ "$(grep -c "peridrive: error:" "$work/stderr")" -eq 1 ] && grep -qF "$want" "$work/stderr" &&
+     [ ! -e "$out/frames.h5" ] && [ ! -e "$out/scene.resolved.yaml" ]; then
+    ok "predicted_too_large: $(grep "peridrive: error:" "$work/stderr" | cut -c1-160)"
+  else bad "predicted_too_large: exit status $rc, expected 2 with '$want' and no files"; cat "$work/stderr"; ls "$out"; fi
+  # Told not to check: the frame that does not fit is refused when it comes.
+  rm -rf "${mnt:?}"/*
+  timeout -s KILL 120 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set output.check_free_space=false --out "$out" --quiet \
+    > "$work/stdout" 2> "$work/stderr"
   rc=$?
   [ "$rc" -eq 137 ] && rc=124
   expect_failure full_disk "$out" "$out/frames.h5: no space left for the frame of step" "$rc"
@@ -78,7 +91,8 @@ if mount -t tmpfs -o size=4m tmpfs "$mnt" 2> /dev/null; then
   rm -rf "${mnt:?}"/*
   out=$mnt/ck
   timeout -s KILL 120 "${mpi[@]}" "$peridrive" --set bodies.sheet.spacing=0.0003 --set output.frames=1 \
-    --set output.checkpoint_every_steps=100 --out "$out" --quiet > "$work/stdout" 2> "$work/stderr"
+    --set output.checkpoint_every_steps=100 --set output.check_free_space=false --out "$out" --quiet \
+    > "$work/stdout" 2> "$work/stderr"
   rc=$?
   want="cannot write checkpoint '$out/checkpoint.h5.tmp'"
   if [ "$rc" -eq 3 ] && [ "$(grep -c "peridrive: error:" "$work/stderr")" -eq 1 ] && grep -qF "$want" "$work/stderr" &&

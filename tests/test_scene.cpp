@@ -187,6 +187,11 @@ void expect_same(const Scene& a, const Scene& b) {
   EXPECT_EQ(a.output.frames, b.output.frames);
   EXPECT_EQ(a.output.series_every, b.output.series_every);
   EXPECT_EQ(a.output.write_velocity, b.output.write_velocity);
+  EXPECT_EQ(a.output.fields, b.output.fields);
+  EXPECT_EQ(a.output.node_stride, b.output.node_stride);
+  EXPECT_EQ(a.output.region, b.output.region);
+  EXPECT_EQ(a.output.single_precision, b.output.single_precision);
+  EXPECT_EQ(a.output.check_free_space, b.output.check_free_space);
   expect_same_bits(a.output.progress_seconds, b.output.progress_seconds, "progress_seconds");
   EXPECT_EQ(a.output.checkpoint_every_steps, b.output.checkpoint_every_steps);
   expect_same_bits(a.output.checkpoint_every_seconds, b.output.checkpoint_every_seconds,
@@ -513,7 +518,10 @@ stability:
 output:
   frames: 20
   series_every: 10
-  velocity: true
+  fields: [position, displacement, velocity, damage, strain_energy_density]
+  node_stride: 1
+  precision: double
+  check_free_space: true
   progress_seconds: 2
   checkpoint_every_steps: 0
   checkpoint_every_seconds: 900
@@ -921,6 +929,37 @@ TEST(SceneErrors, EmptyOrNotAMap) {
   EXPECT_THAT(error_of("just text\n"), StartsWith("scene.yaml:1: expected a YAML map at the top level"));
   EXPECT_THAT(error_of(kBase + "---\nname: b\n"),
               StartsWith("scene.yaml:17: expected a single YAML document, found 2"));
+}
+
+// Frames that scale: their fields (in the frames' order), a node selection, single precision.
+TEST(SceneOutput, FieldsNodesAndPrecision) {
+  const peri::Scene s = peri::parse_scene(kBase, "scene.yaml", {{"output", "{fields: [damage, position], node_stride: 4, "
+                                                                          "region: {min: [0, 0, 0], max: [1, 1, 1]}, precision: single}"}});
+  EXPECT_EQ(s.output.fields, (std::vector<std::string>{"position", "damage"}));
+  EXPECT_FALSE(s.output.write_velocity);
+  EXPECT_EQ(s.output.node_stride, 4);
+  ASSERT_TRUE(s.output.region);
+  EXPECT_TRUE(s.output.single_precision);
+  EXPECT_TRUE(s.output.selects_nodes());
+  // The resolved scene reads back to the same output.
+  const peri::Scene again = peri::parse_scene(peri::emit_scene(s), "resolved.yaml");
+  EXPECT_EQ(again.output.fields, s.output.fields);
+  EXPECT_EQ(again.output.region, s.output.region);
+  EXPECT_EQ(again.output.single_precision, true);
+  // velocity: false, the key of earlier scenes, drops velocity from the default fields.
+  EXPECT_EQ(peri::parse_scene(kBase, "scene.yaml", {{"output", "{velocity: false}"}}).output.fields,
+            (std::vector<std::string>{"position", "displacement", "damage", "strain_energy_density"}));
+  EXPECT_THAT(error_of(kBase, {{"output", "{fields: [damage, stress]}"}}),
+              HasSubstr("output.fields.1: expected one of: position, displacement, velocity, damage, "
+                        "strain_energy_density; got stress"));
+  EXPECT_THAT(error_of(kBase, {{"output", "{fields: [damage, damage]}"}}), HasSubstr("'damage' is listed twice"));
+  EXPECT_THAT(error_of(kBase, {{"output", "{fields: []}"}}), HasSubstr("output.fields: expected at least one of"));
+  EXPECT_THAT(error_of(kBase, {{"output", "{fields: [damage], velocity: true}"}}),
+              HasSubstr("output.fields: give fields or velocity, not both"));
+  EXPECT_THAT(error_of(kBase, {{"output", "{node_stride: 0}"}}), HasSubstr("output.node_stride"));
+  EXPECT_THAT(error_of(kBase, {{"output", "{region: {min: [0, 0, 1], max: [1, 1, 0]}}"}}),
+              HasSubstr("output.region.max: expected min <= max in every component, got z"));
+  EXPECT_THAT(error_of(kBase, {{"output", "{precision: half}"}}), HasSubstr("expected one of: double, single"));
 }
 
 }  // namespace

@@ -36,10 +36,11 @@ import h5py, meshio, numpy as np
 d, arrays = sys.argv[1], set(sys.argv[2:])
 problems = []
 with h5py.File(f"{d}/frames.h5", "r") as f, meshio.xdmf.TimeSeriesReader(f"{d}/frames.xdmf") as r:
-    n = int(f.attrs["nodes"])
+    n = int(f.attrs.get("frame_nodes", f.attrs["nodes"]))  # (frame_nodes: a node selection)
     names = sorted(f["frames"])
+    geometry = lambda name: f"/frames/{name}/position" if "position" in f[f"frames/{name}"] else "/mesh/reference_position"
     points, cells = r.read_points_cells()
-    if points.shape != (n, 3) or not np.array_equal(points, f[f"frames/{names[0]}/position"][...]):
+    if points.shape != (n, 3) or not np.array_equal(points, f[geometry(names[0])][...]):
         problems.append(f"points {points.shape}, expected the {n} positions of the first frame")
     if len(cells) != 1 or cells[0].type != "vertex" or not np.array_equal(cells[0].data.ravel(), np.arange(n)):
         problems.append(f"cells {cells}, expected {n} vertex cells 0..{n - 1}")
@@ -68,8 +69,7 @@ with h5py.File(f"{d}/frames.h5", "r") as f, meshio.xdmf.TimeSeriesReader(f"{d}/f
         # The geometry of every step (meshio reads only the first): this frame's positions.
         geo = grids[k].find("Geometry/DataItem")
         h5name, path = geo.text.strip().split(":")
-        if h5name != "frames.h5" or geo.get("Dimensions") != f"{n} 3" or \
-                not np.array_equal(f[path][...], g["position"][...]) or path != f"/frames/{name}/position":
+        if h5name != "frames.h5" or geo.get("Dimensions") != f"{n} 3" or path != geometry(name):
             problems.append(f"step {k}: geometry {geo.text.strip()} ({geo.get('Dimensions')})")
     if matched < 2:
         problems.append(f"only {matched} frame steps found in series.csv")
@@ -100,6 +100,22 @@ check() {
 all="displacement velocity damage strain_energy_density body"
 run membrane "$all" -- "$src/tests/restart/tiny_sheet.yaml" --set output.frames=6 --set output.series_every=1
 run block "displacement damage strain_energy_density body" -- "$work/block.yaml"
+# Frames of a node selection (every 3rd node, in a box), two fields, single precision; and frames
+# without positions (the geometry is the reference positions).
+run selection "damage body" -- "$src/tests/restart/tiny_sheet.yaml" --set output.frames=4 --set output.series_every=1 \
+  --set 'output={frames: 4, series_every: 1, node_stride: 3, region: {min: [-1, -1, -1], max: [0.0025, 1, 1]}, fields: [position, damage], precision: single}'
+run no_positions "displacement body" -- "$src/tests/restart/tiny_sheet.yaml" \
+  --set 'output={frames: 4, series_every: 1, fields: [displacement]}'
+"$py" - "$work/selection" <<'PY' && { echo "ok   selection_nodes: natural ids every 3rd, in the box, float32"; pass=$((pass + 1)); } || { echo "FAIL selection_nodes"; fail=$((fail + 1)); }
+import sys
+import h5py, numpy as np
+with h5py.File(sys.argv[1] + "/frames.h5", "r") as f:
+    ids, X = f["mesh/natural_id"][...], f["mesh/reference_position"][...]
+    last = f["frames"][sorted(f["frames"])[-1]]
+    ok = len(ids) == int(f.attrs["frame_nodes"]) > 0 and np.all(ids % 3 == 0) and np.all(np.diff(ids) > 0) \
+        and np.all(X[:, 0] <= 0.0025) and last["position"].dtype == np.float32 and last["damage"].shape == ids.shape
+    sys.exit(0 if ok else 1)
+PY
 cp -r "$src/tests/restart/old_layout" "$work/old_layout"
 if "${mpi[@]}" "$peridrive" --resume "$work/old_layout" --quiet > "$work/stdout" 2> "$work/stderr"; then
   check old_layout "$all"

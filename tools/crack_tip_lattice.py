@@ -61,6 +61,9 @@ def main():
     with h5py.File(os.path.join(args.out, "frames.h5"), "r") as f:
         X = f["mesh/reference_position"][...]
         names = sorted(f["frames"].keys())
+        missing = [k for k in ("position", "damage") if names and k not in f["frames"][names[0]]]
+        if missing:
+            sys.exit(f"crack_tip_lattice.py: the frames hold no {', '.join(missing)} (output.fields); run the scene with them")
         times, tips, frames, ahead = [], [], [], []
         for name in names:
             g = f["frames"][name]

@@ -9,6 +9,7 @@ Needs Debian's python3-h5py, python3-numpy, python3-matplotlib and python3-yaml.
 """
 import json
 import os
+import sys
 
 import h5py
 import numpy as np
@@ -93,17 +94,36 @@ class Run:
         self.extent = float(np.ptp(self.reference, axis=0).max()) if len(self.reference) else 0.0
         self.unit, self.scale = length_unit(self.extent)
 
+    def require(self, tool, *fields):
+        """Exit with status 2, naming the tool and the fields, when the frames lack any of them (a
+        scene's output.fields chose which they hold)."""
+        with h5py.File(self.h5, "r") as f:
+            held = set(f["frames"][self.frame_names[0]].keys())
+        missing = [name for name in fields if name not in held]
+        if missing:
+            print(f"{tool}: the frames of {os.path.dirname(self.h5)} hold no {', '.join(missing)} (output.fields: "
+                  f"{', '.join(sorted(held))}); run the scene with them", file=sys.stderr)
+            sys.exit(2)
+
     def nodes_of(self, kind):
         """Mask of the nodes of bodies of `kind`."""
         ids = [k for k, kd in enumerate(self.kinds) if kd == kind]
         return np.isin(self.body, ids)
 
     def frame(self, k):
-        """Frame k (negative: from the end): time, step, position, displacement, damage."""
+        """Frame k (negative: from the end): time, step, position, displacement, damage. A frame
+        holds the fields the scene's output.fields chose: position and displacement stand for each
+        other (with the reference positions), and a field neither gives is None."""
         with h5py.File(self.h5, "r") as f:
             g = f["frames"][self.frame_names[k]]
-            return dict(time=float(g.attrs["time"]), step=int(g.attrs["step"]), position=g["position"][...],
-                        displacement=g["displacement"][...], damage=g["damage"][...])
+            get = lambda name: g[name][...].astype(float) if name in g else None
+            position, displacement = get("position"), get("displacement")
+            if position is None and displacement is not None:
+                position = self.reference + displacement
+            if displacement is None and position is not None:
+                displacement = position - self.reference
+            return dict(time=float(g.attrs["time"]), step=int(g.attrs["step"]), position=position,
+                        displacement=displacement, damage=get("damage"))
 
     def spacing(self):
         """Median distance between consecutive nodes (natural order): the grid spacing of grids."""

@@ -76,6 +76,7 @@ def main():
     seg_len = args.segment_length if args.segment_length is not None else float(fibers[0].get("segment_length", 0))
     mine = run.nodes_of("fiber")
     unit, scale = peri_view.length_unit(float(np.ptp(run.reference[mine], axis=0).max()))
+    run.require("plot_fiber.py", "position", "damage")
     with h5py.File(run.h5, "r") as f:
         frames = f["frames"]
         keys = run.frame_names

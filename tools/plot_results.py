@@ -173,7 +173,14 @@ def main():
     run = peri_view.Run(a.outdir)
     fr = run.frame(a.frame)
     t_unit, t_scale = peri_view.time_unit(run.frame(-1)["time"])
-    wrote = plot_damage(run, fr, t_unit, t_scale) + plot_deformed(run, fr, t_unit, t_scale)
+    wrote = []
+    if fr["damage"] is not None:
+        wrote += plot_damage(run, fr, t_unit, t_scale)
+    if fr["displacement"] is not None:
+        wrote += plot_deformed(run, fr, t_unit, t_scale)
+    missing = [k for k in ("damage", "displacement") if fr[k] is None]
+    if missing:
+        print(f"plot_results: the frames hold no {' or '.join(missing)} (output.fields): not drawn")
 
     series = os.path.join(a.outdir, "series.csv")
     if os.path.exists(series):
@@ -193,7 +200,7 @@ def main():
         peri_view.note(a.outdir, "energies.png", TOOL, "series", fig)
         plt.close(fig)
         wrote.append("energies.png")
-    if run.view == "sheet":
+    if run.view == "sheet" and fr["displacement"] is not None:
         wrote += plot_wrinkles(run, t_unit, t_scale)
     wrote += plot_crack_speed(run)
     print(f"plot_results: {run.view} view of {', '.join(sorted(set(run.kinds)))} bodies in {run.unit}; "

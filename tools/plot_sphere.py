@@ -43,6 +43,7 @@ def main():
         sys.exit(2)
     c = np.array(run.scene["bodies"][spheres[0]]["center"], dtype=float)
     mine = run.body == run.body_names.index(spheres[0])
+    run.require("plot_sphere.py", "position", "damage")
     with h5py.File(run.h5, "r") as f:
         keys = run.frame_names
         times = [float(f["frames"][k].attrs.get("time", np.nan)) for k in keys]

@@ -2,6 +2,7 @@
 
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -107,14 +108,69 @@ void write_text_file(const std::string& path, const std::string& text) {
     throw Error("cannot rename '" + tmp + "' to '" + path + "': " + std::strerror(errno));
 }
 
-FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain,
-                         State& state, const std::string& resolved_scene, bool write_velocity,
-                         std::int64_t resume_step)
-    : dir_(dir), stem_(stem), domain_(domain), state_(state), write_velocity_(write_velocity) {
+double frame_bytes(const Output& output, std::int64_t nodes) {
+  int values = 0;
+  for (const std::string& f : output.fields) values += f == "position" || f == "displacement" || f == "velocity" ? 3 : 1;
+  return (output.single_precision ? 4.0 : 8.0) * values * static_cast<double>(nodes) + 65536.0;  // + metadata
+}
+
+double mesh_bytes(const Output& output, std::int64_t nodes) {
+  // reference positions, body, volume (doubles), cells (int64), natural ids with a selection
+  return (8.0 * 5 + 8.0 + (output.selects_nodes() ? 8.0 : 0.0)) * static_cast<double>(nodes) + 65536.0;
+}
+
+double output_bytes(const Output& output, std::int64_t frames, std::int64_t frame_nodes, std::int64_t nodes, bool mesh,
+                    std::string* parts) {
+  const double frame = frame_bytes(output, frame_nodes), mesh_part = mesh ? mesh_bytes(output, frame_nodes) : 0.0;
+  // Checkpoints by step count: the current one and the previous, displacement and velocity at
+  // least (broken bonds add 16 bytes each).
+  const double checkpoints = output.checkpoint_every_steps > 0 ? 2.0 * (48.0 * static_cast<double>(nodes) + 65536.0) : 0.0;
+  if (parts) {
+    std::ostringstream s;
+    s.precision(3);
+    s << frames << " frames of " << frame / 1e6 << " MB";
+    if (mesh_part > 0) s << ", the mesh " << mesh_part / 1e6 << " MB";
+    if (checkpoints > 0) s << ", checkpoints " << checkpoints / 1e6 << " MB";
+    *parts = s.str();
+  }
+  return static_cast<double>(frames) * frame + mesh_part + checkpoints;
+}
+
+std::int64_t output_frames(const Output& output, std::int64_t total_steps) {
+  return std::clamp<std::int64_t>(output.frames, 1, total_steps + 1);
+}
+
+FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain, State& state,
+                         const Output& output)
+    : dir_(dir), stem_(stem), domain_(domain), state_(state), output_(output) {
+  // The frame nodes of this rank's natural slice: every node_stride-th natural id, in the region.
+  const std::int64_t begin = state_.natural_begin(), count = state_.natural_count();
+  if (output_.selects_nodes()) {
+    const double* X = state_.to_natural(domain_.X.data(), 3);
+    for (std::int64_t k = 0; k < count; ++k) {
+      if ((begin + k) % output_.node_stride != 0) continue;
+      bool inside = true;
+      if (output_.region)
+        for (int c = 0; c < 3; ++c)
+          inside = inside && X[3 * k + c] >= (*output_.region)[0][c] && X[3 * k + c] <= (*output_.region)[1][c];
+      if (inside) pick_.push_back(k);
+    }
+    sel_count_ = static_cast<std::int64_t>(pick_.size());
+  } else {
+    sel_count_ = count;
+  }
+  long long mine = sel_count_, before = 0, all = 0;
+  MPI_Exscan(&mine, &before, 1, MPI_LONG_LONG, MPI_SUM, state_.comm());
+  MPI_Allreduce(&mine, &all, 1, MPI_LONG_LONG, MPI_SUM, state_.comm());
+  sel_begin_ = domain_.rank == 0 ? 0 : before;
+  sel_total_ = all;
+}
+
+void FrameWriter::start(const std::string& resolved_scene, std::int64_t resume_step) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors are reported by our checks
   const H5Id fapl = owned(H5Pcreate(H5P_FILE_ACCESS), H5Pclose, "H5Pcreate");
-  check_h5(H5Pset_fapl_mpio(fapl.get(), state.comm(), MPI_INFO_NULL), "H5Pset_fapl_mpio");
-  const std::string path = dir + "/" + stem + ".h5";
+  check_h5(H5Pset_fapl_mpio(fapl.get(), state_.comm(), MPI_INFO_NULL), "H5Pset_fapl_mpio");
+  const std::string path = dir_ + "/" + stem_ + ".h5";
   if (resume_step >= 0) {
     if (reopen(path, fapl.get(), resume_step) || salvage(path, fapl.get(), resume_step, resolved_scene)) {
       if (domain_.rank == 0) write_xdmf();
@@ -127,6 +183,21 @@ FrameWriter::FrameWriter(const std::string& dir, const std::string& stem, const 
   file_ = create(path, fapl.get(), resolved_scene);
 }
 
+const void* FrameWriter::select(const double* slice, int bs, bool single) {
+  const std::size_t n = static_cast<std::size_t>(sel_count_) * bs;
+  const double* from = slice;
+  if (output_.selects_nodes()) {
+    selected_.resize(n);
+    for (std::size_t k = 0; k < pick_.size(); ++k)
+      for (int c = 0; c < bs; ++c) selected_[k * bs + c] = slice[pick_[k] * bs + c];
+    from = selected_.data();
+  }
+  if (!single) return from;
+  selected_single_.resize(n);
+  for (std::size_t a = 0; a < n; ++a) selected_single_[a] = static_cast<float>(from[a]);
+  return selected_single_.data();
+}
+
 H5Id FrameWriter::create(const std::string& path, hid_t fapl, const std::string& resolved_scene) {
   const Domain& domain = domain_;
   State& state = state_;
@@ -136,15 +207,21 @@ H5Id FrameWriter::create(const std::string& path, hid_t fapl, const std::string&
   string_attribute(file.get(), "git_revision", git_revision());
   text_dataset(file.get(), "scene", resolved_scene, domain.rank == 0);
   scalar_attribute<long long>(file.get(), "nodes", H5T_NATIVE_LLONG, domain.global_nodes);
+  if (output_.selects_nodes()) scalar_attribute<long long>(file.get(), "frame_nodes", H5T_NATIVE_LLONG, sel_total_);
   scalar_attribute<int>(file.get(), "ranks", H5T_NATIVE_INT, domain.ranks);
   {
     const H5Id mesh = owned(H5Gcreate2(file.get(), "/mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "/mesh");
-    write_dataset(mesh.get(), "reference_position", state.to_natural(domain.X.data(), 3), 3);
+    write_dataset(mesh.get(), "reference_position", select(state.to_natural(domain.X.data(), 3), 3, false), 3);
     std::vector<double> body(domain.owned);
     for (std::int32_t i = 0; i < domain.owned; ++i) body[i] = domain.body[i];
-    write_dataset(mesh.get(), "body", state.to_natural(body.data(), 1), 1);
-    write_dataset(mesh.get(), "volume", state.to_natural(domain.volume.data(), 1), 1);
+    write_dataset(mesh.get(), "body", select(state.to_natural(body.data(), 1), 1, false), 1);
+    write_dataset(mesh.get(), "volume", select(state.to_natural(domain.volume.data(), 1), 1, false), 1);
     write_connectivity(mesh.get());
+    if (output_.selects_nodes()) {  // which nodes the frames hold
+      std::vector<std::int64_t> ids(pick_.size());
+      for (std::size_t k = 0; k < pick_.size(); ++k) ids[k] = state.natural_begin() + pick_[k];
+      write_dataset(mesh.get(), "natural_id", ids.data(), 1, H5T_NATIVE_INT64, H5T_NATIVE_INT64);
+    }
   }
   owned(H5Gcreate2(file.get(), "/frames", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "/frames");
   check_h5(H5Fflush(file.get(), H5F_SCOPE_GLOBAL), "H5Fflush");
@@ -213,10 +290,11 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
   H5Id old(H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl), H5Fclose);
   if (!old.ok()) return false;
   // Each frame's datasets and their components per node.
-  std::vector<std::pair<const char*, int>> names = {
-      {"position", 3}, {"displacement", 3}, {"damage", 1}, {"strain_energy_density", 1}};
-  if (write_velocity_) names.push_back({"velocity", 3});
-  const hsize_t begin = static_cast<hsize_t>(state_.natural_begin()), count = static_cast<hsize_t>(state_.natural_count());
+  std::vector<std::pair<const char*, int>> names;
+  for (const std::string& f : frame_field_names())
+    if (output_.has_field(f)) names.push_back({f.c_str(), f == "position" || f == "displacement" || f == "velocity" ? 3 : 1});
+  const hsize_t begin = static_cast<hsize_t>(sel_begin_), count = static_cast<hsize_t>(sel_count_);
+  const bool single = output_.single_precision;
   const std::string tmp = path + ".salvage";
   H5Id fresh = create(tmp, fapl, resolved_scene);
   std::vector<double> slice;
@@ -236,7 +314,7 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
       hsize_t dims[2] = {0, 0};
       const int rank = space.ok() ? H5Sget_simple_extent_dims(space.get(), dims, nullptr) : -1;
       const int bs = names[d].second;
-      ok = rank == (bs == 1 ? 1 : 2) && dims[0] == static_cast<hsize_t>(domain_.global_nodes) &&
+      ok = rank == (bs == 1 ? 1 : 2) && dims[0] == static_cast<hsize_t>(sel_total_) &&
            (bs == 1 || dims[1] == 3);
     }
     int all = 0;
@@ -260,7 +338,12 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
         check_h5(H5Dread(ds.get(), H5T_NATIVE_DOUBLE, memspace.get(), filespace.get(), dxpl.get(), slice.data()),
                  names[d].first);
       }
-      write_dataset(to.get(), names[d].first, slice.data(), bs);
+      if (single) {
+        selected_single_.assign(slice.begin(), slice.end());
+        write_dataset(to.get(), names[d].first, selected_single_.data(), bs, H5T_NATIVE_FLOAT, H5T_IEEE_F32LE);
+      } else {
+        write_dataset(to.get(), names[d].first, slice.data(), bs);
+      }
     }
     times_.push_back(time);
     steps_.push_back(step);
@@ -288,30 +371,32 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
 FrameWriter::~FrameWriter() = default;
 
 void FrameWriter::write_connectivity(hid_t mesh) {
-  // One vertex cell per node, numbered in natural order: readers that build cells from the
-  // topology (ParaView's Xdmf3 readers, meshio) then see every node.
-  std::vector<std::int64_t> cells(static_cast<std::size_t>(state_.natural_count()));
-  for (std::size_t k = 0; k < cells.size(); ++k) cells[k] = state_.natural_begin() + static_cast<std::int64_t>(k);
-  write_dataset(mesh, "connectivity", cells.data(), 1, H5T_NATIVE_INT64);
+  // One vertex cell per frame node, numbered in the file's order: readers that build cells from
+  // the topology (ParaView's Xdmf3 readers, meshio) then see every node.
+  std::vector<std::int64_t> cells(static_cast<std::size_t>(sel_count_));
+  for (std::size_t k = 0; k < cells.size(); ++k) cells[k] = sel_begin_ + static_cast<std::int64_t>(k);
+  write_dataset(mesh, "connectivity", cells.data(), 1, H5T_NATIVE_INT64, H5T_NATIVE_INT64);
 }
 
-void FrameWriter::write_dataset(hid_t group, const char* name, const void* slice, int bs, hid_t type) {
-  const hsize_t n = static_cast<hsize_t>(domain_.global_nodes);
-  hsize_t dims[2] = {n, static_cast<hsize_t>(bs)};
+void FrameWriter::write_dataset(hid_t group, const char* name, const void* data, int bs, hid_t mem_type,
+                                hid_t file_type) {
+  hsize_t dims[2] = {static_cast<hsize_t>(sel_total_), static_cast<hsize_t>(bs)};
   const H5Id filespace = owned(H5Screate_simple(bs == 1 ? 1 : 2, dims, nullptr), H5Sclose, "H5Screate_simple");
   // Creating and writing a dataset are collective: every rank learns of a failure on any, and all
   // stop at the same call (a full disk is seen by the ranks whose data did not fit).
-  const H5Id dset(H5Dcreate2(group, name, type, filespace.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  const H5Id dset(H5Dcreate2(group, name, file_type, filespace.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
   agree(dset.ok(), std::string("creating dataset ") + name);
-  hsize_t start[2] = {static_cast<hsize_t>(state_.natural_begin()), 0};
-  hsize_t count[2] = {static_cast<hsize_t>(state_.natural_count()), static_cast<hsize_t>(bs)};
+  hsize_t start[2] = {static_cast<hsize_t>(sel_begin_), 0};
+  hsize_t count[2] = {static_cast<hsize_t>(sel_count_), static_cast<hsize_t>(bs)};
   check_h5(H5Sselect_hyperslab(filespace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr), "hyperslab");
   const H5Id memspace = owned(H5Screate_simple(bs == 1 ? 1 : 2, count, nullptr), H5Sclose, "memspace");
   const H5Id dxpl = owned(H5Pcreate(H5P_DATASET_XFER), H5Pclose, "dxpl");
   check_h5(H5Pset_dxpl_mpio(dxpl.get(), H5FD_MPIO_COLLECTIVE), "H5Pset_dxpl_mpio");
-  agree(H5Dwrite(dset.get(), type, memspace.get(), filespace.get(), dxpl.get(), slice) >= 0,
+  agree(H5Dwrite(dset.get(), mem_type, memspace.get(), filespace.get(), dxpl.get(), data) >= 0,
         std::string("writing dataset ") + name);
 }
+
+double FrameWriter::frame_bytes() const { return peri::frame_bytes(output_, sel_total_); }
 
 // Why a write may have failed on this rank beyond a full disk: the file size limit (ulimit -f).
 std::string FrameWriter::local_reason() const {
@@ -321,11 +406,6 @@ std::string FrameWriter::local_reason() const {
   const auto size = std::filesystem::file_size(dir_ + "/" + stem_ + ".h5", ec);
   if (ec || static_cast<double>(size) + frame_bytes() < static_cast<double>(lim.rlim_cur)) return "";
   return ": the file reached this process's file size limit (ulimit -f) of " + std::to_string(lim.rlim_cur) + " bytes";
-}
-
-double FrameWriter::frame_bytes() const {
-  const int values = 3 + 3 + (write_velocity_ ? 3 : 0) + 1 + 1;  // position, displacement, velocity, damage, energy
-  return 8.0 * values * static_cast<double>(domain_.global_nodes) + 65536.0;  // + metadata
 }
 
 void FrameWriter::agree(bool ok, const std::string& what) {
@@ -366,14 +446,21 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
     agree(g.ok(), frame + "creating group " + name);
     scalar_attribute<long long>(g.get(), "step", H5T_NATIVE_LLONG, step);
     scalar_attribute<double>(g.get(), "time", H5T_NATIVE_DOUBLE, time);
-    const std::size_t n3 = 3 * static_cast<std::size_t>(domain_.owned);
-    work_.resize(n3);
-    for (std::size_t a = 0; a < n3; ++a) work_[a] = domain_.X[a] + u[a];
-    write_dataset(g.get(), "position", state_.to_natural(work_.data(), 3), 3);
-    write_dataset(g.get(), "displacement", state_.to_natural(u, 3), 3);
-    if (write_velocity_) write_dataset(g.get(), "velocity", state_.to_natural(v, 3), 3);
-    write_dataset(g.get(), "damage", state_.to_natural(damage, 1), 1);
-    write_dataset(g.get(), "strain_energy_density", state_.to_natural(energy_density, 1), 1);
+    const bool single = output_.single_precision;
+    const hid_t mem = single ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE, file = single ? H5T_IEEE_F32LE : H5T_NATIVE_DOUBLE;
+    auto field = [&](const char* name, const double* owned, int bs) {
+      if (output_.has_field(name)) write_dataset(g.get(), name, select(state_.to_natural(owned, bs), bs, single), bs, mem, file);
+    };
+    if (output_.has_field("position")) {
+      const std::size_t n3 = 3 * static_cast<std::size_t>(domain_.owned);
+      work_.resize(n3);
+      for (std::size_t a = 0; a < n3; ++a) work_[a] = domain_.X[a] + u[a];
+      field("position", work_.data(), 3);
+    }
+    field("displacement", u, 3);
+    field("velocity", v, 3);
+    field("damage", damage, 1);
+    field("strain_energy_density", energy_density, 1);
   }
   agree(H5Fflush(file_.get(), H5F_SCOPE_GLOBAL) >= 0, frame + "flushing");
   times_.push_back(time);
@@ -383,18 +470,19 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
 
 void FrameWriter::write_xdmf() const {
   const std::string h5 = stem_ + ".h5";
-  const long long n = domain_.global_nodes;
+  const long long n = sel_total_;
   std::ostringstream x;
   x << std::setprecision(17);
   x << "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
     << "<Xdmf Version=\"3.0\">\n <Domain>\n"
     << "  <Grid Name=\"peridrive\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
-  auto item = [&](const std::string& path, int bs) {
+  auto item = [&](const std::string& path, int bs, int precision) {
     std::ostringstream s;
-    s << "<DataItem Dimensions=\"" << n << (bs == 3 ? " 3" : "")
-      << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">" << h5 << ":" << path << "</DataItem>";
+    s << "<DataItem Dimensions=\"" << n << (bs == 3 ? " 3" : "") << "\" NumberType=\"Float\" Precision=\""
+      << precision << "\" Format=\"HDF\">" << h5 << ":" << path << "</DataItem>";
     return s.str();
   };
+  const int field_precision = output_.single_precision ? 4 : 8;
   for (std::size_t k = 0; k < times_.size(); ++k) {
     const std::string f = frame_name(static_cast<int>(k));
     x << "   <Grid Name=\"frame" << k << "\" GridType=\"Uniform\">\n"
@@ -402,14 +490,18 @@ void FrameWriter::write_xdmf() const {
       << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\">"
       << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5
       << ":/mesh/connectivity</DataItem></Topology>\n"
-      << "    <Geometry GeometryType=\"XYZ\">" << item(f + "/position", 3) << "</Geometry>\n"
-      << "    <Attribute Name=\"displacement\" AttributeType=\"Vector\" Center=\"Node\">" << item(f + "/displacement", 3) << "</Attribute>\n";
-    if (write_velocity_)
-      x << "    <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">" << item(f + "/velocity", 3) << "</Attribute>\n";
-    x << "    <Attribute Name=\"damage\" AttributeType=\"Scalar\" Center=\"Node\">" << item(f + "/damage", 1) << "</Attribute>\n"
-      << "    <Attribute Name=\"strain_energy_density\" AttributeType=\"Scalar\" Center=\"Node\">"
-      << item(f + "/strain_energy_density", 1) << "</Attribute>\n"
-      << "    <Attribute Name=\"body\" AttributeType=\"Scalar\" Center=\"Node\">" << item("/mesh/body", 1) << "</Attribute>\n"
+      << "    <Geometry GeometryType=\"XYZ\">"
+      << (output_.has_field("position") ? item(f + "/position", 3, field_precision)
+                                        : item("/mesh/reference_position", 3, 8))
+      << "</Geometry>\n";
+    for (const std::string& name : frame_field_names()) {
+      if (name == "position" || !output_.has_field(name)) continue;
+      const bool vector = name == "displacement" || name == "velocity";
+      x << "    <Attribute Name=\"" << name << "\" AttributeType=\"" << (vector ? "Vector" : "Scalar")
+        << "\" Center=\"Node\">" << item(f + "/" + name, vector ? 3 : 1, field_precision) << "</Attribute>\n";
+    }
+    x << "    <Attribute Name=\"body\" AttributeType=\"Scalar\" Center=\"Node\">" << item("/mesh/body", 1, 8)
+      << "</Attribute>\n"
       << "   </Grid>\n";
   }
   x << "  </Grid>\n </Domain>\n</Xdmf>\n";

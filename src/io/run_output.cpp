@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 
 #include "peri/core/collective.hpp"
 #include "peri/core/error.hpp"
@@ -13,7 +14,7 @@ namespace peri {
 
 RunOutput::RunOutput(const Output& output, std::int64_t total_steps, int rank) : rank_(rank) {
   // More frames than steps would repeat steps: one per step at most (the same frames are written).
-  const int frames = static_cast<int>(std::clamp<std::int64_t>(output.frames, 1, total_steps + 1));
+  const int frames = static_cast<int>(output_frames(output, total_steps));
   if (frames < output.frames && rank == 0)
     std::fprintf(stderr, "peridrive: warning: output.frames: %d frames asked for a run of %lld steps; writing %d, "
                  "one per step\n", output.frames, static_cast<long long>(total_steps), frames);
@@ -22,11 +23,13 @@ RunOutput::RunOutput(const Output& output, std::int64_t total_steps, int rank) :
 }
 
 void RunOutput::open(const std::string& dir, const Domain& domain, State& state, const std::string& resolved_scene,
-                     bool write_velocity, std::int64_t resume_step, const std::string& series_columns, bool tips,
+                     const Output& output, std::int64_t resume_step, const std::string& series_columns, bool tips,
                      MPI_Comm comm) {
   dir_ = dir;
   comm_ = comm;
   make_output_dir(dir, comm);
+  frames_ = std::make_unique<FrameWriter>(dir, "frames", domain, state, output);  // (writes nothing yet)
+  check_free_space(output, domain.global_nodes, resume_step);
   std::string error;
   if (rank_ == 0) {
     // A previous run's completion marker must not vouch for this one until it finishes; a fresh
@@ -42,7 +45,7 @@ void RunOutput::open(const std::string& dir, const Domain& domain, State& state,
   }
   const std::string verdict = agree_on_message(error, comm);  // (also the barrier before the frames)
   if (!verdict.empty()) throw RuntimeFailure(verdict);
-  frames_ = std::make_unique<FrameWriter>(dir, "frames", domain, state, resolved_scene, write_velocity, resume_step);
+  frames_->start(resolved_scene, resume_step);
   if (tips && rank_ == 0) {
     const std::string path = dir + "/tips.csv", header = CrackTipMonitor::kCsvHeader;
     const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step) : header;
@@ -52,6 +55,33 @@ void RunOutput::open(const std::string& dir, const Domain& domain, State& state,
   // (A tips.csv that cannot be written is reported with the next frame, on every rank.)
   series_ = std::make_unique<SeriesWriter>(dir + "/series.csv", rank_ == 0, series_columns, resume_step);
   check_text_files();
+}
+
+double RunOutput::predicted_bytes(const Output& output, std::int64_t nodes, std::int64_t resume_step,
+                                  std::string* parts) const {
+  std::int64_t frames = 0;
+  for (std::int64_t s : frame_steps_) frames += s > resume_step;
+  return output_bytes(output, frames, frames_->frame_nodes(), nodes, resume_step < 0, parts);
+}
+
+void RunOutput::check_free_space(const Output& output, std::int64_t nodes, std::int64_t resume_step) const {
+  std::string parts;
+  const double need = predicted_bytes(output, nodes, resume_step, &parts);
+  std::string error;
+  if (rank_ == 0 && output.check_free_space) {
+    const double free = free_bytes(dir_);
+    if (free >= 0 && need > free) {
+      std::ostringstream s;
+      s.precision(3);
+      s << "output: the run would write about " << need / 1e6 << " MB to '" << dir_ << "' (" << parts
+        << ") and its file system has " << free / 1e6 << " MB free; write fewer frames, nodes or fields "
+        << "(output.frames, output.node_stride, output.region, output.fields, output.precision: single), free "
+        << "space, or set output.check_free_space: false";
+      error = s.str();
+    }
+  }
+  const std::string verdict = agree_on_message(error, comm_);
+  if (!verdict.empty()) throw InputError(verdict);
 }
 
 void RunOutput::check_text_files() const {

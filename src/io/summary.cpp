@@ -39,6 +39,7 @@ std::string RunSummary::to_json() const {
     << "  \"bond_updates_per_second\": " << json_number(updates) << ",\n"
     << "  \"bond_updates_per_second_per_rank\": " << json_number(updates / ranks) << ",\n"
     << "  \"bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
+
     << "  \"partition_seconds\": " << json_number(partition_seconds) << ",\n"
     << "  \"edge_cut\": " << edge_cut << ",\n"
     << "  \"partition_method\": " << json_string(partition_method) << ",\n"
@@ -85,6 +86,10 @@ std::string RunSummary::to_json() const {
     << "  \"derived\": {";
   for (std::size_t k = 0; k < derived.size(); ++k)
     j << (k ? ", " : "") << json_string(derived[k].first) << ": " << json_number(derived[k].second);
+  j << "},\n"
+    << "  \"output\": {";
+  for (std::size_t k = 0; k < output.size(); ++k)
+    j << (k ? ", " : "") << json_string(output[k].first) << ": " << json_number(output[k].second);
   j << "}\n}\n";
   return j.str();
 }
@@ -102,6 +107,11 @@ std::vector<std::string> derived_lines(const RunSummary& summary) {
   for (const auto& [k, v] : summary.derived) {
     std::ostringstream s;
     s << k << " = " << std::setprecision(10) << v;
+    lines.push_back(s.str());
+  }
+  for (const auto& [k, v] : summary.output) {  // what the run will write
+    std::ostringstream s;
+    s << "output." << k << " = " << std::setprecision(4) << v;
     lines.push_back(s.str());
   }
   return lines;

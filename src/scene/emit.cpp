@@ -230,7 +230,14 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
   w.key(0, "output", "");
   w.key(2, "frames", std::to_string(s.output.frames));
   w.key(2, "series_every", std::to_string(s.output.series_every));
-  w.key(2, "velocity", to_text(s.output.write_velocity));
+  std::vector<std::string> fields;
+  for (const std::string& f : s.output.fields) fields.push_back(f);
+  w.key(2, "fields", "[" + join(fields) + "]");
+  w.key(2, "node_stride", std::to_string(s.output.node_stride));
+  if (s.output.region)
+    w.key(2, "region", "{min: " + flow((*s.output.region)[0]) + ", max: " + flow((*s.output.region)[1]) + "}");
+  w.key(2, "precision", s.output.single_precision ? "single" : "double");
+  w.key(2, "check_free_space", to_text(s.output.check_free_space));
   w.key(2, "progress_seconds", s.output.progress_seconds);
   w.key(2, "checkpoint_every_steps", std::to_string(s.output.checkpoint_every_steps));
   w.key(2, "checkpoint_every_seconds", s.output.checkpoint_every_seconds);

@@ -338,13 +338,46 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
 
 Output read_output(const Value& v) {
   const Map m(v, &kOutputKeys,
-              "a map {frames, series_every, velocity, progress_seconds, checkpoint_every_steps, "
-              "checkpoint_every_seconds}");
+              "a map {frames, series_every, fields, node_stride, region, precision, check_free_space, "
+              "progress_seconds, checkpoint_every_steps, checkpoint_every_seconds}");
   Output out;
+  out.where = m.where();
   constexpr long int_max = std::numeric_limits<int>::max();
   if (auto x = m.get("frames")) out.frames = static_cast<int>(x->integer(1, int_max));
   if (auto x = m.get("series_every")) out.series_every = static_cast<int>(x->integer(1, int_max));
-  if (auto x = m.get("velocity")) out.write_velocity = x->boolean();
+  if (auto x = m.get("fields")) {
+    if (m.given("velocity")) x->fail("give fields or velocity, not both");
+    const std::vector<Value> list = x->list("a list of frame fields");
+    if (list.empty()) x->fail("expected at least one of: " + join(frame_field_names()) + ", got an empty list");
+    std::vector<std::string> chosen;
+    for (const Value& f : list) {
+      std::vector<std::pair<std::string, std::string>> options;
+      for (const std::string& n : frame_field_names()) options.emplace_back(n, n);
+      const std::string name = f.choice(options);
+      if (std::find(chosen.begin(), chosen.end(), name) != chosen.end()) f.fail("'" + name + "' is listed twice");
+      chosen.push_back(name);
+    }
+    out.fields.clear();
+    for (const std::string& n : frame_field_names())  // in the frames' order
+      if (std::find(chosen.begin(), chosen.end(), n) != chosen.end()) out.fields.push_back(n);
+  }
+  if (auto x = m.get("velocity"))
+    if (!x->boolean()) std::erase(out.fields, std::string("velocity"));
+  out.write_velocity = out.has_field("velocity");
+  if (auto x = m.get("node_stride")) out.node_stride = x->integer(1, std::numeric_limits<int>::max());
+  if (auto x = m.get("region")) {
+    const Map box(*x, &kBoxKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+    const Vec3 lo = box.at("min").vec3("m");
+    const Value max = box.at("max");
+    const Vec3 hi = max.vec3("m");
+    for (int d = 0; d < 3; ++d)
+      if (lo[d] > hi[d])
+        max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+                 format_number(lo[d]) + " > max " + format_number(hi[d]));
+    out.region = std::array<Vec3, 2>{lo, hi};
+  }
+  if (auto x = m.get("precision")) out.single_precision = x->choice<bool>({{"double", false}, {"single", true}});
+  if (auto x = m.get("check_free_space")) out.check_free_space = x->boolean();
   if (auto x = m.get("progress_seconds")) out.progress_seconds = x->non_negative("s");
   if (auto x = m.get("checkpoint_every_steps")) out.checkpoint_every_steps = x->integer(0);
   if (auto x = m.get("checkpoint_every_seconds")) out.checkpoint_every_seconds = x->non_negative("s");

@@ -103,6 +103,7 @@ std::vector<KeySection> scene_key_sections() {
                    })});
   out.push_back({"stability", "", key_docs(kStabilityKeys)});
   out.push_back({"output", "", key_docs(kOutputKeys)});
+  out.push_back({"output.region", "", key_docs(kBoxKeys)});
   return out;
 }
 

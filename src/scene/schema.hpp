@@ -283,7 +283,23 @@ inline const Keys kOutputKeys = {
             "1 writes every step, with a warning)"},
     {.name = "series_every", .unit = "steps", .fallback = "10",
      .doc = "a series.csv row (and a crack-tip sample) every N steps, an integer >= 1"},
-    {.name = "velocity", .fallback = "true", .doc = "write the velocity field into the frames"},
+    {.name = "fields", .fallback = "all five",
+     .doc = "the frames' datasets, a non-empty list of `position`, `displacement`, `velocity`, `damage`, "
+            "`strain_energy_density`; without `position` the frames' geometry is the reference positions"},
+    {.name = "velocity", .fallback = "true",
+     .doc = "`false` drops velocity from the fields (the key of earlier scenes; not with fields)"},
+    {.name = "node_stride", .fallback = "1",
+     .doc = "frames hold every N-th node in natural order (bodies in scene order, grids row by row), an integer >= "
+            "1; their natural ids are in `/mesh/natural_id`"},
+    {.name = "region", .unit = "m", .fallback = "everywhere",
+     .doc = "frames hold only the nodes in this box of reference positions, `{min: [x, y, z], max: [x, y, z]}`; "
+            "with node_stride, those of the stride's nodes"},
+    {.name = "precision", .fallback = "double",
+     .doc = "`double` or `single`: the frames' fields as 64- or 32-bit floats (the mesh and checkpoints are always "
+            "double)"},
+    {.name = "check_free_space", .fallback = "true",
+     .doc = "refuse (exit status 2) a run whose predicted frames, mesh and step-count checkpoints exceed the free "
+            "space of the output directory's file system; `--dry-run` prints the prediction"},
     {.name = "progress_seconds", .unit = "s", .fallback = "2",
      .doc = "wall time between progress lines, >= 0 (0: at every check)"},
     {.name = "checkpoint_every_steps", .unit = "steps", .fallback = "0 (off)",

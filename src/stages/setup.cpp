@@ -18,6 +18,7 @@
 #include "peri/core/format.hpp"
 #include "peri/core/petsc.hpp"
 #include "peri/core/resources.hpp"
+#include "peri/io/output.hpp"
 #include "peri/io/restart.hpp"
 #include "peri/io/summary.hpp"
 #include "peri/loads/pressure.hpp"
@@ -60,6 +61,29 @@ std::vector<BondLaw> calibrate_bodies(const Scene& scene, const Nodes& nodes, st
   }
   check_node_masses(scene, nodes, laws, density);
   return laws;
+}
+
+/// Nodes the frames hold (every node_stride-th natural id, inside output.region); InputError naming
+/// output.region when it holds none.
+std::int64_t frame_node_count(const Scene& scene, const Nodes& nodes) {
+  const Output& o = scene.output;
+  std::int64_t n = 0;
+  for (std::int64_t i = 0; i < nodes.size(); i += o.node_stride) {
+    bool inside = true;
+    for (int c = 0; c < 3 && o.region; ++c)
+      inside = inside && nodes.X[3 * i + c] >= (*o.region)[0][c] && nodes.X[3 * i + c] <= (*o.region)[1][c];
+    n += inside;
+  }
+  if (n == 0) {
+    const auto& r = *o.region;
+    std::ostringstream msg;
+    msg << o.where.str() << ": output.region: the box [" << number_text(r[0][0]) << ", " << number_text(r[0][1]) << ", "
+        << number_text(r[0][2]) << "] .. [" << number_text(r[1][0]) << ", " << number_text(r[1][1]) << ", "
+        << number_text(r[1][2]) << "] holds none of the nodes the frames take (output.node_stride " << o.node_stride
+        << "); expected a box around some of the bodies' nodes";
+    throw InputError(msg.str());
+  }
+  return n;
 }
 
 /// The per-bond history of laws that keep one: the largest number of values any body's law keeps,
@@ -247,6 +271,12 @@ void derived_constants(const Problem& p, RunSummary& summary) {
     out.push_back({"stages." + std::to_string(s) + ".steps", double(p.stages.steps[s])});
   }
   out.push_back({"ordered_bonds", double(summary.ordered_bonds)});
+  // The output a fresh run writes (--dry-run shows it; the run refuses what will not fit).
+  const std::int64_t frames = output_frames(p.scene.output, p.stages.total);
+  summary.output = {{"frames", double(frames)},
+                    {"frame_nodes", double(p.frame_nodes)},
+                    {"frame_bytes", frame_bytes(p.scene.output, p.frame_nodes)},
+                    {"bytes", output_bytes(p.scene.output, frames, p.frame_nodes, p.domain.global_nodes, true)}};
 }
 
 }  // namespace
@@ -294,6 +324,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   Nodes nodes = discretize_checked(p.scene, settings, comm, p.rank);
   std::vector<std::vector<std::int64_t>> regions = boundary_regions(p.scene, nodes, p.rank);
   std::vector<BondLaw> laws = calibrate_bodies(p.scene, nodes, p.density);
+  p.frame_nodes = frame_node_count(p.scene, nodes);
   stop_point(comm);
 
   // The partition and this rank's domain: its nodes (owned, then ghosts) and bonds.

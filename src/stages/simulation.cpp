@@ -64,7 +64,7 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       if (!columns.empty()) columns += ',';
       columns += p_->tools->series_columns();
     }
-    output_.open(options_.out_dir, domain_, state_, p_->resolved, scene_.output.write_velocity,
+    output_.open(options_.out_dir, domain_, state_, p_->resolved, scene_.output,
                  options_.restart ? options_.restart->step : -1, columns, tips_ != nullptr, comm_);
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

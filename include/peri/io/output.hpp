@@ -13,6 +13,7 @@
 
 #include "peri/core/hdf5.hpp"
 #include "peri/diagnostics/energies.hpp"
+#include "peri/scene/scene.hpp"
 #include "peri/state/state.hpp"
 
 namespace peri {
@@ -27,14 +28,36 @@ bool abandoned_output_files();
 /// Write a small text file atomically (temporary name, then rename). Rank 0 only.
 void write_text_file(const std::string& path, const std::string& text);
 
+/// About how many bytes a frame of `nodes` nodes with the output's fields adds to a file.
+double frame_bytes(const Output& output, std::int64_t nodes);
+/// About how many bytes the mesh of `nodes` frame nodes takes (positions, body, volume, cells).
+double mesh_bytes(const Output& output, std::int64_t nodes);
+
+/// About how many bytes a run writes: `frames` frames of `frame_nodes` nodes, the mesh (`mesh`),
+/// and checkpoints by step count of `nodes` nodes (their displacement and velocity); `parts`
+/// receives these in words.
+double output_bytes(const Output& output, std::int64_t frames, std::int64_t frame_nodes, std::int64_t nodes, bool mesh,
+                    std::string* parts = nullptr);
+/// Frames a run of total_steps steps writes: output.frames, at most one per step.
+std::int64_t output_frames(const Output& output, std::int64_t total_steps);
+
 class FrameWriter {
  public:
-  /// Opens <dir>/<stem>.h5 collectively and writes the mesh (reference positions, body, volume).
-  /// With resume_step >= 0 the existing file is continued instead: frames after that step are
-  /// deleted and the XDMF rewritten; a file holding a partly written frame is rebuilt from its
-  /// whole frames up to that step, and one that cannot be opened is replaced (each with a note).
+  /// The frames of <dir>/<stem>.h5 with the output's fields, nodes and precision (scene
+  /// `output`): which of the domain's nodes they hold is settled here (collective); nothing is
+  /// written until start().
   FrameWriter(const std::string& dir, const std::string& stem, const Domain& domain, State& state,
-              const std::string& resolved_scene, bool write_velocity, std::int64_t resume_step = -1);
+              const Output& output);
+  /// Opens <dir>/<stem>.h5 collectively and writes the mesh (reference positions, body, volume;
+  /// with a node selection their natural ids). With resume_step >= 0 the existing file is
+  /// continued instead: frames after that step are deleted and the XDMF rewritten; a file holding
+  /// a partly written frame is rebuilt from its whole frames up to that step, and one that cannot
+  /// be opened is replaced (each with a note).
+  void start(const std::string& resolved_scene, std::int64_t resume_step = -1);
+  /// Nodes a frame holds (all ranks).
+  std::int64_t frame_nodes() const { return sel_total_; }
+  /// About how many bytes a frame adds to the file.
+  double frame_bytes() const;
   ~FrameWriter();
   FrameWriter(const FrameWriter&) = delete;
   FrameWriter& operator=(const FrameWriter&) = delete;
@@ -45,11 +68,14 @@ class FrameWriter {
   int frames() const { return static_cast<int>(times_.size()); }
 
  private:
-  void write_dataset(hid_t group, const char* name, const void* natural_slice, int bs,
-                     hid_t type = H5T_NATIVE_DOUBLE);
+  /// This rank's frame nodes of a field given on its natural slice (State::to_natural), bs values
+  /// per node, as doubles (or floats, `single`) in the writer's buffer.
+  const void* select(const double* natural_slice, int bs, bool single);
+  /// A dataset of the frame nodes, this rank's `data` (its selected nodes, bs values each) at
+  /// their place. Collective.
+  void write_dataset(hid_t group, const char* name, const void* data, int bs, hid_t mem_type = H5T_NATIVE_DOUBLE,
+                     hid_t file_type = H5T_NATIVE_DOUBLE);
   void write_connectivity(hid_t mesh);  ///< /mesh/connectivity: 0..N-1, collective
-  /// About how many bytes a frame adds to the file.
-  double frame_bytes() const;
   /// Collective: throws RuntimeFailure on every rank, naming the file, `what` and the free space,
   /// when `ok` is false on any rank.
   void agree(bool ok, const std::string& what);
@@ -65,9 +91,12 @@ class FrameWriter {
   std::string dir_, stem_;
   const Domain& domain_;
   State& state_;
-  bool write_velocity_;
+  Output output_;
+  std::vector<std::int64_t> pick_;  ///< with a node selection: the selected places of the natural slice
+  std::int64_t sel_begin_ = 0, sel_count_ = 0, sel_total_ = 0;  ///< this rank's frame nodes in the file's order
   H5Id file_;
-  std::vector<double> work_;
+  std::vector<double> work_, selected_;
+  std::vector<float> selected_single_;
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
 };

@@ -25,8 +25,12 @@ class RunOutput {
   /// Opens the files in `dir` (collective): a fresh run (resume_step < 0) removes an earlier
   /// run's files first; a resumed one continues them up to resume_step. Series columns beside
   /// the energies: `series_columns` (comma-separated); `tips`: write tips.csv.
+  /// Frames hold the scene output's fields, nodes and precision; a run whose predicted output
+  /// (frames still to write, the mesh, checkpoints by step count) exceeds the free space of dir's
+  /// file system is refused first, with InputError on every rank, unless output.check_free_space
+  /// is false.
   void open(const std::string& dir, const Domain& domain, State& state, const std::string& resolved_scene,
-            bool write_velocity, std::int64_t resume_step, const std::string& series_columns, bool tips,
+            const Output& output, std::int64_t resume_step, const std::string& series_columns, bool tips,
             MPI_Comm comm);
   /// Whether files are written (open() was called).
   bool writes() const { return frames_ != nullptr; }
@@ -61,6 +65,10 @@ class RunOutput {
  private:
   /// RuntimeFailure on every rank when rank 0's series or tips could not be written. Collective.
   void check_text_files() const;
+  /// About how many bytes the run still writes (frames after resume_step, the mesh when fresh,
+  /// checkpoints by step count), with those parts in words.
+  double predicted_bytes(const Output& output, std::int64_t nodes, std::int64_t resume_step, std::string* parts) const;
+  void check_free_space(const Output& output, std::int64_t nodes, std::int64_t resume_step) const;
 
   std::string dir_;
   int rank_ = 0;

@@ -48,6 +48,8 @@ struct RunSummary {
   /// Per quasi-static stage: |W_reactions - (dU + D)| / W_reactions (trapezoidal work).
   std::vector<double> quasistatic_work_error;
   std::vector<std::pair<std::string, double>> derived;  ///< per-body constants (name, value)
+  /// What a fresh run writes: frames, nodes per frame, bytes per frame, bytes in all (predicted).
+  std::vector<std::pair<std::string, double>> output;
   /// Crack tips (scenes whose materials break): final tips and speeds, see crack_tips.hpp.
   bool crack_tracking = false;
   double max_crack_speed = 0, mean_crack_speed = 0, rayleigh_wave_speed = 0, crack_speed_window = 0;

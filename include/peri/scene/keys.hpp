@@ -17,4 +17,11 @@ struct Key {
 };
 using Keys = std::vector<Key>;
 
+/// A box {min, max} (a lattice's breakable box, a network's box, the frames' region).
+inline const Keys kBoxKeys = {
+    {.name = "min", .required = true, .what = "lower corner [x, y, z], m", .unit = "m", .doc = "lower corner [x, y, z]"},
+    {.name = "max", .required = true, .what = "upper corner [x, y, z], m", .unit = "m",
+     .doc = "upper corner [x, y, z], >= min in every component (> min for a network's box)"},
+};
+
 }  // namespace peri::scene_detail

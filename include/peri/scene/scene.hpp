@@ -2,6 +2,7 @@
 // boundary regions, initial conditions, stages, output). Read from YAML; every key is checked.
 // Nothing downstream reads YAML: the rest of the program sees only these structs.
 #pragma once
+#include <algorithm>
 #include <array>
 #include <functional>
 #include <optional>
@@ -240,10 +241,26 @@ struct Stability {
   double motion_per_step = 1.0;
 };
 
+/// The datasets a frame can hold, in the order frames hold them.
+inline const std::vector<std::string>& frame_field_names() {
+  static const std::vector<std::string> names{"position", "displacement", "velocity", "damage", "strain_energy_density"};
+  return names;
+}
+
 struct Output {
+  SourceLoc where;
   int frames = 20;             ///< HDF5 frames over the whole run (>= 1; first and last included)
   int series_every = 10;       ///< CSV energy row every N steps (>= 1)
-  bool write_velocity = true;  ///< velocity field in HDF5 frames
+  /// The frames' datasets (of frame_field_names, in that order). Without position the frames'
+  /// geometry is the reference positions.
+  std::vector<std::string> fields = frame_field_names();
+  bool write_velocity = true;  ///< velocity among the fields (the scene key `velocity` of earlier scenes)
+  long node_stride = 1;        ///< frames hold every node_stride-th node in natural order (>= 1)
+  std::optional<std::array<Vec3, 2>> region;  ///< and only nodes in this box (reference positions)
+  bool single_precision = false;  ///< frames' fields as float32 (never checkpoints)
+  bool check_free_space = true;   ///< refuse a run whose predicted output exceeds the free space
+  bool has_field(const std::string& f) const { return std::find(fields.begin(), fields.end(), f) != fields.end(); }
+  bool selects_nodes() const { return node_stride > 1 || region.has_value(); }
   double progress_seconds = 2.0;  ///< wall seconds between progress lines (0: every check)
   long checkpoint_every_steps = 0;         ///< checkpoint every N steps (0: not by step count)
   double checkpoint_every_seconds = 900.0; ///< checkpoint every T wall seconds (0: not by time)

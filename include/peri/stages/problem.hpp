@@ -51,6 +51,7 @@ struct Problem {
   std::vector<std::unique_ptr<Load>> loads;  ///< forces beside the bonds', in the order they add up
   Tools* tools = nullptr;                 ///< the tools among the loads, if any
   StagePlan stages;
+  std::int64_t frame_nodes = 0;           ///< nodes a frame holds (output.node_stride, output.region)
   std::string resolved;                   ///< the resolved scene, with the derived constants as comments
 };
 

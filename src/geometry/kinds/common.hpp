@@ -14,18 +14,12 @@ namespace peri::kinds {
 
 using scene_detail::Key;
 using scene_detail::Keys;
+using scene_detail::kBoxKeys;
 using scene_detail::Map;
 using scene_detail::Value;
 using scene_detail::Writer;
 
 inline constexpr double kPi = 3.14159265358979323846;
-
-/// A box {min, max} (a lattice's breakable box, a network's box).
-inline const Keys kBoxKeys = {
-    {.name = "min", .required = true, .what = "lower corner [x, y, z], m", .unit = "m", .doc = "lower corner [x, y, z]"},
-    {.name = "max", .required = true, .what = "upper corner [x, y, z], m", .unit = "m",
-     .doc = "upper corner [x, y, z], >= min in every component (> min for a network's box)"},
-};
 
 // The horizon of a peridynamic body: horizon_factor (m spacings) or horizon [m].
 inline const Key kHorizonFactorKey = {.name = "horizon_factor", .fallback = "3",
