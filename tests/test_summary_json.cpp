@@ -1,5 +1,6 @@
 // summary.json escapes every string it holds, whatever names reach it: derived constants keyed by
-// body name, quasi-static stage names, memory phases.
+// body name, quasi-static stage names, memory phases; and names its memory figures for what they
+// count.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -31,6 +32,19 @@ TEST(SummaryJson, EscapesEveryString) {
     if (at + 1 < j.size()) EXPECT_TRUE(j.compare(at + 1, 3, "  \"") == 0 || j[at + 1] == '}') << j.substr(at, 20);
   }
   EXPECT_GT(lines, 20u);
+}
+
+// Memory under honest names: the bond arrays per bond (bytes_per_bond, bond_array_bytes_per_bond)
+// beside the processes' peak over the phases per ordered bond.
+TEST(SummaryJson, NamesBothMemoryFigures) {
+  peri::RunSummary s;
+  s.ordered_bonds = 100;
+  s.bytes_per_bond = 5.25;
+  s.memory = {{"nodes", 1000, 900}, {"domain", 3000, 2500}, {"end", 2000, 2000}};
+  EXPECT_EQ(s.peak_bytes_per_bond(), 30.0);
+  const std::string j = s.to_json();
+  EXPECT_THAT(j, HasSubstr("\"bytes_per_bond\": 5.25,\n  \"bond_array_bytes_per_bond\": 5.25,\n  "
+                           "\"peak_bytes_per_bond\": 30,"));
 }
 
 }  // namespace

@@ -39,7 +39,8 @@ std::string RunSummary::to_json() const {
     << "  \"bond_updates_per_second\": " << json_number(updates) << ",\n"
     << "  \"bond_updates_per_second_per_rank\": " << json_number(updates / ranks) << ",\n"
     << "  \"bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
-
+    << "  \"bond_array_bytes_per_bond\": " << json_number(bytes_per_bond) << ",\n"
+    << "  \"peak_bytes_per_bond\": " << json_number(peak_bytes_per_bond()) << ",\n"
     << "  \"partition_seconds\": " << json_number(partition_seconds) << ",\n"
     << "  \"edge_cut\": " << edge_cut << ",\n"
     << "  \"partition_method\": " << json_string(partition_method) << ",\n"

@@ -4,6 +4,7 @@
 #pragma once
 #include <mpi.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -56,6 +57,13 @@ struct RunSummary {
   double crack_tip_seconds = 0;  ///< time spent finding and tracking tips (slowest rank)
   std::string crack_tips_json;  ///< JSON array, one object per track
   std::string to_json() const;
+  /// The processes' largest resident memory over the setup and run phases (summed over ranks) per
+  /// ordered bond: what a run really takes, beside bytes_per_bond, its bond arrays alone.
+  double peak_bytes_per_bond() const {
+    double peak = 0;
+    for (const MemoryMark& m : memory) peak = std::max(peak, m.peak);
+    return ordered_bonds > 0 ? peak / static_cast<double>(ordered_bonds) : 0.0;
+  }
 };
 
 /// Appends the memory after `phase` to summary.memory: peak and current resident set, summed
