@@ -79,8 +79,6 @@ tool=$src/drivers/scenes/blunt_tool.yaml
 expect tool_radius "tools.0.radius: expected a positive number [m], got -0.001" -- "$tool" --set tools.rod.radius=-0.001
 expect tool_kind "tools.0.kind: expected one of: cylinder, sphere; got cube" -- "$tool" --set tools.rod.kind=cube
 expect tool_center "tools.0.center: expected a list of 2 numbers [x, y] [m]" -- "$tool" --set tools.rod.center=[0,0,0]
-sed 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$tool" > "$work/tool_qs.yaml"
-expect tool_quasistatic "a quasistatic stage in a scene with tools" -- "$work/tool_qs.yaml"
 
 fiber=$src/drivers/scenes/fiber_long_range.yaml
 expect fiber_one_point "bodies.fiber.path: expected a list of at least 2 points [x, y, z], m" -- "$fiber" --set 'bodies.fiber.path=[[0,0,0]]'
@@ -99,8 +97,6 @@ expect sphere_pressure "bodies.balloon.pressure: expected a non-negative number 
 expect sphere_spacing "bodies.balloon.spacing: spacing must not exceed the radius (0.1 m), got 0.5" -- "$balloon" --set bodies.balloon.spacing=0.5
 expect sphere_tool_center "tools.0.center: expected a list of 3 numbers [x, y, z] [m]" -- "$balloon" --set 'tools.fragment.center=[1, 0]'
 expect membrane_pressure "bodies.sheet.pressure: only a sphere body (kind: sphere) takes pressure" -- "$scene" --set bodies.sheet.pressure=1e5
-sed -e '/^tools:$/,+1d' -e 's/^stages:$/stages:\n  - {name: settle, kind: quasistatic}/' "$balloon" > "$work/balloon_qs.yaml"
-expect pressure_quasistatic "a quasistatic stage in a scene with a pressurized sphere" -- "$work/balloon_qs.yaml"
 expect long_range_cutoff "long_range.cutoff: 1 m takes in" -- "$src/drivers/scenes/fiber_network.yaml" --set long_range.cutoff=1
 expect fiber_pressure "bodies.fiber.pressure: only a sphere body (kind: sphere) takes pressure" -- "$fiber" --set bodies.fiber.pressure=1e5
 network=$src/drivers/scenes/fiber_network.yaml

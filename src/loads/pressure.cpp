@@ -47,14 +47,58 @@ Pressure::Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, 
   }
 }
 
+double Pressure::current(const Sphere& load, double t) const {
+  if (load.held >= 0) return load.held;
+  return load.pressure * (load.ramp > 0 ? std::min(t / load.ramp, 1.0) : 1.0);
+}
+
+void Pressure::begin_quasistatic(double t) {
+  // At the run's start no pressure has acted yet (even without a ramp): level 0 is p = 0.
+  for (Sphere& load : loads_) load.held = load.held_from = load.held >= 0 || t > 0 ? current(load, t) : 0.0;
+}
+
+void Pressure::set_quasistatic_level(double level) {
+  for (Sphere& load : loads_) load.held = load.held_from + level * (load.pressure - load.held_from);
+}
+
+void Pressure::add_stiffness(const LoadTarget& target, const StiffnessSink& sink) const {
+  const double* x = target.x;
+  const std::int64_t s = target.x_stride;
+  auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
+  // [v]x: the matrix of v x (.), row-major, times k.
+  auto cross = [](const double* v, double k, double* m) {
+    const double r[9] = {0, -v[2], v[1], v[2], 0, -v[0], -v[1], v[0], 0};
+    for (int q = 0; q < 9; ++q) m[q] = k * r[q];
+  };
+  for (const Sphere& load : loads_) {
+    const double k = (load.held >= 0 ? load.held : load.pressure) / 6.0;
+    for (std::size_t m = 0; m < load.node.size(); ++m) {
+      const std::int32_t i = load.node[m];
+      for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
+        if (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1])) continue;
+        const std::int32_t a = load.others[e][0], c = load.others[e][1];
+        const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
+        const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
+        // F_i = k e1 x e2: dF_i = k ([e2]x - [e1]x) dx_i - k [e2]x dx_a + k [e1]x dx_c; K = -dF.
+        double kia[9], kic[9], kii[9];
+        cross(e2, k, kia);
+        cross(e1, -k, kic);
+        for (int q = 0; q < 9; ++q) kii[q] = -(kia[q] + kic[q]);
+        sink(i, i, kii);
+        sink(i, a, kia);
+        sink(i, c, kic);
+      }
+    }
+  }
+}
+
 void Pressure::add_forces(double t, const LoadTarget& target, bool book, EnergyLedger& ledger) {
   const double* x = target.x;
   const std::int64_t s = target.x_stride;
   double* force = target.force;
   auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
-  auto intact = [&](std::int64_t q) { return q < 0 || !(domain_.bonds.broken[q] & 1); };
   for (Sphere& load : loads_) {
-    const double p = load.pressure * (load.ramp > 0 ? std::min(t / load.ramp, 1.0) : 1.0);
+    const double p = current(load, t);
     double work = 0;
     for (std::size_t m = 0; m < load.node.size(); ++m) {
       const std::int32_t i = load.node[m];

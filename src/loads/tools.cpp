@@ -54,6 +54,15 @@ void Tools::add_forces(double t, const LoadTarget& target, bool book, EnergyLedg
   resumed_friction_.reset();
 }
 
+std::string Tools::touching() const {
+  for (std::size_t k = 0; k < tools_.size(); ++k) {
+    long long local = contact_[k].nodes, all = 0;
+    MPI_Allreduce(&local, &all, 1, MPI_LONG_LONG, MPI_SUM, comm_);
+    if (all > 0) return names_[k];
+  }
+  return "";
+}
+
 void Tools::end_step(double dt, const double* v, EnergyLedger& ledger) {
   for (std::size_t k = 0; k < tools_.size(); ++k)
     ledger.damping_work -= friction_work(tools_[k], contact_[k], dt, v, domain_.volume.data());

@@ -474,16 +474,6 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   bool dynamic = false;
   for (const Stage& st : s.stages) dynamic |= st.kind == StageKind::Dynamic;
   if (!dynamic) stages_value.fail("expected at least one stage of kind dynamic");
-  for (std::size_t i = 0; i < s.stages.size() && !s.tools.empty(); ++i)
-    if (s.stages[i].kind == StageKind::QuasiStatic)
-      stages[i].fail("a quasistatic stage in a scene with tools; tools act in dynamic stages only (tools: '" +
-                     s.tools.front().name + "')");
-
-  const bool pressurized = std::any_of(s.bodies.begin(), s.bodies.end(), [](const Body& b) { return b.pressure > 0; });
-  for (std::size_t i = 0; i < s.stages.size() && pressurized; ++i)
-    if (s.stages[i].kind == StageKind::QuasiStatic)
-      stages[i].fail("a quasistatic stage in a scene with a pressurized sphere; the pressure acts in dynamic stages "
-                     "only (the quasi-static residual holds the bonds alone)");
   for (std::size_t i = 0; i < s.stages.size() && s.long_range; ++i)
     if (s.stages[i].kind == StageKind::QuasiStatic)
       stages[i].fail("a quasistatic stage in a scene with long_range; long-range forces act in dynamic stages "

@@ -163,8 +163,8 @@ inline const Keys kToolKeys = {
     {.name = "name", .required = true, .what = "tool name, unique", .doc = "unique; names the tool's columns in series.csv"},
     {.name = "kind", .required = true, .what = "tool kind: cylinder or sphere",
      .doc = "`cylinder` (a rigid cylinder of infinite length, axis along z) or `sphere` (a rigid sphere); tools act "
-            "on every node by a penalty force with Coulomb friction, in dynamic stages (a scene with tools refuses "
-            "quasistatic stages), and must start clear of the bodies"},
+            "on every node by a penalty force with Coulomb friction, in dynamic stages (one that touches the body "
+            "at the end of a quasistatic stage stops the run), and must start clear of the bodies"},
     {.name = "radius", .required = true, .what = "cylinder radius, m", .unit = "m", .doc = "> 0"},
     {.name = "center", .required = true, .what = "axis position [x, y] at t = 0, m", .unit = "m",
      .doc = "cylinder: axis position [x, y] at t = 0; sphere: centre [x, y, z] at t = 0"},

@@ -23,14 +23,50 @@ void ProblemEquilibrium::get_displacement(double* u_owned) {
   std::copy(u.data(), u.data() + 3 * static_cast<std::size_t>(p_.domain.owned), u_owned);
 }
 
+bool ProblemEquilibrium::loaded() const {
+  return std::any_of(p_.loads.begin(), p_.loads.end(), [](const auto& load) { return load->quasistatic(); });
+}
+
 void ProblemEquilibrium::internal_force(double* f_owned) {
   p_.forces->compute(false, true, ledger_.bonds);
-  const double* force = p_.forces->force();
+  double* force = p_.forces->force();
+  const std::size_t n = 3 * static_cast<std::size_t>(p_.domain.owned);
+  if (loaded()) {
+    // The loads add force densities on top of the bonds'; their part is kept for the work.
+    load_force_.assign(force, force + n);
+    const LoadTarget target{p_.forces->positions(), p_.forces->position_stride(), force, 0.0};
+    EnergyLedger scratch;  // nothing is booked: the loader books the loads' work per increment
+    for (const auto& load : p_.loads)
+      if (load->quasistatic()) load->add_forces(0.0, target, false, scratch);
+    for (std::size_t k = 0; k < n; ++k) load_force_[k] = (force[k] - load_force_[k]) * p_.domain.volume[k / 3];
+  }
   for (std::int32_t i = 0; i < p_.domain.owned; ++i)
     for (int c = 0; c < 3; ++c) f_owned[3 * i + c] = force[3 * i + c] * p_.domain.volume[i];
 }
 
-void ProblemEquilibrium::add_tangent(Mat J) { p_.forces->add_tangent(J); }
+bool ProblemEquilibrium::load_force(double* f_owned) {
+  if (load_force_.empty()) return false;
+  std::copy(load_force_.begin(), load_force_.end(), f_owned);
+  return true;
+}
+
+void ProblemEquilibrium::set_load_level(double level) {
+  for (const auto& load : p_.loads)
+    if (load->quasistatic()) load->set_quasistatic_level(level);
+}
+
+void ProblemEquilibrium::add_tangent(Mat J) {
+  p_.forces->add_tangent(J);  // (it leaves the current positions in forces->positions())
+  if (!loaded()) return;
+  const LoadTarget target{p_.forces->positions(), p_.forces->position_stride(), nullptr, 0.0};
+  const auto& global = p_.domain.global;
+  const Load::StiffnessSink sink = [&](std::int32_t i, std::int32_t j, const double* block) {
+    const PetscInt row = static_cast<PetscInt>(global[i]), col = static_cast<PetscInt>(global[j]);
+    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, 1, &col, block, ADD_VALUES));
+  };
+  for (const auto& load : p_.loads)
+    if (load->quasistatic()) load->add_stiffness(target, sink);
+}
 
 std::int64_t ProblemEquilibrium::break_bonds() {
   const std::int64_t before = ledger_.bonds.newly_broken;
@@ -57,8 +93,10 @@ std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& st
                                              spacing, stage);
 }
 
-QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, EquilibriumModel& model, EnergyLedger& ledger,
-                                 bool verbose) {
+QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, double t, EquilibriumModel& model,
+                                 EnergyLedger& ledger, bool verbose) {
+  for (const auto& load : p.loads)
+    if (load->quasistatic()) load->begin_quasistatic(t);
   const std::size_t n = 3 * static_cast<std::size_t>(p.domain.owned);
   std::vector<std::uint8_t> constrained(n, 0);
   std::vector<double> increment(n, 0.0);
@@ -68,6 +106,12 @@ QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, EquilibriumMode
     for (std::int32_t i = 0; i < p.domain.owned; ++i)
       if (p.bodies[p.domain.body[i]].traits.flat) constrained[3 * static_cast<std::size_t>(i) + 2] = 1;
   std::unique_ptr<QuasiStaticLoader> loader = make_loader(p, stage);
+  {  // the bodies' rigid motions at the current positions, for the multigrid preconditioner
+    std::vector<double> x(n);
+    model.get_displacement(x.data());
+    for (std::size_t k = 0; k < n; ++k) x[k] += p.domain.X[k];
+    loader->set_near_null_space(x, constrained);
+  }
   QuasiStaticStats stats = loader->run(model, constrained, increment, verbose);
   ledger.external_work += stats.external_work;
   // Equilibrium: at rest.

@@ -89,11 +89,14 @@ void Simulation::begin() {
   }
   apply_initial_conditions(*p_);
   // Stages that take no time and come first (preload, release) shape the initial state.
+  const Stage* quasistatic = nullptr;
   while (stage_ < scene_.stages.size() && scene_.stages[stage_].kind != StageKind::Dynamic) {
     run_timeless_stage(scene_.stages[stage_]);
+    if (scene_.stages[stage_].kind == StageKind::QuasiStatic) quasistatic = &scene_.stages[stage_];
     ++stage_;
   }
   verlet_.forces_at(time_);
+  if (quasistatic) check_tools_clear(*quasistatic);
   write_series_row();
   summary_.initial_total_energy = summary_.final_energy.total();
   // Without a leading preload the whole run's balance starts here too (run_quasistatic sets it
@@ -120,6 +123,7 @@ std::int64_t Simulation::advance(std::int64_t n) {
       run_timeless_stage(stage);
       ++stage_;
       verlet_.forces_at(time_);
+      if (stage.kind == StageKind::QuasiStatic) check_tools_clear(stage);
       write_series_row();
       if (stage.kind == StageKind::QuasiStatic) summary_.initial_total_energy = summary_.final_energy.total();
       continue;
@@ -203,6 +207,17 @@ void Simulation::run_timeless_stage(const Stage& stage) {
   else run_release(stage);
 }
 
+void Simulation::check_tools_clear(const Stage& stage) {
+  // Tools act in dynamic stages only: an equilibrium found without a tool that touches the body
+  // is not the state the scene describes.
+  const std::string tool = p_->tools ? p_->tools->touching() : std::string();
+  if (!tool.empty())
+    throw RuntimeFailure(stage.where.str() + ": stages." + stage.name + ": tool '" + tool +
+                     "' touches the body at the end of this quasi-static stage; tools act in dynamic stages only "
+                     "(the equilibrium holds the bonds and the pressure): place the tool clear of the body until a "
+                     "dynamic stage");
+}
+
 void Simulation::run_release(const Stage& stage) {
   const std::int64_t released = release_cracks(*p_, stage, ledger_);
   summary_.precrack_bonds += released;
@@ -221,7 +236,7 @@ void Simulation::run_quasistatic(const Stage& stage) {
     std::printf("[peridrive] quasistatic '%s': %ld initial load steps\n", stage.name.c_str(), stage.load_steps);
     std::fflush(stdout);
   }
-  const QuasiStaticStats stats = peri::run_quasistatic(*p_, stage, equilibrium_, ledger_, !options_.quiet);
+  const QuasiStaticStats stats = peri::run_quasistatic(*p_, stage, time_, equilibrium_, ledger_, !options_.quiet);
   const EnergyRow after = energies();
   const double work = stats.external_work;
   const double stored = (after.strain - before.strain) + (after.dissipated - before.dissipated) - before.kinetic;
@@ -336,6 +351,14 @@ void Simulation::restore(const Checkpoint& c) {
   stage_step_ = c.stage_step;
   summary_.initial_total_energy = c.initial_total_energy;
   extras_.restore(c);
+  // A load that a quasi-static stage before this one brought to its full value keeps it.
+  for (std::size_t k = 0; k < stage_ && k < scene_.stages.size(); ++k)
+    if (scene_.stages[k].kind == StageKind::QuasiStatic)
+      for (const auto& load : p_->loads)
+        if (load->quasistatic()) {
+          load->begin_quasistatic(time_);
+          load->set_quasistatic_level(1.0);
+        }
 
   // Forces at the restored positions, computed as the uninterrupted run did at the end of this
   // step; every bond past its critical stretch there is already broken, so none breaks now.
@@ -437,6 +460,8 @@ const std::string& Simulation::resolved_scene() const { return p_->resolved; }
 void Simulation::set_displacement(const double* u_owned) { equilibrium_.set_displacement(u_owned); }
 void Simulation::get_displacement(double* u_owned) { equilibrium_.get_displacement(u_owned); }
 void Simulation::internal_force(double* f_owned) { equilibrium_.internal_force(f_owned); }
+bool Simulation::load_force(double* f_owned) { return equilibrium_.load_force(f_owned); }
+void Simulation::set_load_level(double level) { equilibrium_.set_load_level(level); }
 void Simulation::add_tangent(Mat J) { equilibrium_.add_tangent(J); }
 std::int64_t Simulation::break_bonds() { return equilibrium_.break_bonds(); }
 

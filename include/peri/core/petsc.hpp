@@ -51,6 +51,7 @@ using OwnedIS = PetscOwner<IS, ISDestroy>;
 using OwnedSNES = PetscOwner<SNES, SNESDestroy>;
 using OwnedScatter = PetscOwner<VecScatter, VecScatterDestroy>;
 using OwnedPartitioning = PetscOwner<MatPartitioning, MatPartitioningDestroy>;
+using OwnedNullSpace = PetscOwner<MatNullSpace, MatNullSpaceDestroy>;
 
 /// The array of a Vec (its local part), writable, for the lifetime of the guard.
 class VecArray {

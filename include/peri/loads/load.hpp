@@ -4,6 +4,7 @@
 // Prescribed motion (boundaries.hpp) is not a force and is not one of them.
 #pragma once
 #include <cstdint>
+#include <functional>
 
 #include "peri/diagnostics/energies.hpp"
 
@@ -27,6 +28,19 @@ class Load {
   /// The end of a step of length dt, `v` the velocities at its end (3 per owned node): work that
   /// needs them (friction) goes to the ledger.
   virtual void end_step(double /*dt*/, const double* /*v*/, EnergyLedger& /*ledger*/) {}
+
+  // Quasi-static stages. A load that acts there says so; its forces join the equilibrium's
+  // residual and its stiffness the tangent. The others (tools) act in dynamic stages only.
+  virtual bool quasistatic() const { return false; }
+  /// The start of a quasi-static stage at time t: the load's value now is where its level 0 is.
+  virtual void begin_quasistatic(double /*t*/) {}
+  /// Quasi-static load stepping: the load at `level` in [0, 1] of the way from its value at the
+  /// stage's start to its full value, whatever the time; once at level 1 it stays full after.
+  virtual void set_quasistatic_level(double /*level*/) {}
+  /// 3x3 blocks K_ij = -dF_i/dx_j (row-major, F in N) of the load's stiffness at the current
+  /// positions, row i an owned node, column j a local node.
+  using StiffnessSink = std::function<void(std::int32_t i, std::int32_t j, const double* block)>;
+  virtual void add_stiffness(const LoadTarget& /*target*/, const StiffnessSink& /*sink*/) const {}
 };
 
 }  // namespace peri

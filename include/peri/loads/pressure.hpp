@@ -3,6 +3,9 @@
 // corner whose bonds to the other two corners are intact (a torn triangle holds no gas). p rises
 // linearly from 0 over the body's pressure_ramp_time. Work: the mean of the two forces of a node
 // times its displacement between two booked evaluations (trapezoidal).
+// In quasi-static stages the pressure steps with the load factor instead of the time (from its
+// value at the stage's start to the full p) and stays full after; its stiffness, not symmetric
+// (a follower load), joins the tangent.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -23,10 +26,15 @@ class Pressure final : public Load {
   /// Whether no body is loaded (the scene needs no pressure load).
   bool empty() const { return loads_.empty(); }
   void add_forces(double t, const LoadTarget& target, bool book, EnergyLedger& ledger) override;
+  bool quasistatic() const override { return true; }
+  void begin_quasistatic(double t) override;
+  void set_quasistatic_level(double level) override;
+  void add_stiffness(const LoadTarget& target, const StiffnessSink& sink) const override;
 
  private:
   struct Sphere {
     double pressure = 0, ramp = 0;
+    double held = -1, held_from = 0;  // quasi-static: p held at `held` (< 0: p(t)), level 0 at held_from
     std::vector<std::int32_t> node;                   // owned loaded nodes (local)
     std::vector<std::int64_t> begin{0};               // per loaded node, into the lists below
     std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
@@ -34,6 +42,8 @@ class Pressure final : public Load {
     std::vector<double> force_prev, x_prev;           // per loaded node: last force [N], position
     bool started = false;
   };
+  double current(const Sphere& load, double t) const;
+  bool intact(std::int64_t q) const { return q < 0 || !(domain_.bonds.broken[q] & 1); }
   const Domain& domain_;
   std::vector<Sphere> loads_;
 };

@@ -44,6 +44,10 @@ class Tools final : public Load {
   /// Collective.
   std::string series_values(double time, bool leading_comma) const;
 
+  /// The first tool (scene order) that touched a node at the last evaluation, on any rank; ""
+  /// when none did. Collective.
+  std::string touching() const;
+
   /// The friction forces of the last evaluation, (natural id, tool, force) per node, gathered on
   /// rank 0 (checkpoints). Collective.
   std::vector<double> save_friction() const;

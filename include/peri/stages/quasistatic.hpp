@@ -36,9 +36,15 @@ class EquilibriumModel {
   virtual void set_displacement(const double* u_owned) = 0;
   /// Current owned displacement.
   virtual void get_displacement(double* u_owned) = 0;
-  /// Internal force (N, i.e. force density * measure) on each owned component at the current
-  /// displacement, with intact laws (no breaking).
+  /// Force (N, i.e. force density * measure) on each owned component at the current
+  /// displacement: the bonds' with intact laws (no breaking), plus the loads that act in
+  /// quasi-static stages (a balloon's pressure) at the current load level.
   virtual void internal_force(double* f_owned) = 0;
+  /// Of the last internal_force, the loads' part (3 per owned node), from which the work they
+  /// do is booked; false, with nothing written, when no load acts.
+  virtual bool load_force(double* /*f_owned*/) { return false; }
+  /// Make `level` in [0, 1] the loads' quasi-static level (set_quasistatic_level).
+  virtual void set_load_level(double /*level*/) {}
   /// Add K = -d(F V)/du at the current displacement to `J` (global block indices; ADD_VALUES).
   virtual void add_tangent(Mat J) = 0;
   /// Break the bonds that fail at the current displacement; returns the number broken on all
@@ -63,6 +69,9 @@ struct QuasiStaticStats {
   std::int64_t broken = 0;
   double external_work = 0;  ///< this rank's share of the support reactions' work [J] (trapezoidal)
   double seconds = 0;
+  double residual_seconds = 0;  ///< of which in residuals (internal forces)
+  double tangent_seconds = 0;   ///< of which in tangents (assembly)
+  int near_null_modes = 0;      ///< rigid motions given to the multigrid preconditioner
 };
 
 class QuasiStaticLoader {
@@ -81,6 +90,12 @@ class QuasiStaticLoader {
   /// increment cannot converge within the stage's limits.
   QuasiStaticStats run(EquilibriumModel& model, const std::vector<std::uint8_t>& constrained,
                        const std::vector<double>& increment, bool verbose);
+
+  /// The near null space of the tangent for the multigrid preconditioner: the rigid motions of
+  /// nodes at `x` (3 per owned node), zero on the `constrained` components, orthonormalized.
+  /// Collective; without it GAMG assumes a scalar problem.
+  void set_near_null_space(const std::vector<double>& x, const std::vector<std::uint8_t>& constrained);
+  int near_null_modes() const { return near_null_modes_; }
 
   /// Residual and Jacobian at the model's current state (tests: finite-difference checks).
   void residual(EquilibriumModel& model, const std::vector<double>& u, std::vector<double>& r);
@@ -106,6 +121,8 @@ class QuasiStaticLoader {
   const std::vector<std::uint8_t>* constrained_ = nullptr;
   std::vector<double> target_, force_;  // prescribed values; internal force work array
   std::vector<PetscInt> constrained_rows_;  // global point indices of constrained components
+  int near_null_modes_ = 0;
+  double residual_seconds_ = 0, tangent_seconds_ = 0;  // in eval_residual, eval_jacobian
 };
 
 }  // namespace peri

@@ -4,6 +4,7 @@
 // targets, the rest to equilibrium, then the body at rest.
 #pragma once
 #include <memory>
+#include <vector>
 
 #include "peri/diagnostics/energies.hpp"
 #include "peri/stages/problem.hpp"
@@ -18,12 +19,16 @@ class ProblemEquilibrium final : public EquilibriumModel {
   void set_displacement(const double* u_owned) override;
   void get_displacement(double* u_owned) override;
   void internal_force(double* f_owned) override;
+  bool load_force(double* f_owned) override;
+  void set_load_level(double level) override;
   void add_tangent(Mat J) override;
   std::int64_t break_bonds() override;
 
  private:
+  bool loaded() const;  // whether some load acts in quasi-static stages
   Problem& p_;
   EnergyLedger& ledger_;
+  std::vector<double> load_force_;  // the loads' part of the last internal_force [N]
 };
 
 /// A loader for `stage`, sized for the problem's bonds (its stiffness scale the mean reference
@@ -34,7 +39,8 @@ std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& st
 /// and, for an in-plane stage, the flat membranes' out-of-plane components are constrained; the
 /// body ends at rest. This rank's support work goes to the ledger; the figures returned hold
 /// the work of all ranks. Collective.
-QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, EquilibriumModel& model, EnergyLedger& ledger,
-                                 bool verbose);
+/// `t`: the time of the stage (the loads' level 0 is their value then).
+QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, double t, EquilibriumModel& model,
+                                 EnergyLedger& ledger, bool verbose);
 
 }  // namespace peri

@@ -80,6 +80,8 @@ class Simulation : public EquilibriumModel {
   void set_displacement(const double* u_owned) override;
   void get_displacement(double* u_owned) override;
   void internal_force(double* f_owned) override;
+  bool load_force(double* f_owned) override;
+  void set_load_level(double level) override;
   void add_tangent(Mat J) override;
   std::int64_t break_bonds() override;
   /// Loader for quasi-static stage `s` (sized for this run's bonds).
@@ -108,6 +110,7 @@ class Simulation : public EquilibriumModel {
   void run_timeless_stage(const Stage& stage);  // a quasi-static or release stage
   void run_quasistatic(const Stage& stage);
   void run_release(const Stage& stage);
+  void check_tools_clear(const Stage& stage);  // after a quasi-static stage: no tool may touch
   void start_loop_clock();                   // the steps timed from here
   void check_health(std::int64_t step, double time);
   void write_frame();

@@ -162,7 +162,7 @@ BodyKind sphere_kind() {
       {.name = "pressure", .unit = "Pa", .fallback = "0",
        .doc = "internal pressure p >= 0, a follower load (each geodesic triangle carries p times its current area "
               "vector, a third to each corner whose bonds to the other two are intact); its work is external work; "
-              "wall stress p R / (2 h) at most 100 in-plane bulk moduli; refuses quasistatic stages"},
+              "wall stress p R / (2 h) at most 100 in-plane bulk moduli; in quasistatic stages p steps with the load factor, its stiffness in the tangent"},
       {.name = "pressure_ramp_time", .unit = "s", .fallback = "0",
        .doc = "the pressure rises linearly from 0 over this time, >= 0"},
   };
