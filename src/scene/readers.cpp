@@ -154,6 +154,26 @@ Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {
   return c;
 }
 
+// A point cloud's material column splits the file among the bodies that read it, one body per
+// material: every material it names is some such body's, or the rows would be lost unseen.
+void check_point_cloud_materials(const std::vector<Body>& bodies) {
+  for (const Body& b : bodies)
+    for (const auto& [material, line] : b.cloud_materials) {
+      std::vector<std::string> readers;
+      bool taken = false;
+      for (const Body& other : bodies)
+        if (other.points == b.points) {
+          readers.push_back(other.name + " (" + other.material + ")");
+          taken = taken || other.material == material;
+        }
+      if (!taken)
+        throw InputError(b.points + ":" + std::to_string(line) + ": bodies." + b.name + ".points: material '" +
+                         material + "' is no body's: the bodies that read this file are " + join(readers) +
+                         "; expected one body with points: this file and material: " + material +
+                         " for each material of the file");
+    }
+}
+
 Region read_region(const Value& v, const std::vector<Body>& bodies) {
   const Map m(v, &kRegionKeys, "a box {min: [x, y, z], max: [x, y, z]}");
   Region r;
@@ -431,6 +451,7 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   if (bodies.empty()) top.at("bodies").fail("expected at least one body, got an empty map");
   bodies.check_key_names("body");
   for (const auto& [name, v] : bodies.items()) s.bodies.push_back(read_body(name, v, s.materials));
+  check_point_cloud_materials(s.bodies);
 
   UniqueNames crack_names("crack");
   const auto cracks = optional_list(top, "cracks", "a list of cracks");

@@ -7,6 +7,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "peri/core/error.hpp"
@@ -91,6 +92,35 @@ struct FiberNetwork {
   long seed = 1;
 };
 
+/// A region whose nodes a body drops before bonds are built (a hole, a notch, a slot): nodes
+/// removed by a cutout do not exist at all (no detached plug, no zero-mass node).
+enum class CutoutShape {
+  Circle,    ///< |(x, y) - center| <= radius in the xy plane (through a solid along z)
+  Box,       ///< min <= x <= max in every component
+  Polygon,   ///< (x, y) inside the polygon `vertices` (even-odd rule; through a solid along z)
+  Sphere,    ///< |x - center| <= radius (solids)
+  Cylinder,  ///< distance to the line through center along `axis` <= radius, unbounded (solids)
+};
+
+struct Cutout {
+  SourceLoc where;
+  CutoutShape shape = CutoutShape::Circle;
+  Vec3 center{0, 0, 0};  ///< circle (z unused), sphere, cylinder (a point on its axis) [m]
+  double radius = 0.0;   ///< circle, sphere, cylinder [m] (> 0)
+  Vec3 min{0, 0, 0}, max{0, 0, 0};                  ///< box [m]
+  std::vector<std::array<double, 2>> vertices;      ///< polygon, in the xy plane [m]
+  int axis = 2;                                     ///< cylinder: 0, 1, 2 for x, y, z
+  /// True when the reference position x lies in the cutout (its boundary included; a polygon's
+  /// edges may fall either way).
+  bool contains(const Vec3& x) const;
+};
+
+/// One point of a point-cloud body (a solid's `points` file): position [m] and volume [m^3].
+struct CloudPoint {
+  Vec3 x{0, 0, 0};
+  double volume = 0.0;
+};
+
 struct Body {
   std::string name;
   SourceLoc where;
@@ -122,7 +152,20 @@ struct Body {
   double radius = 0.0;              ///< [m] (> 0)
   double pressure = 0.0;            ///< [Pa] (>= 0)
   double pressure_ramp_time = 0.0;  ///< [s] (>= 0)
+  /// Grid bodies (membranes, solids, lattices): regions whose nodes are removed, in scene order.
+  std::vector<Cutout> cutouts;
+  /// Solids from a point cloud (`points: file`): the file's path, resolved against the scene
+  /// file's folder (empty: a box of simple-cubic points), and its rows this body takes, in file
+  /// order (those whose material column names the body's material, or all of them).
+  std::string points;
+  std::vector<CloudPoint> cloud;
+  /// The materials the file's material column names, each with the line it first appears on.
+  std::vector<std::pair<std::string, long>> cloud_materials;
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
+  /// True when one of the cutouts holds the reference position x.
+  bool cut_out(const Vec3& x) const {
+    return std::any_of(cutouts.begin(), cutouts.end(), [&](const Cutout& c) { return c.contains(x); });
+  }
 };
 
 /// Axis-aligned box [min, max] (inclusive) selecting nodes by reference position.

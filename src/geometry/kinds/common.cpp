@@ -57,7 +57,10 @@ void read_sheet_extent(const Map& m, Body& b) {
 
 std::int64_t count_along(double length, double dx) { return std::max<std::int64_t>(1, std::llround(length / dx)); }
 
-void grid_sheet_nodes(const Body& b, BodyGeometry& g, NodeSink& sink) {
+namespace {
+
+// The grid sheet's cell centres, rows along x, through the cutouts' filter.
+void grid_sheet_raster(const Body& b, BodyGeometry& g, CutSink& sink) {
   const double dx = b.spacing;
   g.thickness = b.thickness;
   if (g.grid == Grid::Square) {
@@ -81,6 +84,14 @@ void grid_sheet_nodes(const Body& b, BodyGeometry& g, NodeSink& sink) {
     for (std::int64_t i = 0; i < nx; ++i)
       sink.add(b.origin[0] + (i + shift) * dx, b.origin[1] + (j + 0.5) * dy, b.origin[2], g.cell_area * b.thickness);
   }
+}
+
+}  // namespace
+
+void grid_sheet_nodes(const Body& b, BodyGeometry& g, NodeSink& all) {
+  CutSink sink(b, all);
+  grid_sheet_raster(b, g, sink);
+  sink.finish();
 }
 
 double grid_sheet_count(const Body& b) {

@@ -3,6 +3,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "peri/core/format.hpp"
 #include "peri/geometry/discretization.hpp"
@@ -45,6 +46,58 @@ double grid_sheet_count(const Body& b);
 
 /// Number of grid cells along a length (at least one).
 std::int64_t count_along(double length, double dx);
+
+// Cutouts (cutouts.cpp): regions whose nodes a grid body drops before bonds are built.
+inline const Keys kCutoutKeys = {
+    {.name = "kind", .required = true, .what = "the cutout's shape: circle, box, polygon, sphere or cylinder",
+     .doc = "`circle` (center, radius: the nodes within radius of center in the xy plane; through a solid along "
+            "z), `box` (min, max: a closed box), `polygon` (vertices: the nodes inside it in the xy plane, "
+            "even-odd rule; through a solid along z), `sphere` (center, radius; solids) or `cylinder` (center, "
+            "radius, axis: unbounded along its axis; solids)"},
+    {.name = "center", .unit = "m", .fallback = "required (circle, sphere, cylinder)",
+     .doc = "circle: [x, y]; sphere: [x, y, z]; cylinder: a point [x, y, z] on its axis"},
+    {.name = "radius", .unit = "m", .fallback = "required (circle, sphere, cylinder)",
+     .doc = "> 0; nodes at a distance <= radius are removed"},
+    {.name = "axis", .fallback = "z", .doc = "cylinder: its axis, `x`, `y` or `z`"},
+    {.name = "min", .unit = "m", .fallback = "required (box)", .doc = "box: lower corner [x, y, z]"},
+    {.name = "max", .unit = "m", .fallback = "required (box)",
+     .doc = "box: upper corner [x, y, z], >= min in every component"},
+    {.name = "vertices", .unit = "m", .fallback = "required (polygon)",
+     .doc = "polygon: at least 3 corners [[x, y], ...] in order, each different from the one before, enclosing "
+            "an area (the last joins the first); a node exactly on an edge may fall either way"},
+};
+inline const Key kCutoutsKey = {
+    .name = "cutouts", .fallback = "none",
+    .doc = "list of regions whose nodes are removed before bonds are built (a hole, a notch) "
+           "(`bodies.<name>.cutouts[i]`); removed nodes do not exist at all. Each cutout must remove at least "
+           "one node and the body must keep one; --dry-run's size estimate ignores them"};
+void read_cutouts(const Map& m, Body& b, int dimension);
+void emit_cutouts(Writer& w, const Body& b);
+
+/// What a kind's discretize adds its candidate nodes to when the body may have cutouts: passes
+/// on those no cutout holds. finish() throws InputError for a cutout that held no candidate
+/// (named at its line) and for cutouts that removed every candidate (at the body's line).
+class CutSink {
+ public:
+  CutSink(const Body& b, NodeSink& sink);
+  void add(double x, double y, double z, double measure);
+  void finish() const;
+
+ private:
+  const Body& body_;
+  NodeSink& sink_;
+  std::int64_t first_;
+  std::int64_t candidates_ = 0;
+  std::vector<std::int64_t> held_;
+};
+
+// Point clouds (point_cloud.cpp).
+/// A file named by the scene value v, resolved against the scene file's folder (the working
+/// directory for a value set by --set), absolute.
+std::string resolve_input_path(const Value& v, const std::string& path);
+/// Reads the CSV file v names into b.points (its resolved path), b.cloud (the rows the body
+/// takes, in file order) and b.cloud_materials. InputError naming the file and line.
+void read_point_cloud(const Value& v, Body& b);
 
 /// "bodies.<name>.<key> <value> m" for messages.
 std::string key_text(const Body& b, const char* key, double value);

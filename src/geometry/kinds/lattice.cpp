@@ -32,6 +32,7 @@ void read(const Map& m, Body& b, const Material& mat) {
                  format_number(lo[d]) + " > max " + format_number(hi[d]));
     b.breakable = std::array<Vec3, 2>{lo, hi};
   }
+  read_cutouts(m, b, 2);
 }
 
 void emit(Writer& w, const Body& b) {
@@ -42,6 +43,7 @@ void emit(Writer& w, const Body& b) {
   if (b.breakable)
     w.key(4, "breakable",
           "{min: " + scene_detail::flow((*b.breakable)[0]) + ", max: " + scene_detail::flow((*b.breakable)[1]) + "}");
+  emit_cutouts(w, b);
 }
 
 // The hexagonal grid of a membrane, with the nearest neighbours' horizon and full weights.
@@ -72,8 +74,9 @@ BodyKind lattice_kind() {
       {.name = "breakable", .unit = "m", .fallback = "everywhere",
        .doc = "`{min: [x, y, z], max: [x, y, z]}`: only bonds with both ends inside this box (reference positions) "
               "may break (`bodies.<name>.breakable`)"},
+      kCutoutsKey,
   };
-  k.nested = {{"breakable", &kBoxKeys}};
+  k.nested = {{"breakable", &kBoxKeys}, {"cutouts[i]", &kCutoutKeys}};
   k.read = read;
   k.emit = emit;
   k.measure_keys = [](const Body& b) {

@@ -19,6 +19,7 @@ void read(const Map& m, Body& b, const Material&) {
   if (auto x = m.get("quadrature"))
     b.quadrature = x->choice<Quadrature>(
         {{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}, {"taper", Quadrature::Taper}});
+  read_cutouts(m, b, 2);
 }
 
 void emit(Writer& w, const Body& b) {
@@ -29,6 +30,7 @@ void emit(Writer& w, const Body& b) {
   w.key(4, "grid", scene_detail::to_text(b.grid));
   emit_horizon(w, b);
   w.key(4, "quadrature", scene_detail::to_text(b.quadrature));
+  emit_cutouts(w, b);
 }
 
 }  // namespace
@@ -52,7 +54,9 @@ BodyKind membrane_kind() {
       kHorizonFactorKey,
       kHorizonKey,
       kQuadratureKey,
+      kCutoutsKey,
   };
+  k.nested = {{"cutouts[i]", &kCutoutKeys}};
   k.read = read;
   k.emit = emit;
   k.measure_keys = [](const Body& b) {

@@ -1,5 +1,6 @@
 // Body kind `solid`: a box of simple-cubic points at the centres of dx-cubes, measure dx^3 (3D
-// PMB solids).
+// PMB solids), or a point cloud read from a CSV file (point_cloud.cpp), each point with its own
+// volume; cutouts remove nodes of either.
 #include <algorithm>
 
 #include "common.hpp"
@@ -12,41 +13,66 @@ using scene_detail::format_number;
 using scene_detail::join;
 
 void read(const Map& m, Body& b, const Material&) {
-  b.origin = m.at("origin").vec3("m");
-  const Value size = m.at("size");
-  const std::string expected = "a solid size [Lx, Ly, Lz] with all entries > 0 [m]";
-  const auto xs = size.numbers(3, 3, expected, "m");
-  if (!(xs[0] > 0 && xs[1] > 0 && xs[2] > 0))
-    size.fail("expected " + expected + ", got [" + join({format_number(xs[0]), format_number(xs[1]), format_number(xs[2])}) +
-              "]");
-  b.size = {xs[0], xs[1], xs[2]};
-  const Value spacing = m.at("spacing");
-  b.spacing = spacing.positive("m");
-  const double smallest = std::min({b.size[0], b.size[1], b.size[2]});
-  if (b.spacing > smallest)
-    spacing.fail("spacing must not exceed the smallest extent of size (" + format_number(smallest) + " m), got " +
-                 spacing.got());
-  if (auto x = m.get("grid")) {
-    b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
-    if (b.grid != Grid::Square) x->fail("a solid body supports only grid square, got " + x->got());
+  if (auto points = m.get("points")) {
+    // A point cloud: the file gives the nodes; the box's keys have no meaning.
+    for (const char* key : {"origin", "size", "grid"})
+      if (auto x = m.get(key))
+        x->fail(std::string("not with points: a point-cloud solid takes its nodes from the file, not from ") + key);
+    b.spacing = m.at("spacing").positive("m");
+    read_point_cloud(*points, b);
+  } else {
+    if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m; or points");
+    if (!m.given("size")) m.missing("size", "extent [Lx, Ly, Lz] of the box, m; or points");
+    b.origin = m.at("origin").vec3("m");
+    const Value size = m.at("size");
+    const std::string expected = "a solid size [Lx, Ly, Lz] with all entries > 0 [m]";
+    const auto xs = size.numbers(3, 3, expected, "m");
+    if (!(xs[0] > 0 && xs[1] > 0 && xs[2] > 0))
+      size.fail("expected " + expected + ", got [" +
+                join({format_number(xs[0]), format_number(xs[1]), format_number(xs[2])}) + "]");
+    b.size = {xs[0], xs[1], xs[2]};
+    const Value spacing = m.at("spacing");
+    b.spacing = spacing.positive("m");
+    const double smallest = std::min({b.size[0], b.size[1], b.size[2]});
+    if (b.spacing > smallest)
+      spacing.fail("spacing must not exceed the smallest extent of size (" + format_number(smallest) + " m), got " +
+                   spacing.got());
+    if (auto x = m.get("grid")) {
+      b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
+      if (b.grid != Grid::Square) x->fail("a solid body supports only grid square, got " + x->got());
+    }
   }
   read_horizon(m, b);
   if (auto x = m.get("quadrature"))
     b.quadrature = x->choice<Quadrature>(
         {{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}, {"taper", Quadrature::Taper}});
+  read_cutouts(m, b, 3);
 }
 
 void emit(Writer& w, const Body& b) {
-  w.key(4, "origin", scene_detail::flow(b.origin));
-  w.key(4, "size", scene_detail::flow(b.size));
+  if (!b.points.empty()) {
+    w.key(4, "points", scene_detail::yaml_string(b.points));
+  } else {
+    w.key(4, "origin", scene_detail::flow(b.origin));
+    w.key(4, "size", scene_detail::flow(b.size));
+  }
   w.key(4, "spacing", b.spacing);
-  w.key(4, "grid", scene_detail::to_text(b.grid));
+  if (b.points.empty()) w.key(4, "grid", scene_detail::to_text(b.grid));
   emit_horizon(w, b);
   w.key(4, "quadrature", scene_detail::to_text(b.quadrature));
+  emit_cutouts(w, b);
 }
 
-// Cell-centred cubic grid, x fastest, then y, then z.
-void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
+// Cell-centred cubic grid, x fastest, then y, then z; or the point cloud's rows in file order
+// (no grid: reference offsets are not snapped and rows get their own family patterns).
+void discretize(const Body& b, BodyGeometry& g, NodeSink& all) {
+  CutSink sink(b, all);
+  if (!b.points.empty()) {
+    g.traits.grid = false;
+    for (const CloudPoint& p : b.cloud) sink.add(p.x[0], p.x[1], p.x[2], p.volume);
+    sink.finish();
+    return;
+  }
   const double dx = b.spacing;
   const std::int64_t nx = count_along(b.size[0], dx), ny = count_along(b.size[1], dx), nz = count_along(b.size[2], dx);
   g.cells = {nx, ny, nz};
@@ -54,9 +80,11 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
     for (std::int64_t j = 0; j < ny; ++j)
       for (std::int64_t i = 0; i < nx; ++i)
         sink.add(b.origin[0] + (i + 0.5) * dx, b.origin[1] + (j + 0.5) * dx, b.origin[2] + (k + 0.5) * dx, dx * dx * dx);
+  sink.finish();
 }
 
 double node_estimate(const Body& b) {
+  if (!b.points.empty()) return static_cast<double>(b.cloud.size());
   double n = 1;
   for (int d = 0; d < 3; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
   return n;
@@ -67,23 +95,34 @@ double node_estimate(const Body& b) {
 BodyKind solid_kind() {
   BodyKind k;
   k.name = "solid";
-  k.summary = "a box of simple-cubic points";
+  k.summary = "a box of simple-cubic points, or a point cloud from a file";
   k.traits = {.dimension = 3, .grid = true};
   k.keys = {
-      {.name = "origin", .required = true, .what = "lower corner [x, y, z], m", .unit = "m",
+      {.name = "origin", .what = "lower corner [x, y, z], m", .unit = "m", .fallback = "required unless points",
        .doc = "the lower corner [x, y, z]"},
-      {.name = "size", .required = true, .what = "extent [Lx, Ly, Lz] of the box, m", .unit = "m",
+      {.name = "size", .what = "extent [Lx, Ly, Lz] of the box, m", .unit = "m", .fallback = "required unless points",
        .doc = "[Lx, Ly, Lz], all > 0"},
+      {.name = "points", .fallback = "- (a box)",
+       .doc = "instead of origin and size: a CSV file (relative to the scene file) with the header x,y,z,volume or "
+              "x,y,z,volume,material and one point a row [m, m^3]; nodes in file order, volumes > 0, no point twice; "
+              "with a material column the body takes the rows naming its material; `#` lines and blank lines are "
+              "skipped"},
       {.name = "spacing", .required = true, .what = "grid spacing, m", .unit = "m",
-       .doc = "dx > 0, at most the smallest extent of size; nodes sit at origin + (i + 1/2) dx, measure dx^3"},
-      {.name = "grid", .fallback = "square", .doc = "`square` only (simple cubic)"},
+       .doc = "dx > 0, at most the smallest extent of size; nodes sit at origin + (i + 1/2) dx, measure dx^3. With "
+              "points: the points' typical distance, which sets the horizon (horizon_factor x spacing) and the "
+              "cube of side dx about each point that partial_area weighs"},
+      {.name = "grid", .fallback = "square", .doc = "`square` only (simple cubic); not with points"},
       kHorizonFactorKey,
       kHorizonKey,
       quadrature_key(),
+      kCutoutsKey,
   };
+  k.nested = {{"cutouts[i]", &kCutoutKeys}};
   k.read = read;
   k.emit = emit;
-  k.measure_keys = [](const Body& b) { return key_text(b, "spacing", b.spacing); };
+  k.measure_keys = [](const Body& b) {
+    return b.points.empty() ? key_text(b, "spacing", b.spacing) : "the volumes of bodies." + b.name + ".points";
+  };
   k.node_estimate = node_estimate;
   k.family_estimate = [](const Body& b) { return grid_family(b, 3); };
   k.discretize = discretize;

@@ -1,0 +1,153 @@
+#!/usr/bin/env bash
+# Hostile cutouts and point clouds at the driver level, on 2 ranks: each case must exit with
+# status 2, print one message naming the scene file's (or the point file's) line, the key and what
+# was expected, and leave no output directory behind. One good point cloud, named relative to its
+# scene file from another working directory, is read with all its rows.
+# usage: bad_input_geometry.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
+set -u
+peridrive=$1 src=$2 mpiexec=$3
+shift 3
+mpi=("$mpiexec" -n 2 "$@")
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cd "$work" || exit 1
+mkdir run  # the working directory of every run: not the scenes' folder
+pass=0 fail=0
+
+# expect NAME EXPECTED_SUBSTRING -- peridrive arguments...
+expect() {
+  local name=$1 want=$2
+  shift 3
+  local out="$work/out-$name"
+  (cd run && "${mpi[@]}" "$peridrive" "$@" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr")
+  local rc=$?
+  local msg
+  msg=$(grep -c "peridrive: error:" "$work/stderr")
+  if [ "$rc" -ne 2 ]; then
+    echo "FAIL $name: exit status $rc, expected 2"; cat "$work/stderr"; fail=$((fail + 1))
+  elif ! grep -qF -- "$want" "$work/stderr"; then
+    echo "FAIL $name: message lacks '$want':"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ "$msg" -ne 1 ]; then
+    echo "FAIL $name: expected exactly one error line, got $msg"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ -e "$out" ]; then
+    echo "FAIL $name: output directory $out was created"; fail=$((fail + 1))
+  else
+    echo "ok   $name: $(grep "peridrive: error:" "$work/stderr")"; pass=$((pass + 1))
+  fi
+}
+line_of() { grep -n -m1 -F -- "$2" "$1" | cut -d: -f1; }
+
+# plate NAME CUTOUT_LINES...: a 10 mm plate (40 x 40 nodes) with the given cutouts; prints its path.
+plate() {
+  local f="$work/$1.yaml"
+  shift
+  cat > "$f" <<'EOF'
+name: plate
+materials:
+  rubber: {model: membrane, density: 1200, wave_speed: 1000}
+bodies:
+  plate:
+    kind: membrane
+    material: rubber
+    origin: [0, 0, 0]
+    size: [0.01, 0.01]
+    thickness: 0.0005
+    spacing: 0.00025
+    cutouts:
+EOF
+  for c in "$@"; do echo "      - $c" >> "$f"; done
+  cat >> "$f" <<'EOF'
+stages:
+  - {name: still, steps: 2}
+output: {frames: 1}
+EOF
+  echo "$f"
+}
+
+# Cutouts.
+f=$(plate outside '{kind: circle, center: [0.005, 0.005], radius: 0.002}' '{kind: circle, center: [0.02, 0.005], radius: 0.002}')
+expect cutout_outside "$f:$(line_of "$f" 'center: [0.02'): bodies.plate.cutouts.1: the circle cutout removes no node of body 'plate'" -- "$f"
+f=$(plate between '{kind: box, min: [0.001, 0.001, -1], max: [0.0011, 0.0011, 1]}')
+expect cutout_between_nodes "$f:$(line_of "$f" 'kind: box'): bodies.plate.cutouts.0: the box cutout removes no node" -- "$f"
+f=$(plate everything '{kind: box, min: [-1, -1, -1], max: [1, 0.006, 1]}' '{kind: polygon, vertices: [[-1, 0.004], [1, 0.004], [0, 1]]}')
+expect cutout_all_nodes "$f:$(line_of "$f" 'kind: membrane'): bodies.plate.cutouts: the cutouts remove all 1600 nodes of body 'plate'; expected at least one node left" -- "$f"
+f=$(plate two_corners '{kind: polygon, vertices: [[0, 0], [0.005, 0.005]]}')
+expect polygon_two_corners "$f:$(line_of "$f" 'vertices'): bodies.plate.cutouts.0.vertices: expected a list of at least 3 corners [[x, y], ...] [m]" -- "$f"
+f=$(plate flat_polygon '{kind: polygon, vertices: [[0, 0], [0.005, 0.005], [0.01, 0.01]]}')
+expect polygon_no_area "bodies.plate.cutouts.0.vertices: expected a polygon that encloses an area" -- "$f"
+f=$(plate no_radius '{kind: circle, center: [0.005, 0.005]}')
+expect circle_no_radius "$f:$(line_of "$f" 'kind: circle'): bodies.plate.cutouts.0: missing required key 'radius' (radius, m)" -- "$f"
+f=$(plate bad_radius '{kind: circle, center: [0.005, 0.005], radius: -0.001}')
+expect circle_bad_radius "bodies.plate.cutouts.0.radius: expected a positive number [m], got -0.001" -- "$f"
+f=$(plate hexagon '{kind: hexagon, center: [0.005, 0.005], radius: 0.001}')
+expect cutout_unknown_shape "$f:$(line_of "$f" 'hexagon'): bodies.plate.cutouts.0.kind: expected one of: circle, box, polygon, sphere, cylinder; got hexagon" -- "$f"
+f=$(plate depth '{kind: circle, center: [0.005, 0.005], radius: 0.001, depth: 1}')
+expect cutout_unknown_key "$f:$(line_of "$f" 'depth'): bodies.plate.cutouts.0.depth: unknown key; expected one of: kind, center, radius" -- "$f"
+f=$(plate circle_min '{kind: circle, center: [0.005, 0.005], radius: 0.001, min: [0, 0, 0]}')
+expect cutout_other_shape_key "bodies.plate.cutouts.0.min: not used by a circle cutout; expected one of: kind, center, radius" -- "$f"
+f=$(plate sphere_sheet '{kind: sphere, center: [0.005, 0.005, 0], radius: 0.001}')
+expect sphere_on_sheet "bodies.plate.cutouts.0.kind: a sphere cutout cuts solids; a sheet takes circle, box or polygon cutouts" -- "$f"
+f=$(plate box_order '{kind: box, min: [0.004, 0.004, -1], max: [0.003, 0.006, 1]}')
+expect box_min_max "bodies.plate.cutouts.0.max: expected min <= max in every component, got x: min 0.004 > max 0.003" -- "$f"
+f=$(plate not_list)
+sed -i 's/^    cutouts:$/    cutouts: {kind: circle}/' "$f"
+expect cutouts_not_a_list "bodies.plate.cutouts: expected a list of cutouts" -- "$f"
+expect override_cutout "--set: bodies.plate.cutouts.0.radius: expected a positive number [m], got 0" -- \
+  "$(plate override '{kind: circle, center: [0.005, 0.005], radius: 0.001}')" --set bodies.plate.cutouts.0.radius=0
+fiber=$src/drivers/scenes/fiber_long_range.yaml
+expect cutout_on_fiber "bodies.fiber.cutouts: not used by a fiber body" -- "$fiber" \
+  --set 'bodies.fiber.cutouts=[{kind: circle, center: [0, 0], radius: 1e-9}]'
+
+# Point clouds: a block scene beside a data folder.
+mkdir -p "$work/data"
+block() {  # block NAME CSV_TEXT [extra body keys]: prints the scene's path
+  printf '%b' "$2" > "$work/data/$1.csv"
+  local f="$work/$1.yaml"
+  cat > "$f" <<EOF
+name: cloud
+materials:
+  glass: {model: pmb, density: 2200, micromodulus: 1.0e19}
+bodies:
+  block: {kind: solid, material: glass, points: data/$1.csv, spacing: 0.001${3:-}}
+stages:
+  - {name: still, steps: 2}
+output: {frames: 1}
+EOF
+  echo "$f"
+}
+good='x,y,z,volume\n0.0005,0.0005,0.0005,1e-9\n0.0015,0.0005,0.0005,1e-9\n0.0005,0.0015,0.0005,1e-9\n0.0015,0.0015,0.0005,1e-9\n'
+f=$(block good "# a 2 x 2 x 1 block\n$good")
+(cd run && "${mpi[@]}" "$peridrive" "$f" --dry-run > "$work/stdout" 2> "$work/stderr")
+if [ $? -eq 0 ] && grep -q "^estimate: 4 nodes" "$work/stdout"; then
+  echo "ok   good_cloud: $(grep '^estimate' "$work/stdout")"; pass=$((pass + 1))
+else
+  echo "FAIL good_cloud: expected 4 nodes read"; cat "$work/stdout" "$work/stderr"; fail=$((fail + 1))
+fi
+f=$(block missing "$good")
+rm "$work/data/missing.csv"
+expect cloud_missing_file "$f:$(line_of "$f" 'points'): bodies.block.points: cannot read the point cloud '$work/data/missing.csv': No such file or directory" -- "$f"
+f=$(block bad_number 'x,y,z,volume\n0,0,0,1e-9\n0.001,abc,0,1e-9\n')
+expect cloud_bad_number "$work/data/bad_number.csv:3: bodies.block.points: column y: expected a number, got 'abc'" -- "$f"
+f=$(block infinite 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,inf,1e-9\n')
+expect cloud_infinite "$work/data/infinite.csv:3: bodies.block.points: column z: expected a finite number, got 'inf'" -- "$f"
+f=$(block zero_volume 'x,y,z,volume\n0,0,0,1e-9\n\n0.001,0,0,0\n')
+expect cloud_zero_volume "$work/data/zero_volume.csv:4: bodies.block.points: column volume: expected a positive volume [m^3], got '0'" -- "$f"
+f=$(block negative_volume 'x,y,z,volume\n0,0,0,-1e-9\n')
+expect cloud_negative_volume "$work/data/negative_volume.csv:2: bodies.block.points: column volume: expected a positive volume [m^3], got '-1e-9'" -- "$f"
+f=$(block duplicate 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n0.002,0,0,1e-9\n0.001,0,0,2e-9\n')
+expect cloud_duplicate "$work/data/duplicate.csv:5: bodies.block.points: duplicate point (0.001, 0, 0), the same as line 3" -- "$f"
+f=$(block columns 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0\n')
+expect cloud_column_count "$work/data/columns.csv:3: bodies.block.points: expected 4 columns (x,y,z,volume), got 3" -- "$f"
+f=$(block header 'x,y,volume\n0,0,1e-9\n')
+expect cloud_header "$work/data/header.csv:1: bodies.block.points: expected the header x,y,z,volume or x,y,z,volume,material, got 'x,y,volume'" -- "$f"
+f=$(block empty 'x,y,z,volume\n')
+expect cloud_no_points "$work/data/empty.csv:1: bodies.block.points: the point cloud has no points after its header" -- "$f"
+f=$(block other_material 'x,y,z,volume,material\n0,0,0,1e-9,glass\n0.001,0,0,1e-9,steel\n')
+expect cloud_unclaimed_material "$work/data/other_material.csv:3: bodies.block.points: material 'steel' is no body's" -- "$f"
+f=$(block with_origin "$good" ', origin: [0, 0, 0]')
+expect cloud_with_origin "bodies.block.origin: not with points" -- "$f"
+f=$(block cloud_cut "$good" ', cutouts: [{kind: sphere, center: [0.1, 0.1, 0.1], radius: 0.001}]')
+expect cloud_cutout_outside "bodies.block.cutouts.0: the sphere cutout removes no node of body 'block'" -- "$f"
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
