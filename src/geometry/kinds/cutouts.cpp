@@ -140,10 +140,19 @@ Cutout read_cutout(const Value& v, int dimension) {
         if (k > 0 && c.vertices[k] == c.vertices[k - 1])
           items[k].fail("expected a corner different from the one before it, got " + items[k].got());
       }
-      double area2 = 0;  // twice the signed area (shoelace)
-      for (std::size_t i = 0, j = c.vertices.size() - 1; i < c.vertices.size(); j = i++)
-        area2 += c.vertices[j][0] * c.vertices[i][1] - c.vertices[i][0] * c.vertices[j][1];
-      if (!(std::fabs(area2) > 0)) list.fail("expected a polygon that encloses an area, got " + list.got());
+      // Twice the signed area (shoelace, about the first corner), against the bounding box's: a
+      // polygon whose corners lie on one line (to round-off) encloses nothing.
+      double area2 = 0, lo[2] = {HUGE_VAL, HUGE_VAL}, hi[2] = {-HUGE_VAL, -HUGE_VAL};
+      const auto& o = c.vertices[0];
+      for (std::size_t i = 0; i < c.vertices.size(); ++i) {
+        const auto& p = c.vertices[i];
+        const auto& q = c.vertices[(i + 1) % c.vertices.size()];
+        area2 += (p[0] - o[0]) * (q[1] - o[1]) - (q[0] - o[0]) * (p[1] - o[1]);
+        for (int d = 0; d < 2; ++d) lo[d] = std::min(lo[d], p[d]), hi[d] = std::max(hi[d], p[d]);
+      }
+      const double box = (hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]);
+      if (!(std::fabs(area2) > 1e-12 * box))
+        list.fail("expected a polygon that encloses an area (corners not all on one line), got " + list.got());
       break;
     }
   }
