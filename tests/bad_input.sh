@@ -117,7 +117,7 @@ stages:
   - {name: run, steps: 5}
 YAML
 expect solid_crack "$work/solid_crack.yaml:7: cracks.0: a pre-crack is a straight segment, which cuts the bonds of sheets and fibers; every body of this scene is a volume (kind: solid)" -- "$work/solid_crack.yaml"
-expect solid_thickness "bodies.block.thickness: not used by a solid body (a box of simple-cubic points); expected one of: kind, material, origin, size, spacing, grid, horizon_factor, horizon, quadrature" -- "$work/solid_crack.yaml" --set bodies.block.thickness=0.001
+expect solid_thickness "bodies.block.thickness: not used by a solid body (a box of simple-cubic points, or a point cloud from a file); expected one of: kind, material, origin, size, points, spacing, grid, horizon_factor, horizon, quadrature, cutouts" -- "$work/solid_crack.yaml" --set bodies.block.thickness=0.001
 expect network_and_path "bodies.net.network: give either path (one fiber) or network (many), not both" -- "$network" --set 'bodies.net.path=[[0,0,0],[1e-8,0,0]]'
 
 # A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,

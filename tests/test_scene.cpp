@@ -812,8 +812,9 @@ TEST(SceneErrors, SolidBodies) {
   const std::string solid = with("material: rubber", "kind: solid\n    material: rubber");
   // A key of other kinds is refused first, with the keys this kind takes.
   EXPECT_EQ(error_of(solid),
-            "scene.yaml:13: bodies.sheet.thickness: not used by a solid body (a box of simple-cubic points); "
-            "expected one of: kind, material, origin, size, spacing, grid, horizon_factor, horizon, quadrature");
+            "scene.yaml:13: bodies.sheet.thickness: not used by a solid body (a box of simple-cubic points, or a "
+            "point cloud from a file); expected one of: kind, material, origin, size, points, spacing, grid, "
+            "horizon_factor, horizon, quadrature, cutouts");
   EXPECT_THAT(error_of(with("    thickness: 0.0005\n", "", solid)),
               StartsWith("scene.yaml:12: bodies.sheet.size: expected a solid size [Lx, Ly, Lz]"));
   const std::string box = with("size: [0.01, 0.01]", "size: [0.01, 0.01, 0.01]", solid);
