@@ -487,5 +487,62 @@ TEST(Resources, MemoryModelAndRefusal) {
       << message;
 }
 
+// ------------------------------------------------------------------------------------------------
+// Memory: no rank gathers the state while a checkpoint is written (2 ranks).
+
+/// VmRSS and VmHWM of this process [bytes].
+std::pair<double, double> rss_and_peak() {
+  std::ifstream status("/proc/self/status");
+  double rss = -1, hwm = -1;
+  for (std::string line; std::getline(status, line);) {
+    if (line.rfind("VmRSS:", 0) == 0) rss = std::stod(line.substr(6)) * 1024.0;
+    if (line.rfind("VmHWM:", 0) == 0) hwm = std::stod(line.substr(6)) * 1024.0;
+  }
+  return {rss, hwm};
+}
+
+TEST(CheckpointMemory, RankZeroHoldsNoMoreThanItsShare) {
+  int ranks = 1;
+  MPI_Comm_size(PETSC_COMM_WORLD, &ranks);
+  if (ranks != 2) GTEST_SKIP() << "a 2-rank test";
+  // About 4.9e5 nodes: the state is 23 MB in natural order (displacement and velocity).
+  const Scene scene = parse_scene(kScene, "small-slit", {{"bodies.sheet.spacing", "2.857e-5"}});
+  Simulation sim(scene, PETSC_COMM_WORLD, quiet());
+  sim.begin();
+  sim.advance(1);
+  const std::string path = shared_path("ckpt-memory");
+  // The peak from here on: Linux resets VmHWM to VmRSS on writing 5 to clear_refs.
+  MPI_Barrier(PETSC_COMM_WORLD);
+  int reset = 0, all_reset = 0;
+  {
+    std::ofstream clear("/proc/self/clear_refs");
+    clear << "5";
+    clear.flush();
+    reset = clear.good() ? 1 : 0;
+  }
+  MPI_Allreduce(&reset, &all_reset, 1, MPI_INT, MPI_MIN, PETSC_COMM_WORLD);
+  if (!all_reset) GTEST_SKIP() << "cannot reset the peak resident set (/proc/self/clear_refs)";
+  const double before = rss_and_peak().first;
+  store_checkpoint(path, sim.make_checkpoint(), PETSC_COMM_WORLD);
+  const double peak = rss_and_peak().second;
+  double mine[2] = {before, peak}, all[4] = {0, 0, 0, 0};
+  MPI_Gather(mine, 2, MPI_DOUBLE, all, 2, MPI_DOUBLE, 0, PETSC_COMM_WORLD);
+  const double nodes = static_cast<double>(sim.domain().global_nodes);
+  if (world_rank() == 0) {
+    std::remove(path.c_str());
+    std::remove(previous_checkpoint_path(path).c_str());
+    const double extra0 = all[1] - all[0], extra1 = all[3] - all[2];
+    std::printf("checkpoint of %.0f nodes on 2 ranks: resident before %.1f / %.1f MB, peak during %.1f / %.1f MB "
+                "(rank 0 / rank 1; ratio %.3f), growth %.1f / %.1f MB; the whole state is %.1f MB\n",
+                nodes, all[0] / 1e6, all[2] / 1e6, all[1] / 1e6, all[3] / 1e6, all[1] / all[3], extra0 / 1e6,
+                extra1 / 1e6, 48 * nodes / 1e6);
+    // The bound: rank 0's peak within 10% of the other rank's.
+    EXPECT_LE(all[1], 1.10 * all[3]);
+    // And what the checkpoint adds on rank 0 is no more than on rank 1 plus a third of the
+    // whole state (a gather to rank 0 adds all of it, 48 bytes per node, there alone).
+    EXPECT_LE(extra0, extra1 + 16 * nodes) << "rank 0 grew by " << extra0 / 1e6 << " MB, rank 1 by " << extra1 / 1e6;
+  }
+}
+
 }  // namespace
 }  // namespace peri

@@ -77,6 +77,7 @@ std::string frame_name(int k) {
 }  // namespace
 
 bool abandoned_output_files() { return g_abandoned; }
+void mark_output_file_abandoned() { g_abandoned = true; }
 
 void make_output_dir(const std::string& dir, MPI_Comm comm) {
   int rank = 0;

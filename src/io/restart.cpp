@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 
 #include "peri/core/collective.hpp"
 #include "peri/core/error.hpp"
@@ -108,6 +109,110 @@ std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm) 
     }
   }
   return all;
+}
+
+std::vector<std::int64_t> natural_blocks(std::int64_t natural_begin, std::int64_t nodes, MPI_Comm comm) {
+  int ranks = 1;
+  MPI_Comm_size(comm, &ranks);
+  std::vector<std::int64_t> blocks(static_cast<std::size_t>(ranks) + 1, nodes);
+  long long mine = natural_begin;
+  std::vector<long long> all(ranks);
+  MPI_Allgather(&mine, 1, MPI_LONG_LONG, all.data(), 1, MPI_LONG_LONG, comm);
+  for (int r = 0; r < ranks; ++r) blocks[r] = all[r];
+  return blocks;
+}
+
+int natural_block_of(const std::vector<std::int64_t>& blocks, std::int64_t id) {
+  // The last rank whose block starts at or before id (empty blocks share a start: the last wins).
+  const auto it = std::upper_bound(blocks.begin(), blocks.end() - 1, id);
+  return static_cast<int>(it - blocks.begin()) - 1;
+}
+
+namespace {
+
+/// Rows of `width` values, each sent to the rank of natural_block_of(its key); returns the rows
+/// received. Collective (one all-to-all of counts, one of rows).
+template <class T>
+std::vector<T> rows_to_blocks(const std::vector<T>& rows, std::size_t width, const std::vector<std::int64_t>& blocks,
+                              MPI_Datatype type, MPI_Comm comm) {
+  int ranks = 1;
+  MPI_Comm_size(comm, &ranks);
+  const std::size_t n = rows.size() / width;
+  std::vector<int> dest(n);
+  std::vector<long long> send(ranks, 0), recv(ranks, 0);
+  for (std::size_t k = 0; k < n; ++k) {
+    dest[k] = natural_block_of(blocks, static_cast<std::int64_t>(rows[k * width]));
+    send[dest[k]] += static_cast<long long>(width);
+  }
+  MPI_Alltoall(send.data(), 1, MPI_LONG_LONG, recv.data(), 1, MPI_LONG_LONG, comm);
+  std::vector<int> sc(ranks), sd(ranks), rc(ranks), rd(ranks);
+  long long st = 0, rt = 0;
+  for (int r = 0; r < ranks; ++r) {
+    sd[r] = static_cast<int>(st);
+    rd[r] = static_cast<int>(rt);
+    sc[r] = static_cast<int>(send[r]);
+    rc[r] = static_cast<int>(recv[r]);
+    st += send[r];
+    rt += recv[r];
+  }
+  // (Counts are int in MPI: more than 2^31 values per rank would need a chunked exchange.)
+  long long too_many = st > INT32_MAX || rt > INT32_MAX, any = 0;
+  MPI_Allreduce(&too_many, &any, 1, MPI_LONG_LONG, MPI_MAX, comm);
+  if (any) throw Error("checkpoint: more than 2^31 bond values on one rank");
+  std::vector<T> packed(rows.size()), out(static_cast<std::size_t>(rt));
+  std::vector<long long> at(sd.begin(), sd.end());
+  for (std::size_t k = 0; k < n; ++k) {
+    std::copy(rows.begin() + k * width, rows.begin() + (k + 1) * width, packed.begin() + at[dest[k]]);
+    at[dest[k]] += static_cast<long long>(width);
+  }
+  MPI_Alltoallv(packed.data(), sc.data(), sd.data(), type, out.data(), rc.data(), rd.data(), type, comm);
+  return out;
+}
+
+/// Sort rows of `width` values by their first two.
+template <class T>
+void sort_rows(std::vector<T>& rows, std::size_t width) {
+  const std::size_t n = rows.size() / width;
+  std::vector<std::size_t> order(n);
+  for (std::size_t k = 0; k < n; ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return std::make_pair(rows[a * width], rows[a * width + 1]) < std::make_pair(rows[b * width], rows[b * width + 1]);
+  });
+  std::vector<T> sorted(rows.size());
+  for (std::size_t k = 0; k < n; ++k)
+    std::copy(rows.begin() + order[k] * width, rows.begin() + (order[k] + 1) * width, sorted.begin() + k * width);
+  rows.swap(sorted);
+}
+
+}  // namespace
+
+std::vector<std::int64_t> broken_pairs_of_block(const Domain& d, const std::vector<std::int64_t>& blocks,
+                                                MPI_Comm comm) {
+  // Each broken bond is seen from both ends; the end with the lower natural id reports it.
+  std::vector<std::int64_t> mine;
+  for (std::int32_t r = 0; r < d.owned; ++r)
+    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b)
+      if (d.bonds.broken[b] && d.natural[r] < d.natural[d.bonds.neighbor[b]])
+        mine.insert(mine.end(), {d.natural[r], d.natural[d.bonds.neighbor[b]]});
+  std::vector<std::int64_t> pairs = rows_to_blocks(mine, 2, blocks, MPI_INT64_T, comm);
+  sort_rows(pairs, 2);
+  return pairs;
+}
+
+std::vector<double> history_rows_of_block(const Domain& d, const std::vector<std::int64_t>& blocks, MPI_Comm comm) {
+  const int s = d.bonds.history_stride;
+  std::vector<double> mine;
+  for (std::int32_t r = 0; r < d.owned; ++r)
+    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
+      const double* h = d.bonds.history.data() + b * s;
+      if (std::all_of(h, h + s, [](double x) { return x == 0.0; })) continue;
+      mine.push_back(static_cast<double>(d.natural[r]));
+      mine.push_back(static_cast<double>(d.natural[d.bonds.neighbor[b]]));
+      mine.insert(mine.end(), h, h + s);
+    }
+  std::vector<double> rows = rows_to_blocks(mine, 2 + static_cast<std::size_t>(s), blocks, MPI_DOUBLE, comm);
+  sort_rows(rows, 2 + static_cast<std::size_t>(s));
+  return rows;
 }
 
 std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pairs) {
@@ -212,17 +317,26 @@ std::uint64_t ownership_hash(const Domain& d) {
 }
 
 std::shared_ptr<const Checkpoint> load_checkpoint(const std::string& path, MPI_Comm comm) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  const auto verdict = [&](const std::function<void()>& work) {
+    std::string error;
+    try {
+      work();
+    } catch (const Error& e) {
+      error = e.what();
+    } catch (const std::exception& e) {  // e.g. std::bad_alloc
+      error = "checkpoint '" + path + "': cannot be read: " + e.what();
+    }
+    error = agree_on_message(error, comm);
+    if (!error.empty()) throw InputError(error);
+  };
+  // First the bytes: every rank checks the header and the length of the file it sees, rank 0
+  // alone the hash (streamed: no rank holds the file). Only then does HDF5 parse anything.
+  std::uint64_t size = 0;
+  verdict([&] { size = check_checkpoint_file(path, rank == 0); });
   std::shared_ptr<Checkpoint> c;
-  std::string error;
-  try {
-    c = std::make_shared<Checkpoint>(read_checkpoint(path));
-  } catch (const Error& e) {
-    error = e.what();
-  } catch (const std::exception& e) {  // e.g. std::bad_alloc
-    error = "checkpoint '" + path + "': cannot be read: " + e.what();
-  }
-  const std::string verdict = agree_on_message(error, comm);
-  if (!verdict.empty()) throw InputError(verdict);
+  verdict([&] { c = std::make_shared<Checkpoint>(read_checkpoint_metadata(path, size)); });
   return c;
 }
 
@@ -230,13 +344,13 @@ void store_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm com
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   std::string error;
-  if (rank == 0) {
-    try {
-      write_checkpoint(path, c);
-    } catch (const std::exception& e) {
+  try {
+    write_checkpoint(path, c, comm);  // collective: a failure is thrown on every rank alike
+  } catch (const std::exception& e) {
+    error = e.what();
+    if (rank == 0) {
       // The previous checkpoint stays current; the partial one goes (it would hold the space).
       std::remove((path + ".tmp").c_str());
-      error = e.what();
       const std::string dir = std::filesystem::path(path).parent_path().string();
       const double free = free_bytes(dir.empty() ? "." : dir);
       if (free >= 0)

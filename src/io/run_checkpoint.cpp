@@ -1,9 +1,11 @@
 #include "peri/io/run_checkpoint.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
 #include "peri/core/build_info.hpp"
+#include "peri/core/collective.hpp"
 #include "peri/core/error.hpp"
 #include "peri/core/petsc.hpp"
 #include "peri/io/restart.hpp"
@@ -60,19 +62,24 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
   MPI_Gather(&ledger.external_work, 1, MPI_DOUBLE, c.external_work.data(), 1, MPI_DOUBLE, 0, comm);
   MPI_Gather(&ledger.bonds.newly_broken, 1, MPI_INT64_T, c.newly_broken.data(), 1, MPI_INT64_T, 0, comm);
   MPI_Gather(&own, 1, MPI_UINT64_T, c.owner_hash.data(), 1, MPI_UINT64_T, 0, comm);
+  // This rank's rows of the natural-order arrays: its block of natural ids (State's natural
+  // layout), the broken pairs and history rows whose first node lies in that block.
+  c.node_first = state.natural_begin();
+  const std::size_t n3 = 3 * static_cast<std::size_t>(state.natural_count());
   {
     const VecArrayRead u(state.displacement());
-    c.displacement = gather_natural_to_root(state, domain, u.data(), 3, comm);
+    const double* slice = state.to_natural(u.data(), 3);
+    c.displacement.assign(slice, slice + n3);
   }
   {
     const VecArrayRead v(state.velocity());
-    c.velocity = gather_natural_to_root(state, domain, v.data(), 3, comm);
+    const double* slice = state.to_natural(v.data(), 3);
+    c.velocity.assign(slice, slice + n3);
   }
-  c.broken = gather_broken_to_root(domain, comm);
-  if (domain.bonds.history_stride > 0) {  // laws with per-bond history
-    std::vector<double> history = gather_history_to_root(domain, comm);
-    if (root) c.extras["bonds.history"] = std::move(history);
-  }
+  const std::vector<std::int64_t> blocks = natural_blocks(state.natural_begin(), domain.global_nodes, comm);
+  c.broken = broken_pairs_of_block(domain, blocks, comm);
+  if (domain.bonds.history_stride > 0)  // laws with per-bond history
+    c.extras[kBondHistoryExtra] = history_rows_of_block(domain, blocks, comm);
   extras.save(c, root);
   // Summary figures of stages before the checkpoint, so that summary.json of a resumed run is
   // complete: pre-cracked and released bonds, and each quasi-static stage's figures.
@@ -134,28 +141,91 @@ void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedg
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
+  // Each rank reads its block of natural rows, then sends every owner the rows of its nodes.
+  std::string error;
+  std::vector<double> u_block, v_block;
+  try {
+    if (c.path.empty()) throw InputError("checkpoint: no file to restore from");
+    read_checkpoint_nodes(c, state.natural_begin(), state.natural_count(), u_block, v_block);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  error = agree_on_message(error, comm);
+  if (!error.empty()) throw InputError(error);
+  const std::vector<std::int64_t> blocks = natural_blocks(state.natural_begin(), domain.global_nodes, comm);
   {
+    // Requests: this rank's owned natural ids, grouped by the rank whose block holds them.
+    std::vector<int> dest(domain.owned), send(ranks, 0), recv(ranks, 0);
+    for (std::int32_t l = 0; l < domain.owned; ++l) ++send[dest[l] = natural_block_of(blocks, domain.natural[l])];
+    MPI_Alltoall(send.data(), 1, MPI_INT, recv.data(), 1, MPI_INT, comm);
+    std::vector<int> sd(ranks, 0), rd(ranks, 0);
+    for (int r = 1; r < ranks; ++r) {
+      sd[r] = sd[r - 1] + send[r - 1];
+      rd[r] = rd[r - 1] + recv[r - 1];
+    }
+    const int asked = ranks > 0 ? rd[ranks - 1] + recv[ranks - 1] : 0;
+    std::vector<std::int64_t> ids(domain.owned), wanted(asked);
+    std::vector<std::int32_t> slot(domain.owned);
+    {
+      std::vector<int> at(sd);
+      for (std::int32_t l = 0; l < domain.owned; ++l) {
+        slot[at[dest[l]]] = l;
+        ids[at[dest[l]]++] = domain.natural[l];
+      }
+    }
+    MPI_Alltoallv(ids.data(), send.data(), sd.data(), MPI_INT64_T, wanted.data(), recv.data(), rd.data(), MPI_INT64_T,
+                  comm);
+    // Replies: 6 values (u, v) per requested node, in the order asked.
+    std::vector<double> reply(6 * static_cast<std::size_t>(asked)), got(6 * static_cast<std::size_t>(domain.owned));
+    for (int k = 0; k < asked; ++k) {
+      const std::size_t row = 3 * static_cast<std::size_t>(wanted[k] - state.natural_begin());
+      std::copy(u_block.begin() + row, u_block.begin() + row + 3, reply.begin() + 6 * k);
+      std::copy(v_block.begin() + row, v_block.begin() + row + 3, reply.begin() + 6 * k + 3);
+    }
+    u_block = std::vector<double>();
+    v_block = std::vector<double>();
+    for (int r = 0; r < ranks; ++r) {
+      send[r] *= 6;
+      sd[r] *= 6;
+      recv[r] *= 6;
+      rd[r] *= 6;
+    }
+    MPI_Alltoallv(reply.data(), recv.data(), rd.data(), MPI_DOUBLE, got.data(), send.data(), sd.data(), MPI_DOUBLE,
+                  comm);
     const VecArray u(state.displacement()), v(state.velocity());
-    for (std::int32_t l = 0; l < domain.owned; ++l) {
-      const std::size_t n = 3 * static_cast<std::size_t>(domain.natural[l]);
-      for (int k = 0; k < 3; ++k) {
-        u[3 * l + k] = c.displacement[n + k];
-        v[3 * l + k] = c.velocity[n + k];
+    for (std::int32_t k = 0; k < domain.owned; ++k) {
+      const std::size_t l = static_cast<std::size_t>(slot[k]);
+      for (int a = 0; a < 3; ++a) {
+        u[3 * l + a] = got[6 * static_cast<std::size_t>(k) + a];
+        v[3 * l + a] = got[6 * static_cast<std::size_t>(k) + 3 + a];
       }
     }
   }
-  long long found = apply_broken_pairs(domain, c.broken), found_all = 0;
+  // Broken pairs and history rows: every rank streams the stored lists and keeps those of its
+  // owned nodes (memory: one chunk and what it keeps).
+  std::vector<std::int64_t> owned(domain.natural.begin(), domain.natural.begin() + domain.owned);
+  std::sort(owned.begin(), owned.end());
+  const auto mine = [&](std::int64_t id) { return std::binary_search(owned.begin(), owned.end(), id); };
+  std::vector<std::int64_t> pairs;
+  std::vector<double> rows;
+  const std::size_t width = 2 + static_cast<std::size_t>(std::max(domain.bonds.history_stride, 0));
+  try {
+    pairs = read_checkpoint_broken(c, [&](std::int64_t i, std::int64_t j) { return mine(i) || mine(j); });
+    if (domain.bonds.history_stride > 0) rows = read_checkpoint_history(c, width, mine);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+  error = agree_on_message(error, comm);
+  if (!error.empty()) throw InputError(error);
+  long long found = apply_broken_pairs(domain, pairs), found_all = 0;
   MPI_Allreduce(&found, &found_all, 1, MPI_LONG_LONG, MPI_SUM, comm);
-  if (found_all != static_cast<long long>(c.broken.size()))  // 2 ordered bonds per pair
-    throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken.size() / 2) +
+  if (found_all != 2 * static_cast<long long>(c.broken_pairs))  // 2 ordered bonds per pair
+    throw InputError("checkpoint (step " + std::to_string(c.step) + ") lists " + std::to_string(c.broken_pairs) +
                      " broken bonds, but only " + std::to_string(found_all / 2) + " are bonds of this scene");
   if (domain.bonds.history_stride > 0) {  // the laws' per-bond history (none kept: all zero)
-    const auto it = c.extras.find("bonds.history");
-    const std::vector<double> none;
-    const std::vector<double>& rows = it == c.extras.end() ? none : it->second;
     long long used = apply_history(domain, rows), used_all = 0;
     MPI_Allreduce(&used, &used_all, 1, MPI_LONG_LONG, MPI_SUM, comm);
-    if (used_all * (2 + domain.bonds.history_stride) != static_cast<long long>(rows.size()))
+    if (used_all * static_cast<long long>(width) != static_cast<long long>(c.history_values))
       throw InputError("checkpoint (step " + std::to_string(c.step) + ") holds the history of bonds that are not "
                        "bonds of this scene");
   }

@@ -304,7 +304,8 @@ std::vector<std::string> check_resume_dir(const std::string& dir, const Checkpoi
         const std::string path = dir + "/" + name;
         if (!error.empty() || !regular_file(path) || std::filesystem::equivalent(path, checkpoint_file, ec)) continue;
         try {
-          const Checkpoint other = read_checkpoint(path);
+          // (Its metadata: the arrays stay in the file.)
+          const Checkpoint other = read_checkpoint_metadata(path, check_checkpoint_file(path, true));
           compare(name, other.scene);
           if (other.step > c.step) later.push_back(path);
         } catch (const Error&) {  // damaged or foreign: the resume's own checkpoints replace it

@@ -24,6 +24,8 @@ void make_output_dir(const std::string& dir, MPI_Comm comm);
 /// Whether a frame writer has abandoned its file after writes that failed (see FrameWriter): the
 /// process must then end without MPI_Finalize, at which HDF5 would close that file and may crash.
 bool abandoned_output_files();
+/// Record that a writer (a frame writer, a checkpoint) has abandoned such a file.
+void mark_output_file_abandoned();
 
 /// Write a small text file atomically (temporary name, then rename). Rank 0 only.
 void write_text_file(const std::string& path, const std::string& text);

@@ -1,7 +1,8 @@
-// Restart: the collective side of checkpoints. Gathers a distributed run's state onto rank 0 in
-// rank-independent (natural) order, reads a checkpoint on every rank with one verdict, sets the
-// broken-bond flags of any partition from the stored pairs, and turns SIGTERM/SIGINT into a stop
-// request that the step loop polls collectively.
+// Restart: the collective side of checkpoints. Sorts a distributed run's broken bonds and bond
+// history into the ranks' blocks of natural ids (what each rank writes of a checkpoint), reads a
+// checkpoint's metadata on every rank with one verdict, sets the broken-bond flags and history of
+// any partition from the stored rows, and turns SIGTERM/SIGINT into a stop request that the step
+// loop polls collectively. (The gathers to rank 0 serve tests and tools, not checkpoints.)
 #pragma once
 #include <mpi.h>
 
@@ -40,7 +41,25 @@ std::vector<double> gather_natural_to_root(State& state, const Domain& d, const 
 /// Broken bonds as sorted natural pairs (i < j), flattened, on rank 0; empty elsewhere. Collective.
 std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm);
 
-/// Set this rank's broken flags to exactly `pairs` (sorted natural (i < j) pairs, flattened).
+/// The first natural id of every rank's block (State::natural_begin()), and the total at the end:
+/// ranks + 1 values. Collective.
+std::vector<std::int64_t> natural_blocks(std::int64_t natural_begin, std::int64_t nodes, MPI_Comm comm);
+
+/// The rank whose block of natural ids holds `id`.
+int natural_block_of(const std::vector<std::int64_t>& blocks, std::int64_t id);
+
+/// Broken bonds as sorted natural pairs (i < j), flattened: those whose i lies in this rank's
+/// block of natural ids (`blocks`), so that the ranks' lists in rank order are the sorted whole.
+/// Collective (one all-to-all); no rank holds more than the pairs of its block.
+std::vector<std::int64_t> broken_pairs_of_block(const Domain& d, const std::vector<std::int64_t>& blocks,
+                                                MPI_Comm comm);
+
+/// The rows of gather_history_to_root whose i lies in this rank's block, sorted by (i, j).
+/// Collective (one all-to-all).
+std::vector<double> history_rows_of_block(const Domain& d, const std::vector<std::int64_t>& blocks, MPI_Comm comm);
+
+/// Set this rank's broken flags to exactly `pairs` (sorted natural (i < j) pairs, flattened: all
+/// of them, or at least those that touch this rank's owned nodes).
 /// Returns how many of this rank's ordered bonds are in `pairs` (over all ranks: 2 per pair).
 std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pairs);
 
@@ -56,12 +75,14 @@ std::int64_t apply_history(Domain& d, const std::vector<double>& rows);
 /// fnv1a64 of this rank's owned natural ids: equal on restart means equal ownership.
 std::uint64_t ownership_hash(const Domain& d);
 
-/// Read a checkpoint on every rank. A failure on any rank raises InputError on all of them
-/// (rank 0's message when it failed itself). Collective.
+/// Check a checkpoint (header and length on every rank, the hash of the whole file on rank 0,
+/// streamed) and read its metadata on every rank (read_checkpoint_metadata: the node and bond
+/// arrays stay in the file; restore_state reads each rank's rows). A failure on any rank raises
+/// InputError on all of them (rank 0's message when it failed itself). Collective.
 std::shared_ptr<const Checkpoint> load_checkpoint(const std::string& path, MPI_Comm comm);
 
-/// Rank 0 writes `c` (complete on rank 0) with write_checkpoint; a failure raises RuntimeFailure on
-/// every rank. Collective.
+/// Every rank writes its part of `c` (see write_checkpoint) into one file with parallel HDF5; a
+/// failure raises RuntimeFailure on every rank, the partial file removed. Collective.
 void store_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm comm);
 
 /// The checkpoint that `--resume PATH` continues from: PATH itself if it is a file; else

@@ -47,7 +47,10 @@ class CheckpointExtras {
   std::vector<Extra> extras_;
 };
 
-/// The run's state as a checkpoint, complete on rank 0 (collective).
+/// The run's state as a checkpoint: on every rank the metadata, on rank 0 the tallies and extras,
+/// and each rank's part of the node and bond arrays, as write_checkpoint takes them: its block of
+/// natural rows of displacement and velocity, the broken pairs and bond-history rows of that
+/// block. Nothing is gathered. Collective.
 Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& state, const EnergyLedger& ledger,
                            const RunPosition& at, const RunSummary& summary, const CheckpointExtras& extras,
                            MPI_Comm comm);
@@ -56,8 +59,11 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
 /// the stages' step counts.
 void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, std::int64_t ordered_bonds,
                    const std::vector<std::int64_t>& stage_steps);
-/// Displacements, velocities and broken bonds from `c` (InputError if it lists bonds this
-/// scene lacks; the caller's plans must then forget the flags they keep), and this rank's ledger:
+/// Displacements, velocities, broken bonds and bond history from the file `c` was read from (each
+/// rank reads its block of natural rows and sends the owners their nodes' values; the broken
+/// pairs and history rows are streamed, each rank keeping those of its nodes). InputError if the
+/// file lists bonds this scene lacks; the caller's plans must then forget the flags they keep.
+/// This rank's ledger:
 /// its own when the ownership is the checkpoint's (the sums continue bit for bit), else the
 /// totals on rank 0. Collective.
 void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedger& ledger, MPI_Comm comm);
