@@ -175,29 +175,30 @@ void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedg
     }
     MPI_Alltoallv(ids.data(), send.data(), sd.data(), MPI_INT64_T, wanted.data(), recv.data(), rd.data(), MPI_INT64_T,
                   comm);
-    // Replies: 6 values (u, v) per requested node, in the order asked.
-    std::vector<double> reply(6 * static_cast<std::size_t>(asked)), got(6 * static_cast<std::size_t>(domain.owned));
-    for (int k = 0; k < asked; ++k) {
-      const std::size_t row = 3 * static_cast<std::size_t>(wanted[k] - state.natural_begin());
-      std::copy(u_block.begin() + row, u_block.begin() + row + 3, reply.begin() + 6 * k);
-      std::copy(v_block.begin() + row, v_block.begin() + row + 3, reply.begin() + 6 * k + 3);
-    }
-    u_block = std::vector<double>();
-    v_block = std::vector<double>();
+    // Replies: 3 values per requested node, in the order asked; displacement, then velocity, each
+    // block freed once its replies are packed (at most two blocks and one array in flight).
     for (int r = 0; r < ranks; ++r) {
-      send[r] *= 6;
-      sd[r] *= 6;
-      recv[r] *= 6;
-      rd[r] *= 6;
+      send[r] *= 3;
+      sd[r] *= 3;
+      recv[r] *= 3;
+      rd[r] *= 3;
     }
-    MPI_Alltoallv(reply.data(), recv.data(), rd.data(), MPI_DOUBLE, got.data(), send.data(), sd.data(), MPI_DOUBLE,
-                  comm);
-    const VecArray u(state.displacement()), v(state.velocity());
-    for (std::int32_t k = 0; k < domain.owned; ++k) {
-      const std::size_t l = static_cast<std::size_t>(slot[k]);
-      for (int a = 0; a < 3; ++a) {
-        u[3 * l + a] = got[6 * static_cast<std::size_t>(k) + a];
-        v[3 * l + a] = got[6 * static_cast<std::size_t>(k) + 3 + a];
+    for (int which = 0; which < 2; ++which) {
+      std::vector<double>& block = which == 0 ? u_block : v_block;
+      std::vector<double> reply(3 * static_cast<std::size_t>(asked));
+      for (int k = 0; k < asked; ++k) {
+        const std::size_t row = 3 * static_cast<std::size_t>(wanted[k] - state.natural_begin());
+        std::copy(block.begin() + row, block.begin() + row + 3, reply.begin() + 3 * k);
+      }
+      block = std::vector<double>();
+      std::vector<double> got(3 * static_cast<std::size_t>(domain.owned));
+      MPI_Alltoallv(reply.data(), recv.data(), rd.data(), MPI_DOUBLE, got.data(), send.data(), sd.data(), MPI_DOUBLE,
+                    comm);
+      reply = std::vector<double>();
+      const VecArray x(which == 0 ? state.displacement() : state.velocity());
+      for (std::int32_t k = 0; k < domain.owned; ++k) {
+        const std::size_t l = static_cast<std::size_t>(slot[k]);
+        for (int a = 0; a < 3; ++a) x[3 * l + a] = got[3 * static_cast<std::size_t>(k) + a];
       }
     }
   }
