@@ -3,8 +3,10 @@
 
 For each build and round (builds alternated, their order rotating each round), on R ranks:
   with    the slit membrane at the given spacing for S steps, one checkpoint at the last step;
-  without the same run with no checkpoint (the write time is the difference of their
-          output_seconds in summary.json: frames are the same in both);
+  without the same run with no checkpoint (the write time is meant as the difference of their
+          output_seconds in summary.json; measured on 2026-11-26 it came out negative, -0.07 to
+          -0.6 s for both builds: the checkpoint of the last step is apparently not counted in
+          output_seconds, so that figure is not yet a write time);
   resume  --resume of the first run's directory (0 steps left: the time to read the checkpoint,
           set up and restore).
 Each rank runs under /usr/bin/time, whose maximum resident set is that rank's peak over the run.
