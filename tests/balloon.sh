@@ -83,6 +83,10 @@ rel = lambda a, b: np.linalg.norm((a - X) - (b - X)) / np.linalg.norm(b - X)
 q1, q2 = first_positions("qs1"), first_positions("qs2")
 check("SNES inflation = damped inflation", rel(q1, dyn) < 1e-8, f"relative L2 difference of the displacements {rel(q1, dyn):.1e}")
 check("SNES inflation, 1 and 2 ranks", rel(q2, q1) < 1e-9, f"{rel(q2, q1):.1e}")
+r = np.linalg.norm(q1 - q1.mean(axis=0), axis=1)
+e = abs((r.mean() / R - 1) / (lam - 1) - 1)
+check("SNES inflation against eq. (19)", e < 0.06 and r.std() / r.mean() < 3e-3,
+      f"lambda - 1 = {r.mean() / R - 1:.5f} against {lam - 1:.5f} (error {e:.3f}, tolerance 0.06)")
 for d in ("qs1", "qs2"):
     q = json.load(open(f"{tmp}/{d}/summary.json"))["quasistatic"][0]
     check(f"SNES inflation {d}: pressure work, rigid modes", q["work_error"] < 1e-2 and q["near_null_modes"] == 6,

@@ -84,7 +84,9 @@ void Simulation::run() {
 void Simulation::begin() {
   cadence_.start(options_.restart ? options_.restart->step : -1);
   if (options_.restart) {
+    const auto t0 = std::chrono::steady_clock::now();
     restore(*options_.restart);
+    summary_.resume_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return;
   }
   apply_initial_conditions(*p_);
@@ -180,9 +182,11 @@ void Simulation::finish() {
     summary_.crack_tip_seconds = tips_->seconds();
   }
   // Timings of the slowest rank: the job's figures.
-  double times[4] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
-                     summary_.crack_tip_seconds}, tmax[4];
-  MPI_Allreduce(times, tmax, 4, MPI_DOUBLE, MPI_MAX, comm_);
+  double times[6] = {summary_.step_seconds, summary_.output_seconds, summary_.wall_seconds,
+                     summary_.crack_tip_seconds, summary_.checkpoint_seconds, summary_.resume_seconds}, tmax[6];
+  MPI_Allreduce(times, tmax, 6, MPI_DOUBLE, MPI_MAX, comm_);
+  summary_.checkpoint_seconds = tmax[4];
+  summary_.resume_seconds = tmax[5];
   summary_.crack_tip_seconds = tmax[3];
   summary_.step_seconds = tmax[0];
   summary_.output_seconds = tmax[1];
@@ -337,7 +341,10 @@ void Simulation::write_checkpoint() {
   const auto t0 = std::chrono::steady_clock::now();
   store_checkpoint(checkpoint_path(), make_checkpoint(), comm_);
   cadence_.written(step_);
-  summary_.output_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  summary_.output_seconds += seconds;
+  summary_.checkpoint_seconds += seconds;
+  ++summary_.checkpoints_written;
   PetscLogEventEnd(events().output, 0, 0, 0, 0);
 }
 

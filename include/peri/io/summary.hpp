@@ -24,6 +24,10 @@ struct RunSummary {
   int ranks = 1, frames = 0;
   double dt = 0, dt_stable = 0, simulated_time = 0;
   double setup_seconds = 0, step_seconds = 0, output_seconds = 0, wall_seconds = 0;
+  /// Of output_seconds, the checkpoints this process wrote (how many); the resume's restore of
+  /// the state from its checkpoint (slowest rank each).
+  double checkpoint_seconds = 0, resume_seconds = 0;
+  std::int64_t checkpoints_written = 0;
   double bytes_per_bond = 0;
   double partition_seconds = 0;
   std::int64_t edge_cut = 0;
