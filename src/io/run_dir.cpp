@@ -117,7 +117,8 @@ const std::vector<std::string>& run_file_names() {
       "scene.resolved.yaml", "frames.h5",         "frames.xdmf",         "series.csv",
       "tips.csv",            "summary.json",      "FAILED",              "checkpoint.h5",
       "checkpoint.prev.h5",  "checkpoint.h5.tmp", "frames.h5.salvage",   "scene.resolved.yaml.tmp",
-      "frames.xdmf.tmp",     "series.csv.tmp",    "summary.json.tmp",    "FAILED.tmp"};
+      "frames.xdmf.tmp",     "series.csv.tmp",    "summary.json.tmp",    "FAILED.tmp",
+      "quasistatic.csv"};
   return names;
 }
 

@@ -84,10 +84,29 @@ void RunOutput::check_free_space(const Output& output, std::int64_t nodes, std::
   if (!verdict.empty()) throw InputError(verdict);
 }
 
+void RunOutput::open_quasistatic(const std::string& columns, std::int64_t resume_step) {
+  if (rank_ == 0) {
+    const std::string path = dir_ + "/quasistatic.csv", header = columns + "\n";
+    const std::string kept = resume_step >= 0 ? rows_up_to(path, header, resume_step - 1) : header;
+    quasistatic_ = std::make_unique<std::ofstream>(path, std::ios::trunc);
+    *quasistatic_ << kept;
+    quasistatic_->flush();
+  }
+  check_text_files();
+}
+
+void RunOutput::write_quasistatic(const std::string& row) {
+  if (!quasistatic_) return;
+  *quasistatic_ << row << '\n';
+  quasistatic_->flush();
+}
+
 void RunOutput::check_text_files() const {
   std::string error;
   if (rank_ == 0 && series_ && !series_->good()) error = dir_ + "/series.csv: a row could not be written";
   if (rank_ == 0 && error.empty() && tips_ && !*tips_) error = dir_ + "/tips.csv: a row could not be written";
+  if (rank_ == 0 && error.empty() && quasistatic_ && !*quasistatic_)
+    error = dir_ + "/quasistatic.csv: a row could not be written";
   if (!error.empty()) {
     const double free = free_bytes(dir_);
     if (free >= 0) error += " (the file system holding '" + dir_ + "' has " + std::to_string(static_cast<long long>(free)) + " bytes free)";

@@ -155,6 +155,7 @@ void emit_stage(Writer& w, const Stage& s) {
     w.key(4, "displacement_gradient", flow(s.displacement_gradient));
     w.key(4, "load_steps", std::to_string(s.load_steps));
     w.key(4, "max_load_steps", std::to_string(s.max_load_steps));
+    w.key(4, "max_load_step", s.max_load_step);
     w.key(4, "in_plane", to_text(s.in_plane));
     w.key(4, "jacobian", s.matrix_free ? "matrix_free" : "assembled");
     w.key(4, "jacobian_shift", s.jacobian_shift);

@@ -310,6 +310,8 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
     if (s.max_load_steps < s.load_steps)
       m.at("max_load_steps").fail("expected an integer >= load_steps (" + std::to_string(s.load_steps) + "), got " +
                                   std::to_string(s.max_load_steps));
+    if (auto x = m.get("max_load_step"))
+      s.max_load_step = x->number_if("a number in (0, 1]", [](double f) { return f > 0 && f <= 1; });
     if (auto x = m.get("in_plane")) s.in_plane = x->boolean();
     if (auto x = m.get("jacobian"))
       s.matrix_free = x->choice<bool>({{"assembled", false}, {"matrix_free", true}});

@@ -238,6 +238,10 @@ inline const Keys kStageKeys = {
     {.name = "max_load_steps", .fallback = "1000",
      .doc = "increments, cut-backs included, before the stage fails (exit status 3); an integer in 1 .. 1e8, at "
             "least load_steps"},
+    {.name = "max_load_step", .fallback = "1",
+     .doc = "largest load increment as a fraction of the stage's load, a number in (0, 1]: the adaptive growth "
+            "stops there; with load_steps = 1 / max_load_step the increments are uniform (one row of "
+            "quasistatic.csv each) unless Newton diverges"},
     {.name = "in_plane", .fallback = "true",
      .doc = "hold membranes' out-of-plane components where they are (a flat membrane has no out-of-plane "
             "stiffness at zero tension)"},
@@ -264,6 +268,7 @@ inline const std::map<std::string, StageKind> kStageKeyKind = {
     {"boundary_velocity", StageKind::Dynamic}, {"displacements", StageKind::QuasiStatic},
     {"displacement_gradient", StageKind::QuasiStatic},
     {"load_steps", StageKind::QuasiStatic},   {"max_load_steps", StageKind::QuasiStatic},
+    {"max_load_step", StageKind::QuasiStatic},
     {"in_plane", StageKind::QuasiStatic},     {"jacobian", StageKind::QuasiStatic},
     {"jacobian_shift", StageKind::QuasiStatic}, {"max_break_passes", StageKind::QuasiStatic},
     {"cracks", StageKind::Release},

@@ -206,7 +206,8 @@ int QuasiStaticLoader::solve(Vec x) {
 }
 
 QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vector<std::uint8_t>& constrained,
-                                        const std::vector<double>& increment, bool verbose) {
+                                        const std::vector<double>& increment, bool verbose,
+                                        const IncrementObserver& observer) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::size_t n = 3 * static_cast<std::size_t>(owned_);
   model_ = &model;
@@ -232,7 +233,8 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   reactions(u0.data(), reaction, load_force);
 
   QuasiStaticStats stats;
-  double load = 0, load_prev = -1, step = 1.0 / static_cast<double>(stage_.load_steps);
+  double load = 0, load_prev = -1;
+  double step = std::min(1.0 / static_cast<double>(stage_.load_steps), stage_.max_load_step);
   long attempts = 0;
   target_.resize(n);
   while (load < 1.0) {
@@ -334,6 +336,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     load = next;
     stats.broken += inc.broken;
     stats.increments.push_back(inc);
+    if (observer) observer(stats, reaction.data());
     if (verbose && rank_ == 0) {
       std::printf("[peridrive] quasistatic '%s': load %.4g  Newton %d  linear %d  |R| %.3g N  broken %lld\n",
                   stage_.name.c_str(), load, inc.newton_iterations, inc.linear_iterations, inc.residual,
@@ -341,7 +344,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
       std::fflush(stdout);
     }
     // Easy convergence: grow the step.
-    if (inc.break_passes == 0 && inc.newton_iterations <= 4) step *= 1.5;
+    if (inc.break_passes == 0 && inc.newton_iterations <= 4) step = std::min(1.5 * step, stage_.max_load_step);
   }
   model.set_displacement(u_conv.data());
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

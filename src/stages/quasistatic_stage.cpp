@@ -94,7 +94,7 @@ std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& st
 }
 
 QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, double t, EquilibriumModel& model,
-                                 EnergyLedger& ledger, bool verbose) {
+                                 EnergyLedger& ledger, bool verbose, const IncrementObserver& observer) {
   for (const auto& load : p.loads)
     if (load->quasistatic()) load->begin_quasistatic(t);
   const std::size_t n = 3 * static_cast<std::size_t>(p.domain.owned);
@@ -112,7 +112,7 @@ QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, double t, Equil
     for (std::size_t k = 0; k < n; ++k) x[k] += p.domain.X[k];
     loader->set_near_null_space(x, constrained);
   }
-  QuasiStaticStats stats = loader->run(model, constrained, increment, verbose);
+  QuasiStaticStats stats = loader->run(model, constrained, increment, verbose, observer);
   ledger.external_work += stats.external_work;
   // Equilibrium: at rest.
   PERI_PETSC(VecSet(p.state->velocity(), 0.0));

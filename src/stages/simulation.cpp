@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <set>
+#include <sstream>
 
 #include "peri/io/checkpoint.hpp"
 #include "peri/io/restart.hpp"
@@ -66,6 +67,14 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     }
     output_.open(options_.out_dir, domain_, state_, p_->resolved, scene_.output,
                  options_.restart ? options_.restart->step : -1, columns, tips_ != nullptr, comm_);
+    if (std::any_of(scene_.stages.begin(), scene_.stages.end(),
+                    [](const Stage& s) { return s.kind == StageKind::QuasiStatic; })) {
+      std::string qs = "step,stage,increment,load_factor,newton_iterations,linear_iterations,broken_bonds,"
+                       "strain_energy,dissipated_energy,external_work";
+      for (const Boundary& b : scene_.boundaries)
+        for (const char* c : {"_reaction_x", "_reaction_y", "_reaction_z"}) qs += "," + b.name + c;
+      output_.open_quasistatic(qs, options_.restart ? options_.restart->step : -1);
+    }
   }
   summary_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
@@ -240,7 +249,30 @@ void Simulation::run_quasistatic(const Stage& stage) {
     std::printf("[peridrive] quasistatic '%s': %ld initial load steps\n", stage.name.c_str(), stage.load_steps);
     std::fflush(stdout);
   }
-  const QuasiStaticStats stats = peri::run_quasistatic(*p_, stage, time_, equilibrium_, ledger_, !options_.quiet);
+  // quasistatic.csv: a row per converged increment (energies, support work so far, and the
+  // support reaction summed over each boundary's nodes).
+  IncrementObserver observer;
+  if (output_.writes())
+    observer = [&](const QuasiStaticStats& so_far, const double* reaction) {
+      const std::size_t nb = scene_.boundaries.size();
+      std::vector<double> local(1 + 3 * nb, 0.0), sum(local.size());
+      local[0] = so_far.external_work;
+      for (std::int32_t i : p_->boundaries->rows())
+        for (int c = 0; c < 3; ++c) local[1 + 3 * p_->boundaries->of(i) + c] += reaction[3 * static_cast<std::size_t>(i) + c];
+      MPI_Allreduce(local.data(), sum.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, comm_);
+      const EnergyRow row = energies();
+      if (rank_ != 0) return;
+      const LoadIncrement& inc = so_far.increments.back();
+      std::ostringstream s;
+      s.precision(12);
+      s << step_ << ',' << stage.name << ',' << so_far.increments.size() << ',' << inc.load_factor << ','
+        << inc.newton_iterations << ',' << inc.linear_iterations << ',' << row.broken_bonds << ',' << row.strain << ','
+        << row.dissipated << ',' << row.external_work + sum[0];
+      for (std::size_t k = 1; k < sum.size(); ++k) s << ',' << sum[k];
+      output_.write_quasistatic(s.str());
+    };
+  const QuasiStaticStats stats =
+      peri::run_quasistatic(*p_, stage, time_, equilibrium_, ledger_, !options_.quiet, observer);
   const EnergyRow after = energies();
   const double work = stats.external_work;
   const double stored = (after.strain - before.strain) + (after.dissipated - before.dissipated) - before.kinetic;

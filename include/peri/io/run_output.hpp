@@ -1,5 +1,5 @@
 // The files of a run in its output directory: scene.resolved.yaml, frames.h5 + frames.xdmf,
-// series.csv, tips.csv (rank 0) and summary.json, written last (its presence marks a complete
+// series.csv, tips.csv, quasistatic.csv (rank 0) and summary.json, written last (its presence marks a complete
 // run); and the steps that get a frame. A fresh run first removes every file of an earlier run
 // in the directory; a resumed one continues them, dropping frames and rows after its checkpoint.
 #pragma once
@@ -57,6 +57,12 @@ class RunOutput {
   }
   /// Rows of tips.csv (rank 0; the other ranks write nothing).
   void write_tips(const std::string& rows);
+  /// quasistatic.csv (rank 0), for scenes with quasi-static stages: its header is `columns`; a
+  /// fresh run starts it empty, a resumed one keeps the rows of steps before resume_step (a
+  /// quasi-static stage at the checkpoint's step runs again after the resume). Call after open().
+  void open_quasistatic(const std::string& columns, std::int64_t resume_step);
+  /// One row of quasistatic.csv (rank 0; the other ranks write nothing).
+  void write_quasistatic(const std::string& row);
   /// summary.json (written by rank 0), the run's last file. Collective: a failure to write it,
   /// or an earlier row of series.csv or tips.csv that could not be written, raises RuntimeFailure
   /// on every rank.
@@ -78,6 +84,7 @@ class RunOutput {
   std::unique_ptr<FrameWriter> frames_;
   std::unique_ptr<SeriesWriter> series_;
   std::unique_ptr<std::ofstream> tips_;  // rank 0
+  std::unique_ptr<std::ofstream> quasistatic_;  // rank 0
 };
 
 }  // namespace peri

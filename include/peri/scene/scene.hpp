@@ -265,6 +265,7 @@ struct Stage {
   std::array<double, 9> displacement_gradient{};
   long load_steps = 10;         ///< initial number of load increments (adaptive afterwards)
   long max_load_steps = 1000;   ///< increments, cut-backs included, before giving up
+  double max_load_step = 1.0;   ///< largest increment, a fraction of the stage's load in (0, 1]
   bool in_plane = true;         ///< membranes: out-of-plane components held where they are
   bool matrix_free = false;     ///< Newton-Krylov without the assembled tangent (-snes_mf)
   double jacobian_shift = 1e-8; ///< regularization of the tangent's diagonal (relative; not of the residual)

@@ -20,6 +20,7 @@
 #include <petscsnes.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,12 @@ struct QuasiStaticStats {
   int near_null_modes = 0;      ///< rigid motions given to the multigrid preconditioner
 };
 
+/// Called after each converged increment (bonds broken and re-equilibrated): the stage's figures
+/// so far (the increment is stats.increments.back(); external_work is this rank's share) and the
+/// support reaction on each owned component (3 per owned node: the force the supports apply to
+/// the body [N], 0 on free components). Collective calls are allowed: every rank calls it.
+using IncrementObserver = std::function<void(const QuasiStaticStats& stats, const double* reaction)>;
+
 class QuasiStaticLoader {
  public:
   /// `d_nnz`/`o_nnz`: per owned node, the number of block columns owned by this rank / by others
@@ -87,9 +94,10 @@ class QuasiStaticLoader {
 
   /// Load from the model's current displacement to it plus `increment` on the constrained
   /// components (`constrained[k] != 0`); free components follow. Throws RuntimeFailure when an
-  /// increment cannot converge within the stage's limits.
+  /// increment cannot converge within the stage's limits. `observer` (if set) sees every converged
+  /// increment.
   QuasiStaticStats run(EquilibriumModel& model, const std::vector<std::uint8_t>& constrained,
-                       const std::vector<double>& increment, bool verbose);
+                       const std::vector<double>& increment, bool verbose, const IncrementObserver& observer = {});
 
   /// The near null space of the tangent for the multigrid preconditioner: the rigid motions of
   /// nodes at `x` (3 per owned node), zero on the `constrained` components, orthonormalized.

@@ -38,9 +38,9 @@ std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& st
 /// Runs quasi-static `stage` on `model` (the problem's): the boundaries' prescribed components
 /// and, for an in-plane stage, the flat membranes' out-of-plane components are constrained; the
 /// body ends at rest. This rank's support work goes to the ledger; the figures returned hold
-/// the work of all ranks. Collective.
-/// `t`: the time of the stage (the loads' level 0 is their value then).
+/// the work of all ranks. `t`: the time of the stage (the loads' level 0 is their value then).
+/// `observer` (if set) sees every converged increment. Collective.
 QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, double t, EquilibriumModel& model,
-                                 EnergyLedger& ledger, bool verbose);
+                                 EnergyLedger& ledger, bool verbose, const IncrementObserver& observer = {});
 
 }  // namespace peri
