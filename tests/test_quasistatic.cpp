@@ -118,6 +118,20 @@ TEST(QuasiStatic, HomogeneousPreloadToStretchThreeMatchesEq19) {
   EXPECT_LE(qs.cutbacks, 2);
 }
 
+// max_load_step caps the increments: an affine stretch that would converge in growing steps
+// (1.5 x after an easy increment) takes 5 equal ones of 0.2.
+TEST(QuasiStatic, MaxLoadStepGivesUniformIncrements) {
+  std::string text = subst(kFrame, {{"@H1@", "0.5"}, {"@H2@", "0"}});
+  text = subst(text, {{"load_steps: 4}", "load_steps: 5, max_load_step: 0.2}"}});
+  const Scene scene = parse_scene(text, "frame");
+  ASSERT_DOUBLE_EQ(scene.stages[0].max_load_step, 0.2);
+  Simulation sim(scene, PETSC_COMM_WORLD, quiet());
+  sim.begin();
+  const QuasiStaticStats& qs = sim.summary().quasistatic[0].second;
+  ASSERT_EQ(qs.increments.size(), 5u);
+  for (std::size_t k = 0; k < 5; ++k) EXPECT_NEAR(qs.increments[k].load_factor, 0.2 * (k + 1), 1e-12);
+}
+
 // ------------------------------------------------------------------------------------------------
 // The assembled tangent is the derivative of the residual (central differences), for the
 // membrane law with hardening and for PMB bonds, in a non-affine, out-of-plane deformed state.

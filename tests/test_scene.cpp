@@ -1022,6 +1022,8 @@ TEST(SceneStages, Errors) {
               StartsWith("scene.yaml:14: stages.2.damping: expected a non-negative number [1/s], got -1"));
   EXPECT_THAT(staged("damping: 100", "damping: 100, cracks: [slit]"),
               StartsWith("scene.yaml:14: stages.2.cracks: this key belongs to release stages; this stage is dynamic"));
+  EXPECT_THAT(staged("load_steps: 4", "load_steps: 4, max_load_step: 0"),
+              StartsWith("scene.yaml:12: stages.0.max_load_step: expected a number in (0, 1]"));
   EXPECT_THAT(staged("load_steps: 4", "load_steps: 4, max_load_steps: 2"),
               StartsWith("scene.yaml:12: stages.0.max_load_steps: expected an integer >= load_steps (4), got 2"));
   EXPECT_THAT(staged("  - {name: run, duration: 1.0e-5, damping: 100, boundary_velocity: {top: [0, 1, 0]}}\n", ""),
