@@ -333,6 +333,11 @@ def dynamic_release_rate(outdir):
         return
     length = np.array([abs(float(r["tip1_x"]) - float(r["tip0_x"])) for r in rows])
     dissipated = np.array([float(r["dissipated_energy"]) for r in rows])
+    if not length.max() > length[0] + 0.5 * delta[0]:
+        # No growth to fit (a crack that did not run): no rate, rather than a slope of zero.
+        print(f"dissipated energy per new crack area: not measured, the crack grew {length.max() - length[0]:.3g} m "
+              f"(less than half a horizon, {0.5 * delta[0]:.3g} m)")
+        return
     # Middle half of the growth (the steady part), as for the mean speed.
     lo, hi = length[0] + 0.25 * (length.max() - length[0]), length[0] + 0.75 * (length.max() - length[0])
     sel = (length >= lo) & (length <= hi)
