@@ -59,58 +59,6 @@ void end_with_launcher() {
 #endif
 }
 
-std::vector<double> gather_natural_to_root(State& state, const Domain& d, const double* owned, int bs,
-                                           MPI_Comm comm) {
-  const double* slice = state.to_natural(owned, bs);
-  int rank = 0, ranks = 1;
-  MPI_Comm_rank(comm, &rank);
-  MPI_Comm_size(comm, &ranks);
-  const int n = static_cast<int>(bs * state.natural_count());
-  std::vector<int> counts(ranks), displs(ranks, 0);
-  MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
-  for (int r = 1; r < ranks; ++r) displs[r] = displs[r - 1] + counts[r - 1];
-  std::vector<double> all(rank == 0 ? static_cast<std::size_t>(bs) * d.global_nodes : 0);
-  MPI_Gatherv(slice, n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, 0, comm);
-  return all;
-}
-
-std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm) {
-  // Each broken bond is seen from both ends; the end with the lower natural id reports it.
-  std::vector<std::int64_t> mine;
-  for (std::int32_t r = 0; r < d.owned; ++r)
-    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b)
-      if (d.bonds.broken[b] && d.natural[r] < d.natural[d.bonds.neighbor[b]])
-        mine.insert(mine.end(), {d.natural[r], d.natural[d.bonds.neighbor[b]]});
-  int rank = 0, ranks = 1;
-  MPI_Comm_rank(comm, &rank);
-  MPI_Comm_size(comm, &ranks);
-  const long long n = static_cast<long long>(mine.size());
-  std::vector<long long> counts(ranks);
-  MPI_Gather(&n, 1, MPI_LONG_LONG, counts.data(), 1, MPI_LONG_LONG, 0, comm);
-  std::vector<int> c32(ranks), displs(ranks, 0);
-  long long total = 0;
-  for (int r = 0; r < ranks; ++r) {
-    if (rank == 0 && total + counts[r] > (1ll << 31) - 1)
-      throw Error("too many broken bonds for one checkpoint gather");
-    c32[r] = static_cast<int>(counts[r]);
-    displs[r] = static_cast<int>(total);
-    total += counts[r];
-  }
-  std::vector<std::int64_t> all(rank == 0 ? total : 0);
-  MPI_Gatherv(mine.data(), static_cast<int>(n), MPI_INT64_T, all.data(), c32.data(), displs.data(),
-              MPI_INT64_T, 0, comm);
-  if (rank == 0) {
-    std::vector<std::pair<std::int64_t, std::int64_t>> pairs(all.size() / 2);
-    for (std::size_t k = 0; k < pairs.size(); ++k) pairs[k] = {all[2 * k], all[2 * k + 1]};
-    std::sort(pairs.begin(), pairs.end());
-    for (std::size_t k = 0; k < pairs.size(); ++k) {
-      all[2 * k] = pairs[k].first;
-      all[2 * k + 1] = pairs[k].second;
-    }
-  }
-  return all;
-}
-
 std::vector<std::int64_t> natural_blocks(std::int64_t natural_begin, std::int64_t nodes, MPI_Comm comm) {
   int ranks = 1;
   MPI_Comm_size(comm, &ranks);
@@ -199,7 +147,8 @@ std::vector<std::int64_t> broken_pairs_of_block(const Domain& d, const std::vect
   return pairs;
 }
 
-std::vector<double> history_rows_of_block(const Domain& d, const std::vector<std::int64_t>& blocks, MPI_Comm comm) {
+// This rank's bonds whose history is not all zero: rows (natural i, natural j, the values).
+static std::vector<double> own_history_rows(const Domain& d) {
   const int s = d.bonds.history_stride;
   std::vector<double> mine;
   for (std::int32_t r = 0; r < d.owned; ++r)
@@ -210,6 +159,12 @@ std::vector<double> history_rows_of_block(const Domain& d, const std::vector<std
       mine.push_back(static_cast<double>(d.natural[d.bonds.neighbor[b]]));
       mine.insert(mine.end(), h, h + s);
     }
+  return mine;
+}
+
+std::vector<double> history_rows_of_block(const Domain& d, const std::vector<std::int64_t>& blocks, MPI_Comm comm) {
+  const int s = d.bonds.history_stride;
+  const std::vector<double> mine = own_history_rows(d);
   std::vector<double> rows = rows_to_blocks(mine, 2 + static_cast<std::size_t>(s), blocks, MPI_DOUBLE, comm);
   sort_rows(rows, 2 + static_cast<std::size_t>(s));
   return rows;
@@ -243,15 +198,7 @@ std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pair
 
 std::vector<double> gather_history_to_root(const Domain& d, MPI_Comm comm) {
   const int s = d.bonds.history_stride;
-  std::vector<double> mine;
-  for (std::int32_t r = 0; r < d.owned; ++r)
-    for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
-      const double* h = d.bonds.history.data() + b * s;
-      if (std::all_of(h, h + s, [](double x) { return x == 0.0; })) continue;
-      mine.push_back(static_cast<double>(d.natural[r]));
-      mine.push_back(static_cast<double>(d.natural[d.bonds.neighbor[b]]));
-      mine.insert(mine.end(), h, h + s);
-    }
+  const std::vector<double> mine = own_history_rows(d);
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);

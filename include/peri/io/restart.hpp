@@ -33,14 +33,6 @@ int stop_signal();
 /// first in main, before MPI starts threads.
 void end_with_launcher();
 
-/// Owned values (bs per node, local order) in natural order, complete on rank 0 and empty on the
-/// other ranks. Collective.
-std::vector<double> gather_natural_to_root(State& state, const Domain& d, const double* owned, int bs,
-                                           MPI_Comm comm);
-
-/// Broken bonds as sorted natural pairs (i < j), flattened, on rank 0; empty elsewhere. Collective.
-std::vector<std::int64_t> gather_broken_to_root(const Domain& d, MPI_Comm comm);
-
 /// The first natural id of every rank's block (State::natural_begin()), and the total at the end:
 /// ranks + 1 values. Collective.
 std::vector<std::int64_t> natural_blocks(std::int64_t natural_begin, std::int64_t nodes, MPI_Comm comm);
