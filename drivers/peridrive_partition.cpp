@@ -1,7 +1,8 @@
 // peridrive-partition: partition a scene into P parts without running it, and report what a
-// P-rank run would carry per rank (owned nodes and bonds, ghosts, neighbour ranks), the quality
-// (edge cut, balance = largest part's bonds / mean) and what the partitioner costs (time, peak
-// memory above its input). Feeds cluster/scaling_model.py.
+// P-rank run would carry per rank (owned nodes and bonds, ghosts, neighbour ranks, the bonds of
+// rows next to a ghost, the largest message), the quality (edge cut, balance = largest part's
+// bonds / mean) and what the partitioner costs (time, peak memory above its input). A run on P
+// ranks reports the same halo figures in its summary.json ("halo"). Feeds cluster/scaling_model.py.
 //
 //   peridrive-partition scene.yaml [--set KEY=VALUE ...] --parts 2,4,8,...,4096
 //                       [--method rcb,cells,bonds] [--cells-per-part 64] [--line-weight 2] [--csv FILE]
@@ -188,7 +189,8 @@ int run(int argc, char** argv) {
           "cell graph, peridrive's default otherwise, its cut bonds within an x row of cells weighted --line-weight\n"
           "times, as -partition_line_weight; bonds: METIS on the full bond graph; default: rcb where peridrive\n"
           "would take it, then cells and bonds) and prints per P and method: largest part's nodes\n"
-          "and bonds, ghosts, neighbour parts, edge cut, balance, the partitioner's time and its peak memory.");
+          "and bonds, ghosts, neighbour parts, boundary rows' bonds, the largest message, edge cut, balance,\n"
+          "the partitioner's time and its peak memory.");
       return 0;
     } else if (scene_path.empty() && a[0] != '-') scene_path = a;
     else throw peri::InputError("unknown argument " + a + "; see --help");
@@ -208,7 +210,8 @@ int run(int argc, char** argv) {
               static_cast<long long>(n), static_cast<long long>(bonds), graph_seconds, peak_rss_kb() / 1024.0);
   std::ostringstream csv;
   csv << "parts,method,nodes,ordered_bonds,max_owned_nodes,max_owned_bonds,mean_owned_bonds,max_ghosts,mean_ghosts,"
-         "max_neighbour_parts,mean_neighbour_parts,edge_cut,balance,graph_vertices,metis_seconds,partitioner_peak_mb\n";
+         "max_neighbour_parts,mean_neighbour_parts,edge_cut,balance,graph_vertices,metis_seconds,partitioner_peak_mb,"
+         "max_boundary_bonds,mean_boundary_bonds,max_message_ghosts\n";
   for (int P : parts)
   for (peri::PartitionMethod method : methods) {
     if (P > n) continue;
@@ -218,7 +221,11 @@ int run(int argc, char** argv) {
     const peri::PartitionQuality quality = peri::quality(graph, part, P);
     const std::int64_t cut = quality.edge_cut;
     // Per part: owned nodes and bonds; ghosts = distinct off-part neighbours; neighbour parts.
-    std::vector<std::int64_t> owned(P, 0), owned_bonds(P, 0), ghosts(P, 0);
+    // Boundary bonds: those of rows with an off-part neighbour (computed after the halo arrives;
+    // the interior rows' overlap it). Message: the ghosts one part receives from one other.
+    std::vector<std::int64_t> owned(P, 0), owned_bonds(P, 0), ghosts(P, 0), boundary_bonds(P, 0);
+    std::int64_t max_message = 0;
+    std::vector<std::int64_t> from_part(P, 0);
     std::vector<std::vector<int>> neighbour_parts(P);
     std::vector<int> seen(n, -1);  // last part that counted node j as a ghost
     std::vector<std::vector<std::int32_t>> members(P);
@@ -226,19 +233,29 @@ int run(int argc, char** argv) {
     for (int p = 0; p < P; ++p) {
       owned[p] = static_cast<std::int64_t>(members[p].size());
       for (std::int32_t i : members[p]) {
-        owned_bonds[p] += graph.offsets[i + 1] - graph.offsets[i];
+        const std::int64_t row = graph.offsets[i + 1] - graph.offsets[i];
+        owned_bonds[p] += row;
+        bool boundary = false;
         for (std::int64_t b = graph.offsets[i]; b < graph.offsets[i + 1]; ++b) {
           const std::int32_t j = graph.adjacency[b];
-          if (part[j] != p && seen[j] != p) {
+          if (part[j] == p) continue;
+          boundary = true;
+          if (seen[j] != p) {
             seen[j] = p;
             ++ghosts[p];
+            ++from_part[part[j]];
             neighbour_parts[p].push_back(part[j]);
           }
         }
+        if (boundary) boundary_bonds[p] += row;
       }
       auto& q = neighbour_parts[p];
       std::sort(q.begin(), q.end());
       q.erase(std::unique(q.begin(), q.end()), q.end());
+      for (int r : q) {
+        max_message = std::max(max_message, from_part[r]);
+        from_part[r] = 0;
+      }
     }
     auto max_of = [](const std::vector<std::int64_t>& v) { return *std::max_element(v.begin(), v.end()); };
     auto mean_of = [P](const std::vector<std::int64_t>& v) {
@@ -251,7 +268,8 @@ int run(int argc, char** argv) {
     csv << P << "," << peri::to_string(method) << "," << n << "," << bonds << "," << max_of(owned) << "," << max_of(owned_bonds) << ","
         << mean_of(owned_bonds) << "," << max_of(ghosts) << "," << mean_of(ghosts) << "," << max_of(nq) << ","
         << mean_of(nq) << "," << cut << "," << quality.balance << "," << measured.graph_vertices << ","
-        << metis_seconds << "," << measured.peak_bytes / 1e6 << "\n";
+        << metis_seconds << "," << measured.peak_bytes / 1e6 << "," << max_of(boundary_bonds) << ","
+        << mean_of(boundary_bonds) << "," << max_message << "\n";
     std::fprintf(stderr, "P = %d, %s: %.3g s, %.1f MB, balance %.4f, max ghosts %lld, edge cut %lld (%lld graph vertices)\n",
                  P, peri::to_string(method), metis_seconds, measured.peak_bytes / 1e6, quality.balance,
                  static_cast<long long>(max_of(ghosts)), static_cast<long long>(cut),

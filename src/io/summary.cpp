@@ -48,6 +48,11 @@ std::string RunSummary::to_json() const {
     << "  \"edge_cut\": " << edge_cut << ",\n"
     << "  \"partition_method\": " << json_string(partition_method) << ",\n"
     << "  \"partition_balance\": " << json_number(partition_balance) << ",\n"
+    << "  \"halo\": {\"max_ghosts\": " << halo.max_ghosts << ", \"mean_ghosts\": " << json_number(halo.mean_ghosts)
+    << ", \"max_neighbour_ranks\": " << halo.max_neighbour_ranks
+    << ", \"mean_neighbour_ranks\": " << json_number(halo.mean_neighbour_ranks)
+    << ", \"max_owned_bonds\": " << halo.max_owned_bonds << ", \"max_boundary_bonds\": " << halo.max_boundary_bonds
+    << ", \"mean_boundary_bonds\": " << json_number(halo.mean_boundary_bonds) << "},\n"
     << "  \"memory\": [";
   for (std::size_t k = 0; k < memory.size(); ++k)
     j << (k ? ", " : "") << "{\"phase\": " << json_string(memory[k].phase) << ", \"peak_bytes\": "

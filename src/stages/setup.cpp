@@ -167,6 +167,33 @@ StagePlan plan_stages(const Scene& scene, double dt_stable) {
 }
 
 /// Sizes, time steps and the partition's figures.
+/// The halo's terms over the ranks (summary.json "halo"): ghosts, neighbour ranks (the owners of
+/// this rank's ghosts: bonds are symmetric, so these are also the ranks it sends to), owned
+/// ordered bonds and those of boundary rows. Collective.
+void halo_figures(const Problem& p, RunSummary::Halo& halo) {
+  const Domain& d = p.domain;
+  std::vector<std::int64_t> begins(p.ranks + 1);
+  MPI_Allgather(&d.global_begin, 1, MPI_INT64_T, begins.data(), 1, MPI_INT64_T, p.comm);
+  begins[p.ranks] = d.global_nodes;
+  std::vector<char> neighbour(p.ranks, 0);
+  for (std::int32_t k = 0; k < d.ghosts; ++k)
+    neighbour[std::upper_bound(begins.begin(), begins.end(), d.global[d.owned + k]) - begins.begin() - 1] = 1;
+  std::int64_t boundary = 0;
+  for (std::int32_t i : d.boundary_rows) boundary += d.bonds.offsets[i + 1] - d.bonds.offsets[i];
+  const std::int64_t mine[4] = {d.ghosts, std::count(neighbour.begin(), neighbour.end(), 1),
+                                static_cast<std::int64_t>(d.bonds.size()), boundary};
+  std::int64_t most[4], sum[4];
+  MPI_Allreduce(mine, most, 4, MPI_INT64_T, MPI_MAX, p.comm);
+  MPI_Allreduce(mine, sum, 4, MPI_INT64_T, MPI_SUM, p.comm);
+  halo.max_ghosts = most[0];
+  halo.max_neighbour_ranks = most[1];
+  halo.max_owned_bonds = most[2];
+  halo.max_boundary_bonds = most[3];
+  halo.mean_ghosts = static_cast<double>(sum[0]) / p.ranks;
+  halo.mean_neighbour_ranks = static_cast<double>(sum[1]) / p.ranks;
+  halo.mean_boundary_bonds = static_cast<double>(sum[3]) / p.ranks;
+}
+
 void setup_figures(const Problem& p, const Partition& partition, PartitionMethod method, RunSummary& summary) {
   const Domain& d = p.domain;
   std::int64_t local_bonds = d.bonds.size(), local_pre = d.initially_broken;
@@ -202,6 +229,7 @@ void setup_figures(const Problem& p, const Partition& partition, PartitionMethod
   double most = 0;
   MPI_Allreduce(&mine, &most, 1, MPI_DOUBLE, MPI_MAX, p.comm);
   summary.partition_balance = summary.ordered_bonds > 0 ? most * p.ranks / double(summary.ordered_bonds) : 1.0;
+  halo_figures(p, summary.halo);
 }
 
 /// A lattice body's derived constants: its law's A, B, node mass; the initial stretches and the

@@ -33,6 +33,14 @@ struct RunSummary {
   std::int64_t edge_cut = 0;
   std::string partition_method;  ///< cells, bonds or petsc (-partition_method)
   double partition_balance = 1;  ///< largest rank's ordered bonds / mean
+  /// What each step's halo exchange carries, over the ranks (the terms of cluster/scaling_model.py,
+  /// as peridrive-partition reports them for P parts): ghost nodes (24 bytes each per exchange),
+  /// ranks exchanged with, owned ordered bonds and those of rows with a ghost neighbour (computed
+  /// after the exchange; the others overlap it).
+  struct Halo {
+    std::int64_t max_ghosts = 0, max_neighbour_ranks = 0, max_owned_bonds = 0, max_boundary_bonds = 0;
+    double mean_ghosts = 0, mean_neighbour_ranks = 0, mean_boundary_bonds = 0;
+  } halo;
   /// Memory after each setup phase, summed over ranks: peak resident set (VmHWM) so far and
   /// current resident set (VmRSS), bytes.
   struct MemoryMark {
