@@ -414,6 +414,7 @@ def main(argv=None):
     ap.add_argument("--size", default="8,6", help="W,H in inches")
     ap.add_argument("--dpi", type=float, default=100)
     ap.add_argument("--title", default=None)
+    ap.add_argument("--bare", action="store_true", help="no axes, colour bar or title")
     ap.add_argument("--stats", default=None)
     ap.add_argument("--mesh", default=None)
     args = ap.parse_args(argv)
@@ -520,7 +521,7 @@ def main(argv=None):
         rgba = cmap(norm(values[kept_segs].mean(axis=1)))
         # A tube's brightest line faces the light: its Lambert factor is sin(angle(axis, light)).
         colors = shade(rgba, np.sqrt(np.clip(1.0 - (t @ light) ** 2, 0.0, 1.0)))
-        lw = 2.5 if len(kept_segs) < 20000 else 1.2
+        lw = 4.0 if len(kept_segs) < 2000 else 2.5 if len(kept_segs) < 20000 else 1.2
         ax.add_collection3d(Line3DCollection(v, colors=colors, linewidths=lw))
     if len(pts):
         ax.scatter(p[pts, 0], p[pts, 1], p[pts, 2], c=values[pts], cmap=cmap, norm=norm, s=4, depthshade=True)
@@ -558,7 +559,7 @@ def main(argv=None):
             tools_drawn += 1
     if faces:
         v, col = np.concatenate(faces), np.concatenate(colors)
-        ax.add_collection3d(Poly3DCollection(v, facecolors=col, edgecolors=col, linewidths=0.15))
+        ax.add_collection3d(Poly3DCollection(v, facecolors=col, edgecolors=col, linewidths=0.4, antialiased=False))
 
     ax.set_xlim(lo3[0], hi3[0])
     ax.set_ylim(lo3[1], hi3[1])
@@ -576,11 +577,16 @@ def main(argv=None):
     for axis, extent in zip((ax.xaxis, ax.yaxis, ax.zaxis), span):
         axis.set_major_locator(MaxNLocator(max(2, int(round(8 * extent / span.max())))))
     name = run.scene.get("name", os.path.basename(os.path.normpath(args.outdir)))
-    tu, ts = peri_view.time_unit(max(data["time"], 1e-300))
+    with h5py.File(run.h5, "r") as f:
+        duration = float(f["frames"][run.frame_names[-1]].attrs["time"])
+    tu, ts = peri_view.time_unit(max(duration, data["time"], 1e-300))
     title = args.title or (f"{name}: frame {k} of {len(run.frame_names) - 1}, t = {data['time'] / ts:.4g} {tu}"
                            f" ({'reference' if args.reference else 'deformed'}, view {elev:.0f},{azim:.0f})")
-    ax.set_title(title, fontsize=10)
-    fig.colorbar(mappable, cax=fig.add_axes([0.9, 0.25, 0.02, 0.5]), label=label)
+    if args.bare:
+        ax.set_axis_off()
+    else:
+        ax.set_title(title, fontsize=10)
+        fig.colorbar(mappable, cax=fig.add_axes([0.9, 0.25, 0.02, 0.5]), label=label)
     out = args.out or os.path.join(args.outdir, f"render3d_{field}.png")
     fig.savefig(out, dpi=args.dpi, bbox_inches="tight", pad_inches=0.15)
     peri_view.note(args.outdir, os.path.basename(out), TOOL, "render3d", fig, mappable, unit)
