@@ -12,7 +12,7 @@
 #    remove 0.7 to 1.2 times the dropped triangles' share of the sheet's pixels;
 #  - a small sphere (balloon scene at 20 mm spacing): a closed hull, 2N - 4 triangles, every edge in
 #    exactly two, the same triangles from scipy and from the stereographic projection;
-#  - a 5 mm fiber: N - 1 segments, none dropped.
+#  - a 5 mm fiber: N - 1 segments, none dropped; a clip on no axis refused (exit status 2).
 # usage: render3d.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]   (KEEP=1 keeps the work directory)
 set -u
 peridrive=$1 src=$2 mpiexec=$3
@@ -82,6 +82,14 @@ render sheet stretch111 --frame 0 --gap-stretch 1.11
 render sphere hull
 render sphere projection --no-scipy
 render fiber fiber
+# A clip on no axis is refused with exit status 2.
+"$py" "$src/tools/render3d.py" "$work/sheet" --clip 'q>1' --out "$work/refused.png" > "$work/refused.log" 2>&1
+status=$?
+if [ "$status" -ne 2 ] || [ -e "$work/refused.png" ]; then
+  echo "FAIL --clip 'q>1': exit status $status (expected 2, no picture)"; fail=$((fail + 1))
+else
+  echo "ok   --clip 'q>1' refused: $(cat "$work/refused.log")"
+fi
 
 "$py" - "$work" <<'PY' || fail=$((fail + 1))
 import json, sys

@@ -40,7 +40,8 @@ in nm, um, mm or m. The title names the run (the scene's name), the frame and it
 --out defaults to OUTDIR/render3d_<field>.png; --stats writes the counts (triangles, dropped by
 each rule, segments, points, field range) as JSON, --mesh the triangles (frame node indices), the
 rule that dropped each (0 kept, 1 reference edge, 2 damage, 3 stretch, 4 crack, 5 clip) and the
-fiber segments as .npz. The figure is noted in OUTDIR/figures.json (peri_view.note).
+fiber segments as .npz. The figure is noted in OUTDIR/figures.json (peri_view.note). A field the
+frames do not hold (output.fields) or a bad option is refused with exit status 2.
 Needs Debian's python3-h5py, python3-numpy, python3-matplotlib and python3-yaml (python3-scipy
 optional).
 """
@@ -76,6 +77,12 @@ FIELDS = ("damage", "strain_energy_density", "displacement", "displacement_x", "
           "displacement_z", "velocity", "velocity_x", "velocity_y", "velocity_z", "body")
 ALIASES = {"strain_energy": "strain_energy_density", "energy": "strain_energy_density", "u": "displacement",
            "u_x": "displacement_x", "u_y": "displacement_y", "u_z": "displacement_z", "v": "velocity"}
+
+
+def refuse(message):
+    """Print the message and exit with status 2 (what the run or the options cannot give)."""
+    print(message, file=sys.stderr)
+    sys.exit(2)
 
 
 # ---------------------------------------------------------------- triangulations
@@ -247,7 +254,7 @@ def read_frame(run, which):
         else:
             k = which if which >= 0 else len(names) + which
             if not 0 <= k < len(names):
-                raise SystemExit(f"{TOOL}: frame {which} out of range (the run holds {len(names)} frames)")
+                refuse(f"{TOOL}: frame {which} out of range (the run holds {len(names)} frames)")
         g = f["frames"][names[k]]
         data = {name: g[name][...].astype(float) for name in g}
         data["time"], data["step"] = float(g.attrs["time"]), int(g.attrs["step"])
@@ -265,16 +272,16 @@ def field_values(name, data, run):
         return run.body.astype(float), "body (scene index)", False
     if name == "damage":
         if "damage" not in data:
-            raise SystemExit(f"{TOOL}: the frames hold no damage (output.fields)")
+            refuse(f"{TOOL}: the frames hold no damage (output.fields)")
         return data["damage"], "damage (broken fraction)", False
     if name == "strain_energy_density":
         if name not in data:
-            raise SystemExit(f"{TOOL}: the frames hold no strain_energy_density (output.fields)")
+            refuse(f"{TOOL}: the frames hold no strain_energy_density (output.fields)")
         return data[name], "strain energy density [J/m^3]", False
     base, _, c = name.partition("_")
     vec = data.get(base)
     if vec is None:
-        raise SystemExit(f"{TOOL}: the frames hold no {base} (output.fields)")
+        refuse(f"{TOOL}: the frames hold no {base} (output.fields)")
     unit = "m" if base == "displacement" else "m/s"
     if c:
         return vec[:, comp[c]], f"{base} {c} [{unit}]", True
@@ -364,12 +371,12 @@ def clip_mask(points, clips):
                 axis, value = c.split(op, 1)
                 axis = axis.strip().lower()
                 if axis not in ("x", "y", "z"):
-                    raise SystemExit(f"{TOOL}: --clip {c!r}: expected x, y or z before {op}")
+                    refuse(f"{TOOL}: --clip {c!r}: expected x, y or z before {op}")
                 v = points[:, "xyz".index(axis)]
                 keep &= (v < float(value)) if op == "<" else (v > float(value))
                 break
         else:
-            raise SystemExit(f"{TOOL}: --clip {c!r}: expected AXIS<VALUE or AXIS>VALUE")
+            refuse(f"{TOOL}: --clip {c!r}: expected AXIS<VALUE or AXIS>VALUE")
     return keep
 
 
