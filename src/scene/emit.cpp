@@ -104,6 +104,7 @@ void emit_material(Writer& w, const Material& m) {
   if (takes("influence")) w.key(4, "influence", to_text(m.influence));
   w.optional(4, "critical_stretch", m.critical_stretch);
   w.optional(4, "critical_stretch_at_horizon", m.critical_stretch_at_horizon);
+  w.optional(4, "tip_advance", m.tip_advance);
   if (m.hardening) {
     w.key(4, "hardening",
           "{coefficient: " + format_number(m.hardening->coefficient) +

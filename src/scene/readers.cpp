@@ -65,7 +65,7 @@ double critical_value(const Value& v, const MaterialModel& model) {
 /// stretch or hardening), and the breaking mode.
 Material read_marder_material(const Map& m, Material mat) {
   for (const char* key : {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus", "influence",
-                          "critical_stretch", "critical_stretch_at_horizon", "hardening"})
+                          "critical_stretch", "critical_stretch_at_horizon", "hardening", "tip_advance"})
     if (auto x = m.get(key))
       x->fail("not used by the marder model (its stiffness is mooney_rivlin_a, mooney_rivlin_b; its failure "
               "fracture_separation)");
@@ -97,7 +97,7 @@ Material read_material(const std::string& name, const Value& v) {
   if (info->lattice) return read_marder_material(m, std::move(mat));
   for (const char* key : kMarderKeys)
     if (auto x = m.get(key)) x->fail("only the marder model takes this key (model is " + mat.model + ")");
-  for (const char* key : {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening"})
+  for (const char* key : {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening", "tip_advance"})
     if (auto x = m.get(key); x && std::find(info->keys.begin(), info->keys.end(), key) == info->keys.end()) {
       std::vector<std::string> takers;
       for (const std::string& name : material_model_names())
@@ -131,6 +131,10 @@ Material read_material(const std::string& name, const Value& v) {
   if (auto x = m.get("critical_stretch_at_horizon")) {
     if (!mat.critical_stretch) x->fail("requires critical_stretch (the critical value at |xi| = 0)");
     mat.critical_stretch_at_horizon = critical_value(*x, *info);
+  }
+  if (auto x = m.get("tip_advance")) {
+    if (!mat.critical_stretch) x->fail("requires critical_stretch (without failure no crack tip advances)");
+    mat.tip_advance = x->positive("m");
   }
   if (auto x = m.get("hardening")) {
     const Map h(*x, &kHardeningKeys, "a map {coefficient: c, exponent: n}");

@@ -73,6 +73,11 @@ inline const Keys kMaterialKeys = {
     {.name = "critical_stretch_at_horizon", .fallback = "= critical_stretch",
      .doc = "Lambda_delta of eq. (29): the critical value at xi = delta, critical_stretch being the one at xi = 0, "
             "linear in between; needs critical_stretch; the same limits"},
+    {.name = "tip_advance", .unit = "m", .fallback = "none: bonds break wherever they reach the failure test",
+     .doc = "the paper's incremental crack-tip advance (section 7.4): a bond may break only if one of its ends "
+            "lies within this distance r > 0 of a crack-tip node, a damaged node whose family holds no node "
+            "damaged later; without damage nothing breaks (crack from a pre-crack or notch); needs "
+            "critical_stretch; r at most the horizon (checked at setup)"},
     {.name = "hardening", .fallback = "none",
      .doc = "power-law hardening of eq. (16), `{coefficient: c', exponent: n}` (`materials.<name>.hardening`); runs "
             "in the portable bond loop"},

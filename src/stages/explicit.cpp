@@ -38,6 +38,7 @@ void Verlet::start(const Stage& stage, double dt) {
 }
 
 void Verlet::forces_at(double t) {
+  forces_.set_time(t);
   forces_.compute(true, false, ledger_.bonds);
   add_load_forces(t, false);
 }
@@ -169,6 +170,7 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
   // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
   // "Kelvin dissipation").
+  forces_.set_time(t1);
   forces_.compute(with_energy, false, ledger_.bonds);
   add_load_forces(t1, true);
   PetscLogEventBegin(events().update, 0, 0, 0, 0);

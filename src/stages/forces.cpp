@@ -70,6 +70,12 @@ Forces::Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Doma
   for (std::int32_t r : domain_.interior_rows) interior_by_body_[domain_.body[r]].push_back(r);
   for (std::int32_t r : domain_.boundary_rows) boundary_by_body_[domain_.body[r]].push_back(r);
   lattice_setup(scene, bodies);
+  std::vector<double> tip_radius(nb, -1.0);
+  for (std::size_t b = 0; b < nb; ++b)
+    if (const Material& m = scene.material(scene.bodies[b].material); m.tip_advance && !marder_[b])
+      tip_radius[b] = *m.tip_advance;
+  if (std::any_of(tip_radius.begin(), tip_radius.end(), [](double r) { return r >= 0; }))
+    tip_advance_.emplace(tip_radius, domain_, state_);
   interior_plan_.resize(nb);
   boundary_plan_.resize(nb);
   PetscLogEventBegin(events().plans, 0, 0, 0, 0);
@@ -106,6 +112,18 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
     view.energy_density = energy_density_.data();
   }
   density_current_ = with_energy;
+  // The crack-tip rule: its bodies run the intact law in the bond loop, then (after the halo) the
+  // rows with a bond that may break run again in the portable walk with the rule, replacing their
+  // forces, energy densities and energies (the same bits where nothing breaks).
+  const bool rule = tip_advance_ && !intact;
+  if (rule) {
+    tip_advance_->prepare(view, time_);
+    view.may_break = tip_advance_->may_break();
+  }
+  auto loop = [&](std::size_t b, const RowBlocks& plan) {
+    const bool held = rule && tip_advance_->applies(static_cast<int>(b));
+    bond_forces(held ? intact_laws_[b] : laws[b], view, plan, force_.data(), with_energy, t);
+  };
   if (has_kelvin_) {  // ghost velocities for the dashpots (not overlapped: the two ghosted Vecs
     state_.velocity_halo_begin();  // share one scatter, which holds one exchange at a time)
     state_.velocity_halo_end();
@@ -118,7 +136,7 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
     view.u = u.data();
     current_positions(domain_.X.data(), u.data(), 0, domain_.owned, position_stride_, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
-      if (!marder_[b]) bond_forces(laws[b], view, interior_plan_[b], force_.data(), with_energy, t);
+      if (!marder_[b]) loop(b, interior_plan_[b]);
     if (has_lattice_) lattice_forces(view, true, with_energy, t, vel ? vel->data() : nullptr);
   }
   PetscLogEventBegin(events().halo, 0, 0, 0, 0);
@@ -131,8 +149,19 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
     view.u = u.data();
     current_positions(domain_.X.data(), u.data(), domain_.owned, domain_.local(), position_stride_, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)
-      if (!marder_[b]) bond_forces(laws[b], view, boundary_plan_[b], force_.data(), with_energy, t);
+      if (!marder_[b]) loop(b, boundary_plan_[b]);
     if (has_lattice_) lattice_forces(view, false, with_energy, t, vel ? vel->data() : nullptr);
+    if (rule)
+      for (std::size_t b = 0; b < laws_.size(); ++b) {
+        const RowBlocks& rows = tip_advance_->rows(static_cast<int>(b));
+        if (!tip_advance_->applies(static_cast<int>(b)) || rows.rest.empty()) continue;
+        if (with_energy)  // the intact pass's energies of these rows
+          for (std::int32_t i : rows.rest) t.strain_energy -= domain_.volume[i] * energy_density_[i];
+        const std::int64_t before = t.newly_broken;
+        laws[b].entry().portable_forces(laws[b].constants(), view, rows, force_.data(), with_energy, t);
+        if (t.newly_broken != before) flags_changed();
+      }
+    if (rule) tip_advance_->stamp(view, time_);
   }
   if (has_lattice_) lattice_reduce();
   if (long_range_) {

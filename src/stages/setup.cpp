@@ -58,6 +58,14 @@ std::vector<BondLaw> calibrate_bodies(const Scene& scene, const Nodes& nodes, st
                        ? BondLaw{}
                        : calibrate(m, nodes.bodies[b], scene.bodies[b].where.str() + ": bodies." + scene.bodies[b].name));
     density.push_back(m.density);
+    // The crack-tip rule reads the tip flags of a family's nodes: r within the horizon.
+    if (m.tip_advance && !laws.back().empty() && !(*m.tip_advance <= laws.back().horizon()))
+      throw InputError(m.where.str() + ": materials." + m.name + ".tip_advance: expected at most the horizon " +
+                       number_text(laws.back().horizon()) + " m of body '" + scene.bodies[b].name + "', got " +
+                       number_text(*m.tip_advance));
+    if (m.tip_advance && !laws.back().empty() && laws.back().entry().history > 0)
+      throw InputError(m.where.str() + ": materials." + m.name + ".tip_advance: not available for the " +
+                       laws.back().name() + " law, which keeps a per-bond history");
   }
   check_node_masses(scene, nodes, laws, density);
   return laws;

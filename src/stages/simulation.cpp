@@ -42,6 +42,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     add_checkpoint_extra(
         "tool_friction", [this] { return p_->tools->save_friction(); },
         [this](const std::vector<double>* flat) { p_->tools->restore_friction(flat); });
+  if (TipAdvance* rule = forces_.tip_advance())  // break times of the damaged nodes, gathered to rank 0
+    add_checkpoint_extra(
+        "tip_advance_break_times", [this, rule] { return rule->save(time_, comm_); },
+        [this, rule](const std::vector<double>* flat) { rule->restore(flat, forces_.bond_view()); });
   if (options_.restart)
     check_restart(*options_.restart, scene_, domain_.global_nodes, summary_.ordered_bonds, p_->stages.steps);
   tips_ = CrackTipMonitor::create(scene_, forces_.laws(), p_->bodies, p_->density,

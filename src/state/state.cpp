@@ -1,6 +1,7 @@
 #include "peri/state/state.hpp"
 
 #include <algorithm>
+#include <cstring>
 #include <string>
 
 #include "peri/core/error.hpp"
@@ -92,7 +93,9 @@ void State::setup_halo(const Domain& d) {
     for (int k = 0; k < asked[p]; ++k)
       send_nodes_.push_back(static_cast<std::int32_t>(requested[asked_at[p] + k] - d.global_begin));
     send_offset_.push_back(static_cast<std::int64_t>(send_nodes_.size()));
+    recv_offset_.push_back(wanted_at[p]);
   }
+  recv_offset_.push_back(d.ghosts);
   recv_buffer_.resize(3 * static_cast<std::size_t>(d.ghosts));
   // By default one message per neighbour: through shared memory Open MPI's large messages are
   // fetched by the receiver (single copy, CMA), which then needs nothing more of the sender, and
@@ -151,6 +154,30 @@ State::~State() {
   }
   for (MPI_Request& r : recv_requests_) MPI_Request_free(&r);
   if (halo_comm_ != MPI_COMM_NULL) MPI_Comm_free(&halo_comm_);
+}
+
+void State::exchange_ghosts(void* local, std::size_t width) {
+  if (halo_comm_ == MPI_COMM_NULL) return;
+  constexpr int kTag = 11;
+  auto* bytes = static_cast<unsigned char*>(local);
+  std::vector<unsigned char> out(width * send_nodes_.size());
+  for (std::size_t k = 0; k < send_nodes_.size(); ++k)
+    std::memcpy(out.data() + width * k, bytes + width * static_cast<std::size_t>(send_nodes_[k]), width);
+  std::vector<MPI_Request> requests;
+  unsigned char* ghosts = bytes + width * static_cast<std::size_t>(owned_);
+  for (std::size_t n = 0; n < halo_ranks_.size(); ++n) {
+    MPI_Request r;
+    MPI_Irecv(ghosts + width * recv_offset_[n], static_cast<int>(width * (recv_offset_[n + 1] - recv_offset_[n])),
+              MPI_BYTE, halo_ranks_[n], kTag, halo_comm_, &r);
+    requests.push_back(r);
+  }
+  for (std::size_t n = 0; n < halo_ranks_.size(); ++n) {
+    MPI_Request r;
+    MPI_Isend(out.data() + width * send_offset_[n], static_cast<int>(width * (send_offset_[n + 1] - send_offset_[n])),
+              MPI_BYTE, halo_ranks_[n], kTag, halo_comm_, &r);
+    requests.push_back(r);
+  }
+  MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
 }
 
 void State::halo_begin() {

@@ -92,6 +92,21 @@ inline typename P::V squared_length(const B& b) {
   return P::add(P::fmadd(b.d2, b.d2, P::mul(b.d0, b.d0)), P::mul(b.d1, b.d1));
 }
 
+/// The micropotential w w_ij V_j bond `bond` of row i holds now, as an intact bond of law L.
+template <class Law>
+double stored_energy(const Law& constants, const BondView& v, std::int32_t i, const FamilyBond& bond) {
+  Law intact = constants;
+  intact.make_intact();
+  return intact.visit_shape([&](auto shape) {
+    const typename Law::template Lanes<simd::Scalar, decltype(shape), true> law(intact);
+    const auto b = scalar_bond(law, v, i, bond);
+    double w = 0;
+    unsigned fresh = 0;
+    law.coefficient(b, law.front(b, squared_length<simd::Scalar>(b)), w, fresh);
+    return w;
+  });
+}
+
 /// Force densities of rows (law E on the Scalar pack): each row's bonds in CSR order, a bond
 /// reaching the failure test flagged and its energy at failure (critical_energy) booked. A law
 /// with per-bond history updates it here when the view commits, and books what it dissipates.
@@ -111,11 +126,23 @@ void forces(const E& law, const Law& constants, const BondView& v, const std::in
       }
       const auto p = law.front(b, squared_length<simd::Scalar>(b));
       unsigned fresh = 0;
-      const double coef = law.coefficient(b, p, w, fresh);
+      const double w_before = w;
+      double coef = law.coefficient(b, p, w, fresh);
+      if (fresh && v.may_break && !(v.may_break[i] | v.may_break[bond.j()])) [[unlikely]] {
+        // The crack tip may not advance here (tip_advance): the bond stays intact.
+        Law held_constants = constants;
+        held_constants.make_intact();
+        const E held(held_constants);
+        const typename E::Bonds h = scalar_bond(held, v, i, bond);
+        w = w_before;
+        coef = held.coefficient(h, held.front(h, squared_length<simd::Scalar>(h)), w, fresh);
+      }
       if (fresh) {
+        // Under the crack-tip rule a bond held past its failure test breaks later with more than
+        // w at failure: it dissipates what it holds now.
+        diss += v.may_break ? stored_energy(constants, v, i, bond) : constants.critical_energy(b.xi2) * b.measure;
         bond.flag() = kBrokenFlag;
         ++newly;
-        diss += constants.critical_energy(b.xi2) * b.measure;
       }
       f0 = simd::Scalar::fmadd(coef, b.d0, f0);
       f1 = simd::Scalar::fmadd(coef, b.d1, f1);

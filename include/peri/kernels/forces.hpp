@@ -33,6 +33,11 @@ struct BondView {
   double* history = nullptr;
   int history_stride = 0;
   bool commit_history = false;
+  /// The incremental crack-tip advance (kernels/tip_advance.hpp), or nullptr: per local node,
+  /// whether it may break a bond now. A bond reaching the failure test with neither end allowed
+  /// stays intact. Only the portable walk reads it (the caller routes the rows that may break
+  /// there).
+  const std::uint8_t* may_break = nullptr;
 
   /// Reference |xi|^2 of bond b of row i.
   double xi2(std::int32_t i, std::int64_t b) const noexcept {

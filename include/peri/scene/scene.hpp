@@ -67,6 +67,9 @@ struct Material {
   /// Optional Lambda_delta of eq. (29): the critical value at |xi| = delta (then critical_stretch
   /// is Lambda_0, the value at |xi| = 0). Same meaning (stretch or strain) as critical_stretch.
   std::optional<double> critical_stretch_at_horizon;
+  /// The incremental crack-tip advance of section 7.4 (kernels/tip_advance.hpp): a bond may break
+  /// only where one of its ends lies within this distance [m] of a crack-tip node. Empty: off.
+  std::optional<double> tip_advance;
   std::optional<Hardening> hardening;  ///< membrane model only
   std::optional<MarderParams> marder;  ///< model marder only
 };

@@ -22,6 +22,7 @@
 #include "peri/partition/domain.hpp"
 #include "peri/scene/scene.hpp"
 #include "peri/state/state.hpp"
+#include "peri/stages/tip_advance.hpp"
 
 namespace peri {
 
@@ -58,6 +59,10 @@ class Forces {
   /// the bonds dissipated and broken to `tally`, sets its strain energy (with_energy: also each
   /// node's energy density, for energy_density()).
   void compute(bool with_energy, bool intact, BondTally& tally);
+  /// The time of the next force evaluations (the crack-tip rule's break times).
+  void set_time(double time) { time_ = time; }
+  /// The incremental crack-tip advance of the bodies whose material sets tip_advance, or nullptr.
+  TipAdvance* tip_advance() { return tip_advance_ ? &*tip_advance_ : nullptr; }
   double* force() { return force_.data(); }
   const double* force() const { return force_.data(); }
   /// Current positions of the local nodes (planes x, y, z position_stride() apart), as of the
@@ -134,6 +139,10 @@ class Forces {
   // loop in energy calls (compute), so a frame needs no separate pass over the bonds.
   bool density_current_ = false;
   std::vector<double> damage_;  // owned
+  // The crack-tip rule (tip_advance): its bodies' rows run the intact laws in the bond loop, then
+  // the rows whose bonds may break run again in the portable walk with the rule.
+  std::optional<TipAdvance> tip_advance_;
+  double time_ = 0;
 };
 
 }  // namespace peri

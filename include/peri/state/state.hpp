@@ -46,6 +46,10 @@ class State {
   /// Halo exchange of velocity (only scenes with velocity-dependent forces: lattice dashpots).
   void velocity_halo_begin();
   void velocity_halo_end();
+  /// Blocking halo exchange of a per-node array of `width` bytes per node (local order: owned,
+  /// then ghosts): each ghost entry gets its owner's value (the crack-tip rule's break times and
+  /// flags). Collective over the halo's neighbours.
+  void exchange_ghosts(void* local, std::size_t width);
   /// Gather owned per-node values (bs = 1 or 3) into the natural order. Returns this rank's
   /// contiguous slice; natural_begin()/natural_count() say which natural ids it holds.
   const double* to_natural(const double* owned_values, int bs);
@@ -82,6 +86,7 @@ class State {
   std::vector<int> halo_ranks_;
   std::vector<std::int32_t> send_nodes_;       // concatenated over neighbours
   std::vector<std::int64_t> send_offset_;      // neighbours + 1 (nodes)
+  std::vector<std::int64_t> recv_offset_;      // neighbours + 1 (ghosts, from 0)
   std::vector<double> send_buffer_[2], recv_buffer_;
   std::vector<MPI_Request> send_requests_[2], recv_requests_;
   int parity_ = 0;
