@@ -58,6 +58,11 @@ CASES = {
     # A rigid tool with contact and friction cutting a clamped, notched sheet.
     "tool": ("blunt_tool.yaml",
              ["bodies.sheet.spacing=0.0005", "stages.push.duration=4.0e-3", "output.frames=3"]),
+    # The same with the incremental crack-tip advance (tip_advance: break times, tips and
+    # permissions exchanged with the ghosts; break times in the checkpoint).
+    "tool_tip_advance": ("blunt_tool.yaml",
+                         ["bodies.sheet.spacing=0.0005", "stages.push.duration=4.0e-3", "output.frames=3",
+                          "materials.film.tip_advance=0.0005"]),
 }
 FIELDS = ("position", "velocity", "damage")
 

@@ -1,0 +1,133 @@
+#!/usr/bin/env python3
+"""Crack path of a sheet run: y(x) of the damaged nodes in a frame, its oscillation about its mean
+line (sign changes, wavelength, amplitude), for the blunt-tool scenes (examples/blunt-tool.md).
+
+The path: in each column of nodes (reference x, binned by the grid spacing) the mean reference y of
+the nodes with damage >= --threshold (0.3: the nodes along a crack's faces, not those a row away);
+a column whose damaged nodes spread over more than --fork (default 2 mm) holds a fork and is
+reported. The mean line is the least-squares straight line through y(x) from --from (default: the
+first damaged column past the notch) to the path's end, and d(x) = y(x) - line. Sign changes
+of d count with hysteresis: d must pass beyond +-h (--band, default one spacing) on the other
+side. Wavelength: twice the mean distance between consecutive crossings (taken where d changes
+sign); amplitude: the mean of |d| at its extreme between consecutive crossings.
+
+usage: crack_path.py RUN_DIR [--frame N] [--threshold 0.3] [--from X] [--band H] [--fork F]
+                     [--plot FILE] [--json]
+"""
+import argparse
+import json
+import sys
+
+import h5py
+import numpy as np
+
+
+def load(run, frame):
+    with h5py.File(f"{run}/frames.h5", "r") as f:
+        names = sorted(f["frames"].keys())
+        g = f["frames"][names[frame]]
+        X = g["position"][()] - g["displacement"][()]
+        return X, g["damage"][()], float(g.attrs["time"])
+
+
+def path(X, damage, threshold, fork):
+    x, y = X[:, 0], X[:, 1]
+    xs = np.unique(np.round(x, 9))
+    h = np.min(np.diff(xs)) if len(xs) > 1 else 1.0
+    cols, ys, spread = [], [], []
+    for xc in xs:
+        sel = (np.abs(x - xc) < 0.25 * h) & (damage >= threshold)
+        if not sel.any():
+            continue
+        cols.append(xc)
+        ys.append(float(np.mean(y[sel])))
+        spread.append(float(np.ptp(y[sel])))
+    cols, ys, spread = np.array(cols), np.array(ys), np.array(spread)
+    forks = cols[spread > fork]
+    return cols, ys, spread, forks, h
+
+
+def oscillation(xc, yc, band):
+    """Line fit, deviation, crossings with hysteresis, wavelength and amplitude."""
+    if len(xc) < 3:
+        return None
+    a, b = np.polyfit(xc, yc, 1)
+    d = yc - (a * xc + b)
+    crossings, extremes = [], []
+    side, best, best_abs = 0, None, 0.0
+    for k in range(len(d)):
+        s = 1 if d[k] > band else (-1 if d[k] < -band else 0)
+        if s != 0 and side == 0:
+            side = s
+        if s != 0 and s != side:
+            # where d changes sign last before k
+            j = k
+            while j > 0 and np.sign(d[j - 1]) == np.sign(d[k]):
+                j -= 1
+            x0 = xc[j - 1] + (xc[j] - xc[j - 1]) * d[j - 1] / (d[j - 1] - d[j]) if j > 0 else xc[j]
+            crossings.append(float(x0))
+            extremes.append(best_abs)
+            side, best_abs = s, 0.0
+        if side != 0 and np.sign(d[k]) == side:
+            best_abs = max(best_abs, abs(float(d[k])))
+    extremes.append(best_abs)
+    out = {"slope": float(a), "intercept": float(b), "sign_changes": len(crossings), "crossings": crossings,
+           "extremes": extremes, "rms_deviation": float(np.sqrt(np.mean(d * d))), "x": xc.tolist(), "d": d.tolist()}
+    if len(crossings) >= 2:
+        out["wavelength"] = float(2 * np.mean(np.diff(crossings)))
+    inner = extremes[1:-1] if len(extremes) > 2 else extremes
+    out["amplitude"] = float(np.mean(inner)) if inner else 0.0
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("run")
+    ap.add_argument("--frame", type=int, default=-1)
+    ap.add_argument("--threshold", type=float, default=0.3)
+    ap.add_argument("--from", dest="start", type=float, default=None, help="first x of the fit [m]")
+    ap.add_argument("--band", type=float, default=None, help="hysteresis band [m] (default: the spacing)")
+    ap.add_argument("--fork", type=float, default=0.002)
+    ap.add_argument("--plot", default=None)
+    ap.add_argument("--json", action="store_true")
+    a = ap.parse_args()
+    X, damage, time = load(a.run, a.frame)
+    xc, yc, spread, forks, h = path(X, damage, a.threshold, a.fork)
+    if a.start is not None:
+        keep = xc >= a.start
+        xc, yc, spread = xc[keep], yc[keep], spread[keep]
+    res = oscillation(xc, yc, a.band if a.band is not None else h) or {"sign_changes": 0}
+    res.update({"time": time, "spacing": float(h), "path_start": float(xc[0]) if len(xc) else None,
+                "path_end": float(xc[-1]) if len(xc) else None, "fork_columns": len(forks),
+                "first_fork": float(forks[0]) if len(forks) else None})
+    if a.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(9, 3))
+        hit = damage > 0.05
+        ax.scatter(1e3 * X[hit, 0], 1e3 * X[hit, 1], c=damage[hit], s=2, cmap="viridis", vmin=0, vmax=0.6)
+        ax.plot(1e3 * xc, 1e3 * yc, "r-", lw=1, label="path y(x)")
+        if "slope" in res:
+            ax.plot(1e3 * xc, 1e3 * (res["slope"] * xc + res["intercept"]), "k--", lw=0.8, label="mean line")
+            for c in res["crossings"]:
+                ax.axvline(1e3 * c, color="0.7", lw=0.5)
+        ax.set_xlabel("x [mm]")
+        ax.set_ylabel("y [mm]")
+        ax.set_aspect("equal")
+        ax.legend(loc="upper right", fontsize=7)
+        fig.savefig(a.plot, dpi=130, bbox_inches="tight")
+    if a.json:
+        print(json.dumps({k: v for k, v in res.items() if k not in ("x", "d")}))
+    else:
+        print(f"t = {1e3 * time:.2f} ms, path x = {1e3 * res['path_start']:.2f} .. {1e3 * res['path_end']:.2f} mm, "
+              f"{res['sign_changes']} sign changes, wavelength "
+              f"{1e3 * res['wavelength']:.2f} mm" if "wavelength" in res else f"t = {1e3 * time:.2f} ms, "
+              f"{res['sign_changes']} sign changes")
+        print(f"amplitude {1e3 * res.get('amplitude', 0):.2f} mm, rms deviation {1e3 * res.get('rms_deviation', 0):.2f} mm, "
+              f"fork columns {res['fork_columns']}" + (f" (first at x = {1e3 * res['first_fork']:.2f} mm)" if res['first_fork'] else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
