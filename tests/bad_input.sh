@@ -88,6 +88,15 @@ expect fiber_origin "bodies.fiber.origin: not used by a fiber body" -- "$fiber" 
 expect fiber_spacing "bodies.fiber.spacing: spacing must not exceed the fiber's length along its path" -- "$fiber" --set bodies.fiber.spacing=1e-6
 expect pair_kind "long_range.pairs.0.between: expected one of: adjacent_segments, distant_segments, other_fibers" -- "$fiber" --set long_range.pairs.0.between=neighbours
 expect pair_alpha "long_range.pairs.1.alpha: expected a non-negative number [J/m^6], got -1" -- "$fiber" --set long_range.pairs.1.alpha=-1
+# A rule for two particular segments: indices within the fiber's 20 segments (checked at setup),
+# two different ones, only with between: segments; a rule's own cutoff is positive.
+expect segments_range "long_range.pairs.0.segments: expected segment indices 0 to 19 (the fiber has 20 segments), got [0, 20]" -- "$fiber" --set 'long_range.pairs=[{between: segments, segments: [0, 20], alpha: 1, beta: 1}]'
+expect segments_same "long_range.pairs.1.segments: expected two different segments (nodes of one segment never interact), got [3, 3]" -- "$fiber" --set 'long_range.pairs.1={between: segments, segments: [3, 3], alpha: 1, beta: 1}'
+expect segments_missing "long_range.pairs.0: missing required key 'segments'" -- "$fiber" --set 'long_range.pairs.0={between: segments, alpha: 1, beta: 1}'
+expect segments_on_kind "long_range.pairs.1.segments: only a rule with between: segments names segments" -- "$fiber" --set 'long_range.pairs.1.segments=[0, 3]'
+expect segments_negative "long_range.pairs.0.segments.1: expected an integer >= 0, got -1" -- "$fiber" --set 'long_range.pairs=[{between: segments, segments: [1, -1], alpha: 1, beta: 1}]'
+expect pair_cutoff "long_range.pairs.1.cutoff: expected a positive number [m], got 0" -- "$fiber" --set long_range.pairs.1.cutoff=0
+expect segments_one_segment "long_range.pairs.0.segments: expected segment indices 0 to 0 (each of the scene's fibers is one segment" -- "$src/drivers/scenes/fiber_network.yaml" --set 'long_range.pairs=[{between: segments, segments: [0, 1], alpha: 1, beta: 1}]'
 expect long_range_no_fiber "long_range: long-range forces act between fiber nodes" -- "$scene" --set 'long_range={length: 1e-9, cutoff: 3e-9, pairs: [{between: other_fibers, alpha: 1, beta: 1}]}'
 sed 's/- {name: coil, duration: 4.0e-9/- {name: settle, kind: quasistatic}\n  - {name: coil, duration: 4.0e-9/' "$fiber" > "$work/fiber_qs.yaml"
 expect long_range_quasistatic "a quasistatic stage in a scene with long_range" -- "$work/fiber_qs.yaml"

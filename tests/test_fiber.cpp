@@ -326,5 +326,133 @@ TEST(LongRange, PairRules) {
   EXPECT_LT(law.force(PairKind::DistantSegments, 1.5e-9), 0.0);   // negative beta: repels
 }
 
+// A segments rule selects exactly its pair of segments of one fiber, in either order, whatever
+// its place among the rules (it overrides the adjacent or distant rule for that pair and nothing
+// else, never across fibers); its own cutoff holds for its pairs, the section's for the others;
+// the energy is shifted by w2 at the rule's own cutoff; the neighbour list reaches the largest.
+TEST(LongRange, SegmentsRuleOverridesTheKindRuleForItsPairOnly) {
+  LongRange spec = long_range_spec();
+  spec.pairs.resize(3);  // adjacent, distant, other fibers: cutoff 2.5 nm
+  PairRule ends{{}, PairKind::Segments, 1.0e36, 3.0e36};
+  ends.segments[0] = 3;
+  ends.segments[1] = 0;
+  ends.cutoff = 8e-9;
+  PairRule near{{}, PairKind::Segments, 4.0e35, 7.0e35};  // an adjacent pair, default cutoff
+  near.segments[0] = 2;
+  near.segments[1] = 3;
+  PairRule later = ends;  // the same pair again: the first rule wins
+  later.alpha = later.beta = 9e99;
+  spec.pairs.insert(spec.pairs.begin(), ends);  // before the kind rules
+  spec.pairs.push_back(near);
+  spec.pairs.push_back(later);
+  const PairLaw law(spec);
+  ASSERT_EQ(law.rules(), 5);  // three kinds, two pairs of segments
+  EXPECT_EQ(law.reach, 8e-9);
+  EXPECT_EQ(law.cutoffs[0], 2.5e-9);
+
+  LongRangeTable t;
+  auto two_nodes = [&](int fiber_q, int segment_p, int segment_q) {
+    t = LongRangeTable{};
+    t.natural = {0, 1};
+    t.fiber = {0, fiber_q};
+    t.segment = {segment_p, segment_q};
+    t.X = {0, 0, 0, 20e-9, 0, 0};  // far apart in the reference configuration: no exclusion
+    t.volume = {1e-27, 1e-27};
+  };
+  // Which rule: the ends' rule for (0, 3) and (3, 0) only; the adjacent pair (2, 3) by its rule.
+  two_nodes(0, 0, 3);
+  const int ends_rule = law.rule_of(t, 0, 1);
+  EXPECT_GE(ends_rule, 3);
+  EXPECT_EQ(law.rule_of(t, 1, 0), ends_rule);
+  EXPECT_EQ(law.potentials[ends_rule].alpha, 1.0e36);
+  two_nodes(0, 3, 0);
+  EXPECT_EQ(law.rule_of(t, 0, 1), ends_rule);
+  two_nodes(0, 1, 3);
+  EXPECT_EQ(law.rule_of(t, 0, 1), int(PairKind::DistantSegments));
+  two_nodes(0, 0, 4);
+  EXPECT_EQ(law.rule_of(t, 0, 1), int(PairKind::DistantSegments));
+  two_nodes(0, 0, 1);
+  EXPECT_EQ(law.rule_of(t, 0, 1), int(PairKind::AdjacentSegments));
+  two_nodes(0, 3, 4);
+  EXPECT_EQ(law.rule_of(t, 0, 1), int(PairKind::AdjacentSegments));
+  two_nodes(0, 2, 3);
+  const int near_rule = law.rule_of(t, 0, 1);
+  EXPECT_GE(near_rule, 3);
+  EXPECT_NE(near_rule, ends_rule);
+  EXPECT_EQ(law.potentials[near_rule].beta, 7.0e35);
+  two_nodes(1, 0, 3);  // segments 0 and 3 of two fibers: the other-fibers rule
+  EXPECT_EQ(law.rule_of(t, 0, 1), int(PairKind::OtherFibers));
+  two_nodes(0, 3, 3);
+  EXPECT_EQ(law.rule_of(t, 0, 1), -1);
+
+  // Forces and energies through the kernel, against eq. (35) and the shifted eq. (33).
+  struct Case {
+    int segment_p, segment_q;
+    double y;
+    int rule;  // expected, -1: no force
+  } cases[] = {{0, 3, 1.3e-9, ends_rule}, {3, 0, 6.0e-9, ends_rule},  // beyond 2.5 nm, within 8 nm
+               {0, 3, 8.1e-9, -1},                                     // beyond the rule's cutoff
+               {1, 3, 1.3e-9, int(PairKind::DistantSegments)},
+               {1, 3, 6.0e-9, -1},                                     // beyond the section's cutoff
+               {2, 3, 1.3e-9, near_rule},
+               {2, 3, 2.6e-9, -1}};
+  for (const Case& k : cases) {
+    two_nodes(0, k.segment_p, k.segment_q);
+    const std::vector<double> x = {0, 0, 0, k.y, 0, 0};
+    std::vector<double> f(6, 0.0);
+    LongRangeList list;
+    const double E = long_range_forces(law, t, x.data(), {0, 1}, f.data(), list);
+    if (k.rule < 0) {
+      EXPECT_EQ(f[0], 0.0) << k.segment_p << " " << k.segment_q << " at " << k.y;
+      EXPECT_EQ(E, 0.0);
+      continue;
+    }
+    const LennardJonesPair w = law.potentials[k.rule];
+    const double cut = law.cutoffs[k.rule];
+    EXPECT_NEAR(f[0], w.force(k.y) * 1e-27, 1e-12 * std::fabs(w.force(k.y) * 1e-27));
+    EXPECT_EQ(f[3], -f[0]);
+    EXPECT_NEAR(E, (w.energy(k.y) - w.energy(cut)) * 1e-54, 1e-12 * std::fabs(w.energy(k.y) * 1e-54));
+  }
+  // The Verlet list reaches the rule's cutoff: nodes of segments 0 and 3 that start 10 nm apart
+  // and close to 6 nm are found after the rebuild.
+  two_nodes(0, 0, 3);
+  LongRangeList list;
+  std::vector<double> f(6, 0.0), x = {0, 0, 0, 10e-9, 0, 0};
+  EXPECT_EQ(long_range_forces(law, t, x.data(), {0, 1}, f.data(), list), 0.0);
+  x[3] = 6e-9;
+  f.assign(6, 0.0);
+  EXPECT_LT(long_range_forces(law, t, x.data(), {0, 1}, f.data(), list), 0.0);
+  EXPECT_GT(f[0], 0.0);  // attracts: node 0 pulled towards +x
+  EXPECT_EQ(list.builds, 2);
+}
+
+// Segment indices are checked against the fibers' segment counts at setup.
+TEST(LongRange, SegmentsRuleIndicesWithinTheFiber) {
+  LongRangeTable t;
+  for (int k = 0; k < 20; ++k) {
+    t.natural.push_back(k);
+    t.fiber.push_back(0);
+    t.segment.push_back(k / 4);  // 5 segments
+    t.X.insert(t.X.end(), {k * 1e-9, 0, 0});
+    t.volume.push_back(1e-27);
+  }
+  LongRange spec = long_range_spec();
+  PairRule r{{"scene.yaml", 12}, PairKind::Segments, 1, 1};
+  r.segments[0] = 0;
+  r.segments[1] = 4;
+  r.segments_where = {"scene.yaml", 12};
+  r.segments_key = "long_range.pairs.4.segments";
+  spec.pairs.push_back(r);
+  EXPECT_NO_THROW(check_segment_rules(spec, t));
+  spec.pairs.back().segments[1] = 5;
+  try {
+    check_segment_rules(spec, t);
+    ADD_FAILURE() << "index 5 of a fiber of 5 segments accepted";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "scene.yaml:12: long_range.pairs.4.segments: expected segment indices 0 to 4 (the fiber "
+                           "has 5 segments), got [0, 5]");
+  }
+}
+
 }  // namespace
 }  // namespace peri

@@ -1,6 +1,7 @@
 #include "peri/models/long_range.hpp"
 
 #include "peri/bonds/bonds.hpp"
+#include "peri/core/error.hpp"
 
 #include <algorithm>
 #include <array>
@@ -38,40 +39,90 @@ LongRangeTable long_range_table(const Nodes& nodes) {
 
 PairLaw::PairLaw(const LongRange& spec)
     : length(spec.length), cutoff(spec.cutoff), exclusion(spec.exclusion) {
+  potentials.assign(3, LennardJonesPair{0, 0, length});
+  cutoffs.assign(3, cutoff);
   for (const PairRule& r : spec.pairs) {
+    if (r.between == PairKind::Segments) {
+      const std::int32_t lo = std::min(r.segments[0], r.segments[1]), hi = std::max(r.segments[0], r.segments[1]);
+      const bool taken = std::any_of(segment_pairs.begin(), segment_pairs.end(),
+                                     [&](const SegmentPair& s) { return s.lo == lo && s.hi == hi; });
+      if (taken) continue;  // the first rule for a pair of segments wins
+      segment_pairs.push_back({lo, hi, rules()});
+      potentials.push_back({r.alpha, r.beta, length});
+      cutoffs.push_back(r.cutoff_or(cutoff));
+      continue;
+    }
     const int k = static_cast<int>(r.between);
     if (acts[k]) continue;  // the first rule for a kind wins
     acts[k] = true;
-    alpha[k] = r.alpha;
-    beta[k] = r.beta;
+    potentials[k] = {r.alpha, r.beta, length};
+    cutoffs[k] = r.cutoff_or(cutoff);
   }
+  std::sort(segment_pairs.begin(), segment_pairs.end(), [](const SegmentPair& a, const SegmentPair& b) {
+    return a.lo != b.lo ? a.lo < b.lo : a.hi < b.hi;
+  });
+  for (int k = 0; k < rules(); ++k)
+    if (k >= 3 || acts[k]) reach = std::max(reach, cutoffs[k]);
 }
 
 double PairLaw::energy(PairKind k, double y) const noexcept { return potential(k).energy(y); }
 
 double PairLaw::force(PairKind k, double y) const noexcept { return potential(k).force(y); }
 
-namespace {
-
-// Pair kind of table nodes p and q, or -1 when they do not interact (one segment).
-int pair_kind(const LongRangeTable& t, std::int64_t p, std::int64_t q) {
-  if (t.fiber[p] != t.fiber[q]) return static_cast<int>(PairKind::OtherFibers);
-  const std::int32_t d = std::abs(t.segment[p] - t.segment[q]);
-  if (d == 0) return -1;
-  return static_cast<int>(d == 1 ? PairKind::AdjacentSegments : PairKind::DistantSegments);
+int PairLaw::rule_of(const LongRangeTable& t, std::int64_t p, std::int64_t q) const {
+  constexpr int other = static_cast<int>(PairKind::OtherFibers);
+  if (t.fiber[p] != t.fiber[q]) return acts[other] ? other : -1;
+  const std::int32_t a = t.segment[p], b = t.segment[q];
+  if (a == b) return -1;
+  if (!segment_pairs.empty()) {  // a rule naming these two segments comes first
+    const std::int32_t lo = std::min(a, b), hi = std::max(a, b);
+    const auto it = std::lower_bound(segment_pairs.begin(), segment_pairs.end(), SegmentPair{lo, hi, 0},
+                                     [](const SegmentPair& x, const SegmentPair& y) {
+                                       return x.lo != y.lo ? x.lo < y.lo : x.hi < y.hi;
+                                     });
+    if (it != segment_pairs.end() && it->lo == lo && it->hi == hi) return it->rule;
+  }
+  const int k = static_cast<int>(std::abs(a - b) == 1 ? PairKind::AdjacentSegments : PairKind::DistantSegments);
+  return acts[k] ? k : -1;
 }
 
-// Rebuilds the list: a cell list on the current positions (cells at least cutoff + skin wide),
-// every partner of each node of `mine` within that reach.
+void check_segment_rules(const LongRange& spec, const LongRangeTable& table) {
+  std::int32_t count = 0;  // segments of the scene's longest fiber (in segments)
+  int fibers = 0;
+  for (std::int64_t p = 0; p < table.size(); ++p) {
+    count = std::max(count, table.segment[p] + 1);
+    fibers = std::max(fibers, table.fiber[p] + 1);
+  }
+  for (const PairRule& r : spec.pairs) {
+    if (r.between != PairKind::Segments || std::max(r.segments[0], r.segments[1]) < count) continue;
+    std::string why = r.segments_where.str() + ": " + r.segments_key + ": expected segment indices 0 to " +
+                      std::to_string(count - 1) + " (";
+    if (count == 1)
+      why += fibers == 1 ? "the fiber is one segment" : "each of the scene's fibers is one segment";
+    else
+      why += (fibers == 1 ? "the fiber has " : "the longest of the scene's " + std::to_string(fibers) + " fibers has ") +
+             std::to_string(count) + " segments";
+    why += std::string(count == 1 ? ": segment_length 0 or longer than the fiber" : "") + "), got [" +
+           std::to_string(r.segments[0]) + ", " + std::to_string(r.segments[1]) + "]";
+    throw InputError(why);
+  }
+}
+
+namespace {
+
+// Rebuilds the list: a cell list on the current positions (cells at least the largest cutoff +
+// skin wide), every partner of each node of `mine` within its rule's cutoff + skin.
 void build_list(const PairLaw& law, const LongRangeTable& table, const double* x,
                 const std::vector<std::int64_t>& mine, LongRangeList& list) {
   const std::int64_t n = table.size();
-  const double reach = law.cutoff + list.skin, reach2 = reach * reach;
+  const double reach = law.reach + list.skin, reach2 = reach * reach;
+  std::vector<double> rule_reach2(law.rules());
+  for (int r = 0; r < law.rules(); ++r) rule_reach2[r] = (law.cutoffs[r] + list.skin) * (law.cutoffs[r] + list.skin);
   const CellList cells(x, n, reach);
   const double excl2 = law.exclusion * law.exclusion;
   list.begin.assign(1, 0);
   list.partner.clear();
-  list.kind.clear();
+  list.rule.clear();
   for (const std::int64_t p : mine) {
     const double* xp = &x[3 * p];
     const double* Xp = &table.X[3 * p];
@@ -80,23 +131,23 @@ void build_list(const PairLaw& law, const LongRangeTable& table, const double* x
       const double* xq = &x[3 * q];
       const double y2 = std::pow(xq[0] - xp[0], 2) + std::pow(xq[1] - xp[1], 2) + std::pow(xq[2] - xp[2], 2);
       if (y2 > reach2) return;
-      const int kind = pair_kind(table, p, q);
-      if (kind < 0 || !law.acts[kind]) return;
+      const int rule = law.rule_of(table, p, q);
+      if (rule < 0 || y2 > rule_reach2[rule]) return;
       const double* Xq = &table.X[3 * q];
       if (std::pow(Xq[0] - Xp[0], 2) + std::pow(Xq[1] - Xp[1], 2) + std::pow(Xq[2] - Xp[2], 2) < excl2) return;
       list.partner.push_back(q);
-      list.kind.push_back(static_cast<std::int8_t>(kind));
+      list.rule.push_back(rule);
     });
     // Partners in ascending table order: the summation order then does not depend on where
     // the nodes stood when the list was built (a run resumed from a checkpoint, whose first
     // list is built later, sums the same pairs in the same order).
     const std::int64_t b = list.begin.back(), e = static_cast<std::int64_t>(list.partner.size());
-    std::vector<std::pair<std::int64_t, std::int8_t>> sorted_pairs;
-    for (std::int64_t k = b; k < e; ++k) sorted_pairs.push_back({list.partner[k], list.kind[k]});
+    std::vector<std::pair<std::int64_t, std::int32_t>> sorted_pairs;
+    for (std::int64_t k = b; k < e; ++k) sorted_pairs.push_back({list.partner[k], list.rule[k]});
     std::sort(sorted_pairs.begin(), sorted_pairs.end());
     for (std::int64_t k = b; k < e; ++k) {
       list.partner[k] = sorted_pairs[k - b].first;
-      list.kind[k] = sorted_pairs[k - b].second;
+      list.rule[k] = sorted_pairs[k - b].second;
     }
     list.begin.push_back(e);
   }
@@ -111,7 +162,7 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
                          bool with_energy, double* energy_density) {
   const std::int64_t n = table.size();
   if (n == 0 || mine.empty()) return 0.0;
-  if (!(list.skin > 0)) list.skin = 0.25 * law.cutoff;
+  if (!(list.skin > 0)) list.skin = 0.25 * law.cutoff;  // the section's cutoff, not the reach
   // Rebuild once some node has moved more than skin/2 (every rank decides alike: same x).
   bool rebuild = list.x_built.size() != static_cast<std::size_t>(3 * n) || list.begin.size() != mine.size() + 1;
   const double half2 = 0.25 * list.skin * list.skin;
@@ -122,12 +173,18 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
 
   // Per pair one division and no square root: with r2 = a^2 / y^2, w2'(y) / y =
   // (-12 alpha r2^6 + 6 beta r2^3) / y^2 (eq. 35) and w2 = alpha r2^6 - beta r2^3 (eq. 33).
-  const double cut2 = law.cutoff * law.cutoff, a2 = law.length * law.length;
-  double shift[3], alpha12[3], beta6[3];
-  for (int k = 0; k < 3; ++k) {
-    shift[k] = law.energy(static_cast<PairKind>(k), law.cutoff);
-    alpha12[k] = 12.0 * law.alpha[k];
-    beta6[k] = 6.0 * law.beta[k];
+  const double a2 = law.length * law.length;
+  const int rules = law.rules();
+  struct Coefficients {
+    double alpha, beta, alpha12, beta6, cut2, shift;
+  };
+  constexpr int kFew = 8;  // most scenes: the three kinds and a few segments rules, on the stack
+  Coefficients few[kFew];
+  std::vector<Coefficients> many(rules > kFew ? rules : 0);
+  Coefficients* c = rules > kFew ? many.data() : few;
+  for (int k = 0; k < rules; ++k) {
+    const LennardJonesPair& w = law.potentials[k];
+    c[k] = {w.alpha, w.beta, 12.0 * w.alpha, 6.0 * w.beta, law.cutoffs[k] * law.cutoffs[k], w.energy(law.cutoffs[k])};
   }
   double energy = 0;
   for (std::size_t m = 0; m < mine.size(); ++m) {
@@ -139,12 +196,12 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
       const double* xq = &x[3 * q];
       const double d[3] = {xq[0] - xp[0], xq[1] - xp[1], xq[2] - xp[2]};
       const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-      if (y2 > cut2 || !(y2 > 0)) continue;  // coincident nodes: no direction
-      const int k = list.kind[e];
+      const Coefficients& k = c[list.rule[e]];
+      if (y2 > k.cut2 || !(y2 > 0)) continue;  // coincident nodes: no direction
       const double inv_y2 = 1.0 / y2, r2 = a2 * inv_y2, r6 = r2 * r2 * r2;
-      const double scale = (beta6[k] - alpha12[k] * r6) * r6 * inv_y2 * table.volume[q];
+      const double scale = (k.beta6 - k.alpha12 * r6) * r6 * inv_y2 * table.volume[q];
       for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
-      if (with_energy) e_p += ((law.alpha[k] * r6 - law.beta[k]) * r6 - shift[k]) * table.volume[q];
+      if (with_energy) e_p += ((k.alpha * r6 - k.beta) * r6 - k.shift) * table.volume[q];
     }
     for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
     energy += 0.5 * e_p * table.volume[p];

@@ -212,9 +212,14 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
     w.key(2, "cutoff", lr.cutoff);
     w.key(2, "exclusion", lr.exclusion);
     w.key(2, "pairs", "");
-    for (const PairRule& r : lr.pairs)
-      w.line(4, std::string("- {between: ") + to_text(r.between) + ", alpha: " + format_number(r.alpha) +
-                    ", beta: " + format_number(r.beta) + "}");
+    for (const PairRule& r : lr.pairs) {
+      std::string rule = std::string("- {between: ") + to_text(r.between);
+      if (r.between == PairKind::Segments)
+        rule += ", segments: [" + std::to_string(r.segments[0]) + ", " + std::to_string(r.segments[1]) + "]";
+      rule += ", alpha: " + format_number(r.alpha) + ", beta: " + format_number(r.beta);
+      if (r.cutoff > 0) rule += ", cutoff: " + format_number(r.cutoff);
+      w.line(4, rule + "}");
+    }
   }
   const Initial& init = s.initial;
   w.key(0, "initial", "");

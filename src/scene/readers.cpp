@@ -426,14 +426,36 @@ LongRange read_long_range(const Value& v, const std::vector<Body>& bodies) {
   const std::vector<Value> rules = pairs.list("a list of pair rules {between, alpha, beta}");
   if (rules.empty()) pairs.fail("expected at least one pair rule {between, alpha, beta}, got an empty list");
   for (const Value& r : rules) {
-    const Map rm(r, &kPairRuleKeys, "a map {between, alpha, beta}");
+    const Map rm(r, &kPairRuleKeys, "a map {between, segments, alpha, beta, cutoff}");
     PairRule rule;
     rule.where = rm.where();
     rule.between = rm.at("between").choice<PairKind>({{"adjacent_segments", PairKind::AdjacentSegments},
                                                       {"distant_segments", PairKind::DistantSegments},
-                                                      {"other_fibers", PairKind::OtherFibers}});
+                                                      {"other_fibers", PairKind::OtherFibers},
+                                                      {"segments", PairKind::Segments}});
+    if (rule.between == PairKind::Segments) {
+      if (!rm.given("segments")) rm.missing("segments", "two different segment indices [i, j] along the fiber");
+      const Value seg = rm.at("segments");
+      const std::vector<Value> ij = seg.list("a list of two segment indices [i, j]");
+      if (ij.size() != 2) seg.fail("expected a list of two segment indices [i, j], got " + seg.got());
+      for (int k = 0; k < 2; ++k) {
+        const long i = ij[k].integer(0);
+        if (i > 1000000000) ij[k].fail("expected a segment index of at most 1e9, got " + ij[k].got());
+        rule.segments[k] = static_cast<std::int32_t>(i);
+      }
+      // Nodes of one segment never interact.
+      if (rule.segments[0] == rule.segments[1])
+        seg.fail("expected two different segments (nodes of one segment never interact), got [" +
+                 std::to_string(rule.segments[0]) + ", " + std::to_string(rule.segments[1]) + "]");
+      rule.segments_where = seg.where();
+      rule.segments_key = seg.path();
+    } else if (auto x = rm.get("segments")) {
+      x->fail(std::string("only a rule with between: segments names segments; this rule is between: ") +
+              to_text(rule.between));
+    }
     rule.alpha = rm.at("alpha").non_negative("J/m^6");
     rule.beta = rm.at("beta").number("a number [J/m^6] (negative: a repulsive 1/y^6 tail)");
+    if (auto x = rm.get("cutoff")) rule.cutoff = x->positive("m");
     lr.pairs.push_back(rule);
   }
   return lr;

@@ -13,7 +13,8 @@ const char* to_text(Influence k) { return k == Influence::Constant ? "constant" 
 const char* to_text(PairKind k) {
   return k == PairKind::AdjacentSegments ? "adjacent_segments"
          : k == PairKind::DistantSegments ? "distant_segments"
-                                          : "other_fibers";
+         : k == PairKind::OtherFibers     ? "other_fibers"
+                                          : "segments";
 }
 const char* to_text(Grid k) { return k == Grid::Square ? "square" : "hexagonal"; }
 const char* to_text(Quadrature k) {

@@ -122,25 +122,37 @@ inline const Keys kLongRangeKeys = {
     {.name = "length", .required = true, .what = "a of w2 = alpha (a/y)^12 - beta (a/y)^6, m", .unit = "m",
      .doc = "a > 0 of w2(y) = alpha (a/y)^12 - beta (a/y)^6 (eqs. 32-36) on the current distance y"},
     {.name = "cutoff", .required = true, .what = "largest interacting distance, m", .unit = "m",
-     .doc = "largest current distance of an interacting pair, > 0; the energy booked is w2(y) - w2(cutoff); "
+     .doc = "largest current distance of an interacting pair, > 0, for every rule without a cutoff of its own; "
+            "the energy booked is w2(y) - w2(cutoff); "
             "refused at setup when it takes in more than 5000 pairs per node or 2e8 in all at the reference "
             "positions"},
     {.name = "exclusion", .unit = "m", .fallback = "the largest fiber horizon",
      .doc = ">= 0: pairs closer than this in the reference configuration (neighbours in one continuous body) do "
             "not interact"},
     {.name = "pairs", .required = true, .what = "list of pair rules {between, alpha, beta}",
-     .doc = "non-empty list of rules (`long_range.pairs[i]`); the first rule of a pair's kind applies, nodes of one "
-            "segment never interact, a pair no rule names does not interact"},
+     .doc = "non-empty list of rules (`long_range.pairs[i]`); a segments rule applies to its pair of segments, "
+            "otherwise the first rule of a pair's kind applies; nodes of one segment never interact, a pair no "
+            "rule names does not interact"},
 };
 
 inline const Keys kPairRuleKeys = {
-    {.name = "between", .required = true, .what = "adjacent_segments, distant_segments or other_fibers",
+    {.name = "between", .required = true, .what = "adjacent_segments, distant_segments, other_fibers or segments",
      .doc = "`adjacent_segments` (one fiber, segments k and k +- 1), `distant_segments` (one fiber, segments two or "
-            "more apart) or `other_fibers` (different fiber bodies, or different fibers of one network)"},
+            "more apart), `other_fibers` (different fiber bodies, or different fibers of one network) or `segments` "
+            "(the two segments named by segments, in every fiber that has both)"},
+    {.name = "segments", .fallback = "required with between: segments",
+     .doc = "[i, j]: two different segment indices, counted from 0 at each fiber's first node (every path of a "
+            "fiber body, every fiber of a network, counts its own); the rule applies to the nodes of segments i "
+            "and j of one fiber, never across fibers, and takes precedence over the kind rules for that pair "
+            "wherever it stands in the list (the first segments rule of a pair wins); an index must name a "
+            "segment of some fiber (checked at setup, against the segment count)"},
     {.name = "alpha", .required = true, .what = "coefficient of (a/y)^12, J/m^6", .unit = "J/m^6",
      .doc = "coefficient of (a/y)^12, >= 0"},
     {.name = "beta", .required = true, .what = "coefficient of (a/y)^6, J/m^6 (negative: repulsive tail)",
      .unit = "J/m^6", .doc = "coefficient of (a/y)^6, any sign (negative: a repulsive 1/y^6 tail)"},
+    {.name = "cutoff", .unit = "m", .fallback = "long_range.cutoff",
+     .doc = "> 0: the largest current distance at which this rule's pairs interact (energy shifted by w2 at it); "
+            "the neighbour list reaches the largest cutoff in effect"},
 };
 
 inline const Keys kCrackKeys = {

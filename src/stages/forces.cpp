@@ -16,6 +16,7 @@ LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Do
   int ranks = 1;
   MPI_Comm_size(comm, &ranks);
   LongRangeForces lr(PairLaw(*scene.long_range), long_range_table(nodes));
+  check_segment_rules(*scene.long_range, lr.table);
   for (std::int32_t i = 0; i < domain.owned; ++i) {
     const std::int64_t p = lr.table.index_of(domain.natural[i]);
     if (p < 0) continue;
@@ -46,8 +47,18 @@ LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Do
   const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
   if (all_pairs > 2e8 || per_node > 5000) {
     std::ostringstream msg;
-    msg << scene.long_range->where.str() << ": long_range.cutoff: " << number_text(lr.law.cutoff) << " m takes in "
-        << all_pairs << " node pairs, " << number_text(per_node) << " per node (with the Verlet list's skin of a quarter "
+    // Name the rule whose cutoff is the list's reach when it is not the section's.
+    SourceLoc where = scene.long_range->where;
+    std::string key = "long_range.cutoff";
+    const std::vector<PairRule>& rules = scene.long_range->pairs;
+    for (std::size_t r = 0; r < rules.size() && lr.law.reach > lr.law.cutoff; ++r)
+      if (rules[r].cutoff == lr.law.reach) {
+        where = rules[r].where;
+        key = "long_range.pairs." + std::to_string(r) + ".cutoff";
+        break;
+      }
+    msg << where.str() << ": " << key << ": " << number_text(lr.law.reach) << " m takes in " << all_pairs
+        << " node pairs, " << number_text(per_node) << " per node (with the Verlet list's skin of a quarter "
         << "cutoff) at the reference positions; expected a cutoff of a few a (length " << number_text(lr.law.length)
         << " m): at most 5000 pairs per node and 2e8 in all";
     throw InputError(msg.str());

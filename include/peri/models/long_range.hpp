@@ -2,7 +2,8 @@
 //   w2(y) = alpha (a/y)^12 - beta (a/y)^6       [J/m^6, energy per volume squared]
 // on the *current* distance y of two nodes, never damaged, with its own horizon (the cutoff).
 // The coefficients depend on the pair (eq. 34), symmetrically: scene rules tell apart adjacent
-// and distant segments of one fiber and nodes of different fibers; nodes of one segment, and
+// and distant segments of one fiber and nodes of different fibers, or name two particular
+// segments (each rule with its own cutoff, by default the section's); nodes of one segment, and
 // pairs closer than the exclusion distance in the reference configuration (neighbours in one
 // continuous body, where the singular force makes no sense), do not interact.
 //
@@ -41,31 +42,48 @@ struct LongRangeTable {
 /// The table of a scene's fiber nodes (empty when the scene has no fiber body).
 LongRangeTable long_range_table(const Nodes& nodes);
 
-/// The pair law of a scene's long_range section: the first rule for each pair kind.
+/// The pair law of a scene's long_range section. Its rules in effect are numbered: 0, 1, 2 the
+/// pair kinds (PairKind; the first rule of each kind), then one per pair of segments that a
+/// segments rule names (the first rule of that pair). Each has its coefficients and cutoff.
 struct PairLaw {
   double length = 0, cutoff = 0, exclusion = 0;
+  double reach = 0;  ///< the largest cutoff of a rule in effect: how far the neighbour list looks [m]
   bool acts[3] = {false, false, false};  ///< by PairKind: some rule matches
-  double alpha[3] = {0, 0, 0}, beta[3] = {0, 0, 0};  ///< beta < 0: a repulsive 1/y^6 tail
+  /// Per rule in effect: the potential (beta < 0: a repulsive 1/y^6 tail) and its cutoff [m].
+  std::vector<LennardJonesPair> potentials;
+  std::vector<double> cutoffs;
+  /// The segments rules in effect, sorted by (lo, hi), lo < hi: the rule number of each pair.
+  struct SegmentPair {
+    std::int32_t lo, hi;
+    int rule;
+  };
+  std::vector<SegmentPair> segment_pairs;
   explicit PairLaw(const LongRange& spec);
   /// The potential of a pair kind (models/laws/pair.hpp).
-  LennardJonesPair potential(PairKind k) const noexcept {
-    const int i = static_cast<int>(k);
-    return {alpha[i], beta[i], length};
-  }
+  LennardJonesPair potential(PairKind k) const noexcept { return potentials[static_cast<int>(k)]; }
   /// w2(y) (eq. 33), unshifted.
   double energy(PairKind k, double y) const noexcept;
   /// dw2/dy: the scalar force, positive when the pair attracts.
   double force(PairKind k, double y) const noexcept;
+  /// The rule in effect for table nodes p and q (0..2: a kind's, 3..: a segments rule's), or -1
+  /// when they do not interact (one segment, or no rule). The reference exclusion and the
+  /// cutoffs are not looked at here.
+  int rule_of(const LongRangeTable& table, std::int64_t p, std::int64_t q) const;
+  int rules() const { return static_cast<int>(potentials.size()); }
 };
 
-/// Verlet list of the long-range pairs of some nodes: every partner within cutoff + skin (and
-/// not excluded by the rules) when it was built; rebuilt once any node has moved more than
-/// skin / 2 since (then no pair within the cutoff can be missing from it).
+/// Refuses (InputError naming the rule's `segments` key) a segments rule whose index names no
+/// segment of any of the table's fibers.
+void check_segment_rules(const LongRange& spec, const LongRangeTable& table);
+
+/// Verlet list of the long-range pairs of some nodes: every partner within its rule's cutoff +
+/// skin (and not excluded by the rules) when it was built; rebuilt once any node has moved more
+/// than skin / 2 since (then no pair within its cutoff can be missing from it).
 struct LongRangeList {
-  double skin = 0;                     ///< [m]; 0: 1/4 of the cutoff
+  double skin = 0;                     ///< [m]; 0: 1/4 of the section's cutoff
   std::vector<std::int64_t> begin;     ///< per node of `mine`, into partner (mine.size() + 1)
   std::vector<std::int64_t> partner;   ///< table index
-  std::vector<std::int8_t> kind;       ///< PairKind of each pair
+  std::vector<std::int32_t> rule;      ///< PairLaw's rule of each pair
   std::vector<double> x_built;         ///< positions of all table nodes at the build
   long builds = 0;
 };

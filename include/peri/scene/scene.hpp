@@ -4,6 +4,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -319,6 +320,7 @@ enum class PairKind {
   AdjacentSegments,  ///< one fiber, segments k and k +- 1
   DistantSegments,   ///< one fiber, segments two or more apart
   OtherFibers,       ///< nodes of different fiber bodies
+  Segments,          ///< one fiber, two particular segments (the rule's `segments`)
 };
 
 struct PairRule {
@@ -326,6 +328,13 @@ struct PairRule {
   PairKind between = PairKind::AdjacentSegments;
   double alpha = 0.0;  ///< repulsive coefficient of (a/y)^12 [J/m^6] (>= 0)
   double beta = 0.0;   ///< attractive coefficient of (a/y)^6 [J/m^6] (< 0: a repulsive tail)
+  double cutoff = 0.0; ///< the rule's own largest interacting distance [m]; 0: the section's cutoff
+  /// between == Segments: the two segments (indices along each fiber from 0), different.
+  std::int32_t segments[2] = {0, 0};
+  SourceLoc segments_where;  ///< where `segments` was given, and its key path (setup's checks)
+  std::string segments_key;
+  /// The cutoff in effect: the rule's own, else the section's.
+  double cutoff_or(double section_cutoff) const { return cutoff > 0 ? cutoff : section_cutoff; }
 };
 
 /// Long-range forces between fiber nodes, w2(y) = alpha (a/y)^12 - beta (a/y)^6 on the current
@@ -334,9 +343,11 @@ struct PairRule {
 struct LongRange {
   SourceLoc where;
   double length = 0.0;     ///< a [m] (> 0)
-  double cutoff = 0.0;     ///< largest current distance of an interacting pair [m] (> 0)
+  double cutoff = 0.0;     ///< largest current distance of an interacting pair [m] (> 0), unless a rule sets its own
   double exclusion = 0.0;  ///< [m] (>= 0)
-  std::vector<PairRule> pairs;  ///< first matching rule wins; a pair no rule matches does not interact
+  /// A segments rule applies to its pair of segments whatever its place; otherwise the first rule
+  /// of a pair's kind wins; a pair no rule matches does not interact.
+  std::vector<PairRule> pairs;
 };
 
 struct Scene {
