@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <type_traits>
 
 namespace peri {
 
@@ -136,13 +137,13 @@ void build_list(const PairLaw& law, const LongRangeTable& table, const double* x
       const double* Xq = &table.X[3 * q];
       if (std::pow(Xq[0] - Xp[0], 2) + std::pow(Xq[1] - Xp[1], 2) + std::pow(Xq[2] - Xp[2], 2) < excl2) return;
       list.partner.push_back(q);
-      list.rule.push_back(rule);
+      list.rule.push_back(static_cast<std::uint16_t>(rule));
     });
     // Partners in ascending table order: the summation order then does not depend on where
     // the nodes stood when the list was built (a run resumed from a checkpoint, whose first
     // list is built later, sums the same pairs in the same order).
     const std::int64_t b = list.begin.back(), e = static_cast<std::int64_t>(list.partner.size());
-    std::vector<std::pair<std::int64_t, std::int32_t>> sorted_pairs;
+    std::vector<std::pair<std::int64_t, std::uint16_t>> sorted_pairs;
     for (std::int64_t k = b; k < e; ++k) sorted_pairs.push_back({list.partner[k], list.rule[k]});
     std::sort(sorted_pairs.begin(), sorted_pairs.end());
     for (std::int64_t k = b; k < e; ++k) {
@@ -186,27 +187,40 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
     const LennardJonesPair& w = law.potentials[k];
     c[k] = {w.alpha, w.beta, 12.0 * w.alpha, 6.0 * w.beta, law.cutoffs[k] * law.cutoffs[k], w.energy(law.cutoffs[k])};
   }
+  // One cutoff for every rule (every scene without rule cutoffs): compared with a constant
+  // before the rule is looked at, as the loop did before rules had their own.
+  bool one_cutoff = true;
+  for (int k = 1; k < rules; ++k) one_cutoff = one_cutoff && c[k].cut2 == c[0].cut2;
   double energy = 0;
-  for (std::size_t m = 0; m < mine.size(); ++m) {
-    const std::int64_t p = mine[m];
-    const double* xp = &x[3 * p];
-    double f[3] = {0, 0, 0}, e_p = 0;
-    for (std::int64_t e = list.begin[m]; e < list.begin[m + 1]; ++e) {
-      const std::int64_t q = list.partner[e];
-      const double* xq = &x[3 * q];
-      const double d[3] = {xq[0] - xp[0], xq[1] - xp[1], xq[2] - xp[2]};
-      const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-      const Coefficients& k = c[list.rule[e]];
-      if (y2 > k.cut2 || !(y2 > 0)) continue;  // coincident nodes: no direction
-      const double inv_y2 = 1.0 / y2, r2 = a2 * inv_y2, r6 = r2 * r2 * r2;
-      const double scale = (k.beta6 - k.alpha12 * r6) * r6 * inv_y2 * table.volume[q];
-      for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
-      if (with_energy) e_p += ((k.alpha * r6 - k.beta) * r6 - k.shift) * table.volume[q];
+  auto sum_pairs = [&](auto one_cutoff_tag) {
+    constexpr bool kOneCutoff = decltype(one_cutoff_tag)::value;
+    const double cut2 = c[0].cut2;
+    for (std::size_t m = 0; m < mine.size(); ++m) {
+      const std::int64_t p = mine[m];
+      const double* xp = &x[3 * p];
+      double f[3] = {0, 0, 0}, e_p = 0;
+      for (std::int64_t e = list.begin[m]; e < list.begin[m + 1]; ++e) {
+        const std::int64_t q = list.partner[e];
+        const double* xq = &x[3 * q];
+        const double d[3] = {xq[0] - xp[0], xq[1] - xp[1], xq[2] - xp[2]};
+        const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if (kOneCutoff && y2 > cut2) continue;
+        const Coefficients& k = c[list.rule[e]];
+        if ((!kOneCutoff && y2 > k.cut2) || !(y2 > 0)) continue;  // coincident nodes: no direction
+        const double inv_y2 = 1.0 / y2, r2 = a2 * inv_y2, r6 = r2 * r2 * r2;
+        const double scale = (k.beta6 - k.alpha12 * r6) * r6 * inv_y2 * table.volume[q];
+        for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
+        if (with_energy) e_p += ((k.alpha * r6 - k.beta) * r6 - k.shift) * table.volume[q];
+      }
+      for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
+      energy += 0.5 * e_p * table.volume[p];
+      if (energy_density) energy_density[m] += 0.5 * e_p;
     }
-    for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
-    energy += 0.5 * e_p * table.volume[p];
-    if (energy_density) energy_density[m] += 0.5 * e_p;
-  }
+  };
+  if (one_cutoff)
+    sum_pairs(std::true_type{});
+  else
+    sum_pairs(std::false_type{});
   return energy;
 }
 

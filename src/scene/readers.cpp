@@ -425,6 +425,8 @@ LongRange read_long_range(const Value& v, const std::vector<Body>& bodies) {
   const Value pairs = m.at("pairs");
   const std::vector<Value> rules = pairs.list("a list of pair rules {between, alpha, beta}");
   if (rules.empty()) pairs.fail("expected at least one pair rule {between, alpha, beta}, got an empty list");
+  if (rules.size() > 65000)  // the Verlet list stores a pair's rule in 16 bits
+    pairs.fail("expected at most 65000 pair rules, got " + std::to_string(rules.size()));
   for (const Value& r : rules) {
     const Map rm(r, &kPairRuleKeys, "a map {between, segments, alpha, beta, cutoff}");
     PairRule rule;

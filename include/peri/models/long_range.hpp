@@ -46,6 +46,7 @@ LongRangeTable long_range_table(const Nodes& nodes);
 /// pair kinds (PairKind; the first rule of each kind), then one per pair of segments that a
 /// segments rule names (the first rule of that pair). Each has its coefficients and cutoff.
 struct PairLaw {
+  static constexpr int kMaxPairRules = 65535;  ///< rules in effect (the list stores 16 bits per pair)
   double length = 0, cutoff = 0, exclusion = 0;
   double reach = 0;  ///< the largest cutoff of a rule in effect: how far the neighbour list looks [m]
   bool acts[3] = {false, false, false};  ///< by PairKind: some rule matches
@@ -83,7 +84,7 @@ struct LongRangeList {
   double skin = 0;                     ///< [m]; 0: 1/4 of the section's cutoff
   std::vector<std::int64_t> begin;     ///< per node of `mine`, into partner (mine.size() + 1)
   std::vector<std::int64_t> partner;   ///< table index
-  std::vector<std::int32_t> rule;      ///< PairLaw's rule of each pair
+  std::vector<std::uint16_t> rule;     ///< PairLaw's rule of each pair (kMaxPairRules at most)
   std::vector<double> x_built;         ///< positions of all table nodes at the build
   long builds = 0;
 };
