@@ -4,7 +4,7 @@
 set -euo pipefail
 packages=(build-essential cmake pkg-config git
   openmpi-bin libopenmpi-dev libpetsc-real-dev libhdf5-openmpi-dev libmetis-dev
-  libeigen3-dev libyaml-cpp-dev googletest libgtest-dev libgmock-dev libbenchmark-dev
+  libeigen3-dev libyaml-cpp-dev libgmsh-dev gmsh googletest libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-numpy python3-h5py python3-matplotlib python3-yaml python3-meshio)
 missing=()
 for p in "${packages[@]}"; do

@@ -105,9 +105,9 @@ expect sphere_size "bodies.balloon.size: not used by a sphere body" -- "$balloon
 expect sphere_pressure "bodies.balloon.pressure: expected a non-negative number [Pa], got -1" -- "$balloon" --set bodies.balloon.pressure=-1
 expect sphere_spacing "bodies.balloon.spacing: spacing must not exceed the radius (0.1 m), got 0.5" -- "$balloon" --set bodies.balloon.spacing=0.5
 expect sphere_tool_center "tools.0.center: expected a list of 3 numbers [x, y, z] [m]" -- "$balloon" --set 'tools.fragment.center=[1, 0]'
-expect membrane_pressure "bodies.sheet.pressure: only a sphere body (kind: sphere) takes pressure" -- "$scene" --set bodies.sheet.pressure=1e5
+expect membrane_pressure "bodies.sheet.pressure: only with mesh: pressure belongs to a membrane read from a mesh file" -- "$scene" --set bodies.sheet.pressure=1e5
 expect long_range_cutoff "long_range.cutoff: 1 m takes in" -- "$src/drivers/scenes/fiber_network.yaml" --set long_range.cutoff=1
-expect fiber_pressure "bodies.fiber.pressure: only a sphere body (kind: sphere) takes pressure" -- "$fiber" --set bodies.fiber.pressure=1e5
+expect fiber_pressure "bodies.fiber.pressure: not used by a fiber body (nodes along a path, full weights within the horizon); expected one of: kind, material, path, network" -- "$fiber" --set bodies.fiber.pressure=1e5
 network=$src/drivers/scenes/fiber_network.yaml
 expect network_direction "bodies.net.network.families.0.direction: expected one of: x, y; got z" -- "$network" --set 'bodies.net.network.families=[{direction: z, count: 3}]'
 expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'
@@ -126,7 +126,7 @@ stages:
   - {name: run, steps: 5}
 YAML
 expect solid_crack "$work/solid_crack.yaml:7: cracks.0: a pre-crack is a straight segment, which cuts the bonds of sheets and fibers; every body of this scene is a volume (kind: solid)" -- "$work/solid_crack.yaml"
-expect solid_thickness "bodies.block.thickness: not used by a solid body (a box of simple-cubic points, or a point cloud from a file); expected one of: kind, material, origin, size, points, spacing, grid, horizon_factor, horizon, quadrature, cutouts" -- "$work/solid_crack.yaml" --set bodies.block.thickness=0.001
+expect solid_thickness "bodies.block.thickness: not used by a solid body (a box of simple-cubic points, a point cloud or a tetrahedral mesh from a file); expected one of: kind, material, origin, size, points, mesh, scale, spacing, grid, horizon_factor, horizon, quadrature, cutouts" -- "$work/solid_crack.yaml" --set bodies.block.thickness=0.001
 expect network_and_path "bodies.net.network: give either path (one fiber) or network (many), not both" -- "$network" --set 'bodies.net.path=[[0,0,0],[1e-8,0,0]]'
 
 # A run that fails on the way (the motion detector at a tiny motion limit, 1e-4 of the spacing,

@@ -62,6 +62,11 @@ std::vector<std::int64_t> select_nodes(const Nodes& nodes, const Scene& scene,
     for (std::size_t b = 0; b < scene.bodies.size(); ++b)
       if (scene.bodies[b].name == region.body) only_body = static_cast<int>(b);
   std::vector<std::int64_t> ids;
+  if (!region.group.empty()) {  // a mesh body's physical group (the reader checked it holds a node)
+    const BodyGeometry& g = nodes.bodies[only_body];
+    for (const std::int64_t k : scene.bodies[only_body].mesh_data->group(region.group)->nodes) ids.push_back(g.first + k);
+    return ids;
+  }
   for (std::int64_t i = 0; i < nodes.size(); ++i) {
     if (only_body >= 0 && nodes.body[i] != only_body) continue;
     if (region.contains({nodes.X[3 * i], nodes.X[3 * i + 1], nodes.X[3 * i + 2]})) ids.push_back(i);

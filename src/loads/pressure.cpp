@@ -11,7 +11,7 @@ Pressure::Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, 
   std::unordered_map<std::int64_t, std::int32_t> local;  // natural -> local, nodes of loaded spheres
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const Body& body = scene.bodies[b];
-    if (!(body.pressure > 0)) continue;  // (only spheres take a pressure)
+    if (!(body.pressure > 0)) continue;  // (spheres and mesh membranes take a pressure)
     if (local.empty())
       for (std::int32_t l = 0; l < domain.local(); ++l) local.emplace(domain.natural[l], l);
     const BodyGeometry& g = bodies[b];

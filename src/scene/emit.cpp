@@ -121,8 +121,9 @@ void emit_body(Writer& w, const Body& b) {
 
 void emit_boundary(Writer& w, const Boundary& b) {
   w.key(2, "- name", yaml_string(b.name));
-  std::string region = "{min: " + flow(b.region.min) + ", max: " + flow(b.region.max);
-  if (!b.region.body.empty()) region += ", body: " + yaml_string(b.region.body);
+  std::string region = b.region.group.empty() ? "{min: " + flow(b.region.min) + ", max: " + flow(b.region.max) : "{";
+  if (!b.region.body.empty()) region += (b.region.group.empty() ? ", body: " : "body: ") + yaml_string(b.region.body);
+  if (!b.region.group.empty()) region += ", group: " + yaml_string(b.region.group);
   w.key(4, "region", region + "}");
   w.key(4, "velocity", flow(b.velocity));
   std::vector<std::string> comps;

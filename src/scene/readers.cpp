@@ -179,25 +179,54 @@ void check_point_cloud_materials(const std::vector<Body>& bodies) {
 }
 
 Region read_region(const Value& v, const std::vector<Body>& bodies) {
-  const Map m(v, &kRegionKeys, "a box {min: [x, y, z], max: [x, y, z]}");
+  const Map m(v, &kRegionKeys, "a box {min: [x, y, z], max: [x, y, z]} or a mesh's group {body: name, group: name}");
   Region r;
   r.where = m.where();
-  r.min = m.at("min").vec3("m");
-  const Value max = m.at("max");
-  r.max = max.vec3("m");
-  for (int d = 0; d < 3; ++d) {
-    if (r.min[d] > r.max[d]) {
-      max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
-               format_number(r.min[d]) + " > max " + format_number(r.max[d]));
+  const std::optional<Value> group = m.get("group");
+  if (!group) {
+    if (!m.given("min")) m.missing("min", "lower corner [x, y, z], m; or group");
+    if (!m.given("max")) m.missing("max", "upper corner [x, y, z], m; or group");
+    r.min = m.at("min").vec3("m");
+    const Value max = m.at("max");
+    r.max = max.vec3("m");
+    for (int d = 0; d < 3; ++d) {
+      if (r.min[d] > r.max[d]) {
+        max.fail(std::string("expected min <= max in every component, got ") + "xyz"[d] + ": min " +
+                 format_number(r.min[d]) + " > max " + format_number(r.max[d]));
+      }
     }
+  } else {
+    for (const char* key : {"min", "max"})
+      if (auto y = m.get(key)) y->fail("not with group: the region is the group's nodes");
+    if (!m.given("body")) m.missing("body", "the mesh body whose physical group this is");
   }
+  const Body* body = nullptr;
   if (auto x = m.get("body")) {
     r.body = x->name();
-    if (std::none_of(bodies.begin(), bodies.end(), [&](const Body& b) { return b.name == r.body; })) {
+    const auto it = std::find_if(bodies.begin(), bodies.end(), [&](const Body& b) { return b.name == r.body; });
+    if (it == bodies.end()) {
       std::vector<std::string> defined;
       for (const Body& b : bodies) defined.push_back(b.name);
       x->fail("no body named '" + r.body + "'; defined: " + join(defined));
     }
+    body = &*it;
+  }
+  if (group) {  // a physical group of a mesh body's file
+    r.group = group->name();
+    if (!body->mesh_data)
+      group->fail("body '" + r.body + "' is not read from a mesh file; a group names a physical group of a mesh body");
+    const MeshData& mesh = *body->mesh_data;
+    const MeshGroup* g = mesh.group(r.group);
+    if (!g) {
+      std::vector<std::string> names;
+      for (const MeshGroup& h : mesh.groups) names.push_back("'" + h.name + "'");
+      group->fail("the mesh '" + body->mesh + "' has no physical group named '" + r.group + "'; its named groups: " +
+                  (names.empty() ? std::string("none") : join(names)));
+    }
+    if (g->nodes.empty())
+      group->fail("physical group '" + r.group + "' of the mesh '" + body->mesh +
+                  "' holds no node of the body (none of its nodes belongs to a " +
+                  (mesh.tets.empty() ? "triangle" : "tetrahedron") + ")");
   }
   return r;
 }

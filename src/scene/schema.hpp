@@ -196,11 +196,15 @@ inline const Keys kToolKeys = {
 };
 
 inline const Keys kRegionKeys = {
-    {.name = "min", .required = true, .what = "lower corner [x, y, z], m", .unit = "m", .doc = "lower corner [x, y, z]"},
-    {.name = "max", .required = true, .what = "upper corner [x, y, z], m", .unit = "m",
+    {.name = "min", .what = "lower corner [x, y, z], m", .unit = "m", .fallback = "required unless group",
+     .doc = "lower corner [x, y, z]"},
+    {.name = "max", .what = "upper corner [x, y, z], m", .unit = "m", .fallback = "required unless group",
      .doc = "upper corner [x, y, z], >= min in every component; the region holds the nodes whose reference "
             "position lies in the closed box, at least one"},
     {.name = "body", .fallback = "every body", .doc = "name of a body: only its nodes"},
+    {.name = "group", .fallback = "- (the box)",
+     .doc = "instead of min and max: the name of a physical group of the mesh of `body` (a mesh body, required "
+            "then): the region holds the group's nodes that are the body's (any dimension the name is given to)"},
 };
 
 inline const Keys kInitialKeys = {

@@ -292,6 +292,10 @@ void derived_constants(const Problem& p, RunSummary& summary) {
       out.push_back({pre + "nodes", double(g.count)});
       continue;
     }
+    if (g.mesh_mean_edge > 0) {  // the mesh's mean edge, and the spacing the horizon is measured in
+      out.push_back({pre + "mesh_mean_edge_length", g.mesh_mean_edge});
+      out.push_back({pre + "spacing", g.spacing});
+    }
     out.push_back({pre + "shear_modulus", e.mu});
     out.push_back({pre + "bulk_modulus", e.bulk});
     out.push_back({pre + "youngs_modulus", e.youngs});

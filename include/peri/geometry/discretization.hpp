@@ -20,7 +20,8 @@ struct BodyGeometry {
   double spacing = 0.0;      ///< dx [m]
   double horizon = 0.0;      ///< delta [m]
   double thickness = 0.0;    ///< h [m] (membranes; 0 for solids)
-  double cell_area = 0.0;    ///< in-plane area per node [m^2] (membranes)
+  double cell_area = 0.0;    ///< in-plane area per node [m^2] (membranes; a mesh's: the mean)
+  double mesh_mean_edge = 0.0;  ///< mesh bodies: the mesh's mean edge length [m] (0: no mesh)
   double area = 0.0;         ///< cross-section A [m^2] (fibers; their spacing is the arc step ds)
   double segment_length = 0.0;  ///< fibers: length of the segments long-range rules tell apart (0: one)
   /// Fibers: node offsets (from `first`) where each path starts, paths + 1 entries, and each
@@ -28,7 +29,8 @@ struct BodyGeometry {
   std::vector<std::int64_t> path_first{0};
   std::vector<double> path_spacing;
   /// Spheres: the geodesic triangles (natural ids, counter-clockwise seen from outside) that carry
-  /// the internal pressure; center and radius.
+  /// the internal pressure; center and radius. Mesh membranes: the mesh's triangles (the file's
+  /// orientation).
   std::vector<std::array<std::int64_t, 3>> triangles;
   std::array<double, 3> center{0, 0, 0};
   double radius = 0.0;

@@ -1,5 +1,6 @@
-// Internal pressure of sphere bodies (Silling & Bobaru 7.2, the balloon), a follower load: each
-// geodesic triangle of the sphere carries p(t) times its current area vector, a third to each
+// Internal pressure of sphere bodies (Silling & Bobaru 7.2, the balloon) and of mesh membranes (on
+// their files' triangles, as oriented there), a follower load: each triangle (the sphere's
+// geodesic ones, the mesh's) carries p(t) times its current area vector, a third to each
 // corner whose bonds to the other two corners are intact (a torn triangle holds no gas). p rises
 // linearly from 0 over the body's pressure_ramp_time. Work: the mean of the two forces of a node
 // times its displacement between two booked evaluations (trapezoidal).

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -125,6 +126,35 @@ struct CloudPoint {
   double volume = 0.0;
 };
 
+/// A physical group of a mesh file: its name and the body's nodes it holds (indices into
+/// MeshData::nodes, ascending), over every dimension the name is given to.
+struct MeshGroup {
+  std::string name;
+  std::vector<std::int64_t> nodes;
+};
+
+/// A body's mesh (`mesh: file`), read with the scene through Gmsh's API (kinds/mesh_file.cpp):
+/// the nodes its triangles (membranes) or tetrahedra (solids) use, in ascending order of their
+/// tags in the file (nodes no such element uses are not the body's), positions times `scale`.
+struct MeshData {
+  std::vector<Vec3> nodes;                              ///< [m]
+  std::vector<std::size_t> tags;                        ///< each node's tag in the file
+  std::vector<std::array<std::int64_t, 3>> triangles;   ///< membranes: corners, the file's order
+  std::vector<std::array<std::int64_t, 4>> tets;        ///< solids: corners, positive volume
+  std::vector<std::size_t> element_tags;                ///< each triangle's or tet's tag in the file
+  std::vector<double> measure;                          ///< each node's area (a third of its
+                                                        ///< triangles') or volume (a quarter of its tets')
+  std::vector<MeshGroup> groups;                        ///< named physical groups, in the file's order
+  double mean_edge = 0.0;  ///< mean length of the elements' edges, each edge once [m]
+  double total = 0.0;      ///< the elements' total area [m^2] or volume [m^3]
+  bool planar = false;     ///< every node at the same z (a flat sheet)
+  const MeshGroup* group(const std::string& name) const {
+    for (const MeshGroup& g : groups)
+      if (g.name == name) return &g;
+    return nullptr;
+  }
+};
+
 struct Body {
   std::string name;
   SourceLoc where;
@@ -165,6 +195,13 @@ struct Body {
   std::vector<CloudPoint> cloud;
   /// The materials the file's material column names, each with the line it first appears on.
   std::vector<std::pair<std::string, long>> cloud_materials;
+  /// Membranes and solids from a mesh file (`mesh: file`): its path, resolved against the scene
+  /// file's folder (empty: a grid body), the factor on its coordinates, whether the scene gave
+  /// `spacing` (else spacing is the mesh's mean edge length), and what was read.
+  std::string mesh;
+  double scale = 1.0;
+  bool spacing_given = true;
+  std::shared_ptr<const MeshData> mesh_data;
   double horizon_value() const { return horizon ? *horizon : horizon_factor * spacing; }
   /// True when one of the cutouts holds the reference position x.
   bool cut_out(const Vec3& x) const {
@@ -172,12 +209,14 @@ struct Body {
   }
 };
 
-/// Axis-aligned box [min, max] (inclusive) selecting nodes by reference position.
+/// Axis-aligned box [min, max] (inclusive) selecting nodes by reference position; or a physical
+/// group of a mesh body's file (`group`, with `body`: the group's nodes, no box).
 struct Region {
   SourceLoc where;
   Vec3 min{0, 0, 0};
   Vec3 max{0, 0, 0};
   std::string body;  ///< restrict to one body; empty = all bodies
+  std::string group;  ///< a physical group of body's mesh; empty = the box
   bool contains(const Vec3& x) const {
     for (int d = 0; d < 3; ++d)
       if (x[d] < min[d] || x[d] > max[d]) return false;

@@ -99,6 +99,20 @@ std::string resolve_input_path(const Value& v, const std::string& path);
 /// takes, in file order) and b.cloud_materials. InputError naming the file and line.
 void read_point_cloud(const Value& v, Body& b);
 
+// Meshes (mesh_file.cpp).
+/// Reads the mesh file v names (Gmsh's .msh, or any format Gmsh opens: STL, ...) through Gmsh's
+/// API into b.mesh (its resolved path) and b.mesh_data: its 3-node triangles (dimension 2) or
+/// 4-node tetrahedra (dimension 3), coordinates times b.scale, and its named physical groups.
+/// Sets b.spacing to the mean edge length unless b.spacing_given. InputError naming the file and
+/// the element or node: unreadable file, no such elements, an element type the body cannot take,
+/// a degenerate or inverted element, two nodes at one position.
+void read_mesh_file(const Value& v, Body& b, int dimension);
+/// For a follower pressure: InputError unless every edge two triangles share runs in opposite
+/// directions in them (one orientation over the surface), naming the two elements.
+void check_mesh_orientation(const Body& b);
+/// The mesh keys (mesh, scale) and what they exclude, for the membrane and solid kinds.
+extern const Key kMeshKey2, kMeshKey3, kScaleKey;
+
 /// "bodies.<name>.<key> <value> m" for messages.
 std::string key_text(const Body& b, const char* key, double value);
 

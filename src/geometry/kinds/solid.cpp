@@ -1,6 +1,7 @@
 // Body kind `solid`: a box of simple-cubic points at the centres of dx-cubes, measure dx^3 (3D
 // PMB solids), or a point cloud read from a CSV file (point_cloud.cpp), each point with its own
-// volume; cutouts remove nodes of either.
+// volume, or the vertices of a tetrahedral mesh (mesh_file.cpp), each with a quarter of its
+// tetrahedra's volumes; cutouts remove nodes of the box and the cloud.
 #include <algorithm>
 
 #include "common.hpp"
@@ -13,6 +14,24 @@ using scene_detail::format_number;
 using scene_detail::join;
 
 void read(const Map& m, Body& b, const Material&) {
+  if (auto mesh = m.get("mesh")) {
+    for (const char* key : {"origin", "size", "grid", "points", "cutouts"})
+      if (auto x = m.get(key))
+        x->fail(std::string("not with mesh: a mesh solid takes its nodes from the file, not from ") + key);
+    if (auto x = m.get("scale")) b.scale = x->positive("");
+    if (auto x = m.get("spacing"))
+      b.spacing = x->positive("m");
+    else
+      b.spacing_given = false;
+    read_mesh_file(*mesh, b, 3);
+    read_horizon(m, b);
+    b.quadrature = Quadrature::Full;
+    if (auto x = m.get("quadrature"))
+      b.quadrature = x->choice<Quadrature>({{"full", Quadrature::Full}, {"taper", Quadrature::Taper}});
+    return;
+  }
+  if (auto x = m.get("scale")) x->fail("only with mesh: scale multiplies a mesh file's coordinates");
+  if (!m.given("spacing")) m.missing("spacing", "grid spacing, m");
   if (auto points = m.get("points")) {
     // A point cloud: the file gives the nodes; the box's keys have no meaning.
     for (const char* key : {"origin", "size", "grid"})
@@ -21,8 +40,8 @@ void read(const Map& m, Body& b, const Material&) {
     b.spacing = m.at("spacing").positive("m");
     read_point_cloud(*points, b);
   } else {
-    if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m; or points");
-    if (!m.given("size")) m.missing("size", "extent [Lx, Ly, Lz] of the box, m; or points");
+    if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m; or points or mesh");
+    if (!m.given("size")) m.missing("size", "extent [Lx, Ly, Lz] of the box, m; or points or mesh");
     b.origin = m.at("origin").vec3("m");
     const Value size = m.at("size");
     const std::string expected = "a solid size [Lx, Ly, Lz] with all entries > 0 [m]";
@@ -50,6 +69,17 @@ void read(const Map& m, Body& b, const Material&) {
 }
 
 void emit(Writer& w, const Body& b) {
+  if (!b.mesh.empty()) {
+    w.key(4, "mesh", scene_detail::yaml_string(b.mesh));
+    w.key(4, "scale", b.scale);
+    if (b.spacing_given)
+      w.key(4, "spacing", b.spacing);
+    else
+      w.line(4, "# spacing: not given; the mesh's mean edge length " + format_number(b.spacing) + " m");
+    emit_horizon(w, b);
+    w.key(4, "quadrature", scene_detail::to_text(b.quadrature));
+    return;
+  }
   if (!b.points.empty()) {
     w.key(4, "points", scene_detail::yaml_string(b.points));
   } else {
@@ -66,6 +96,14 @@ void emit(Writer& w, const Body& b) {
 // Cell-centred cubic grid, x fastest, then y, then z; or the point cloud's rows in file order
 // (no grid: reference offsets are not snapped and rows get their own family patterns).
 void discretize(const Body& b, BodyGeometry& g, NodeSink& all) {
+  if (!b.mesh.empty()) {  // the mesh's vertices in ascending tag order, a quarter of their tets' volumes
+    const MeshData& m = *b.mesh_data;
+    g.traits.grid = false;
+    g.mesh_mean_edge = m.mean_edge;
+    for (std::size_t k = 0; k < m.nodes.size(); ++k) all.add(m.nodes[k][0], m.nodes[k][1], m.nodes[k][2], m.measure[k]);
+    g.cells = {static_cast<std::int64_t>(m.nodes.size()), 1, 1};
+    return;
+  }
   CutSink sink(b, all);
   if (!b.points.empty()) {
     g.traits.grid = false;
@@ -84,6 +122,7 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& all) {
 }
 
 double node_estimate(const Body& b) {
+  if (!b.mesh.empty()) return static_cast<double>(b.mesh_data->nodes.size());
   if (!b.points.empty()) return static_cast<double>(b.cloud.size());
   double n = 1;
   for (int d = 0; d < 3; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
@@ -95,23 +134,28 @@ double node_estimate(const Body& b) {
 BodyKind solid_kind() {
   BodyKind k;
   k.name = "solid";
-  k.summary = "a box of simple-cubic points, or a point cloud from a file";
+  k.summary = "a box of simple-cubic points, a point cloud or a tetrahedral mesh from a file";
   k.traits = {.dimension = 3, .grid = true};
   k.keys = {
-      {.name = "origin", .what = "lower corner [x, y, z], m", .unit = "m", .fallback = "required unless points",
-       .doc = "the lower corner [x, y, z]"},
-      {.name = "size", .what = "extent [Lx, Ly, Lz] of the box, m", .unit = "m", .fallback = "required unless points",
+      {.name = "origin", .what = "lower corner [x, y, z], m", .unit = "m",
+       .fallback = "required unless points or mesh", .doc = "the lower corner [x, y, z]"},
+      {.name = "size", .what = "extent [Lx, Ly, Lz] of the box, m", .unit = "m",
+       .fallback = "required unless points or mesh",
        .doc = "[Lx, Ly, Lz], all > 0"},
       {.name = "points", .fallback = "- (a box)",
        .doc = "instead of origin and size: a CSV file (relative to the scene file) with the header x,y,z,volume or "
               "x,y,z,volume,material and one point a row [m, m^3]; nodes in file order, volumes > 0, no point twice; "
               "with a material column the body takes the rows naming its material; `#` lines and blank lines are "
               "skipped"},
-      {.name = "spacing", .required = true, .what = "grid spacing, m", .unit = "m",
+      kMeshKey3,
+      kScaleKey,
+      {.name = "spacing", .what = "grid spacing, m", .unit = "m",
+       .fallback = "required unless mesh; with mesh: the mesh's mean edge length",
        .doc = "dx > 0, at most the smallest extent of size; nodes sit at origin + (i + 1/2) dx, measure dx^3. With "
               "points: the points' typical distance, which sets the horizon (horizon_factor x spacing) and the "
-              "cube of side dx about each point that partial_area weighs"},
-      {.name = "grid", .fallback = "square", .doc = "`square` only (simple cubic); not with points"},
+              "cube of side dx about each point that partial_area weighs. With mesh: the length the horizon is "
+              "measured in"},
+      {.name = "grid", .fallback = "square", .doc = "`square` only (simple cubic); not with points or mesh"},
       kHorizonFactorKey,
       kHorizonKey,
       quadrature_key(),
@@ -121,6 +165,7 @@ BodyKind solid_kind() {
   k.read = read;
   k.emit = emit;
   k.measure_keys = [](const Body& b) {
+    if (!b.mesh.empty()) return "the tetrahedra of bodies." + b.name + ".mesh";
     return b.points.empty() ? key_text(b, "spacing", b.spacing) : "the volumes of bodies." + b.name + ".points";
   };
   k.node_estimate = node_estimate;

@@ -1,0 +1,346 @@
+// Mesh bodies (`mesh: file`): a triangle surface mesh for a membrane, a tetrahedral mesh for a
+// solid, read through Gmsh's C++ API while the scene is read (on every rank alike), so that every
+// problem of the file is an input error before anything is built. Nodes at the mesh's vertices,
+// each with a third of its triangles' areas (a quarter of its tetrahedra's volumes).
+#include <gmsh.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <clocale>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <unordered_map>
+
+#include "common.hpp"
+
+namespace peri::kinds {
+namespace {
+
+using scene_detail::format_number;
+using scene_detail::join;
+
+// Gmsh's API between initialize and finalize, quiet (no terminal output, no configuration files),
+// its messages logged. Gmsh sets the process's locale (LC_ALL from the environment, LC_NUMERIC
+// "C"): restored when the session ends.
+class GmshSession {
+ public:
+  GmshSession() {
+    if (const char* l = std::setlocale(LC_ALL, nullptr)) locale_ = l;
+    gmsh::initialize(0, nullptr, false);
+    gmsh::option::setNumber("General.Terminal", 0);
+    gmsh::logger::start();
+  }
+  ~GmshSession() {
+    try {
+      gmsh::logger::stop();
+      gmsh::finalize();
+    } catch (...) {  // (a destructor: nothing to report to)
+    }
+    if (!locale_.empty()) std::setlocale(LC_ALL, locale_.c_str());
+  }
+  GmshSession(const GmshSession&) = delete;
+  GmshSession& operator=(const GmshSession&) = delete;
+
+  // The last error Gmsh logged, or `fallback`.
+  static std::string last_error(const std::string& fallback) {
+    std::string e;
+    try {
+      gmsh::logger::getLastError(e);
+    } catch (...) {
+    }
+    return e.empty() ? fallback : e;
+  }
+
+ private:
+  std::string locale_;
+};
+
+// Runs a Gmsh call; what it throws (Gmsh throws its message as a std::string) becomes `fail`'s.
+template <class F, class Fail>
+void gmsh_call(F f, Fail fail) {
+  try {
+    f();
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::string& e) {
+    fail(e);
+  } catch (const std::exception& e) {
+    fail(GmshSession::last_error(e.what()));
+  } catch (...) {
+    fail(GmshSession::last_error("an error without a message"));
+  }
+}
+
+double norm(const double e[3]) { return std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]); }
+
+std::string point_text(const Vec3& x) {
+  return "(" + format_number(x[0]) + ", " + format_number(x[1]) + ", " + format_number(x[2]) + ")";
+}
+
+// Gmsh's element types a body of `dimension` takes: its cells (3-node triangles, 4-node
+// tetrahedra) and the lower elements that carry physical groups (points, 2-node lines, and the
+// triangles of a solid's faces).
+constexpr int kPoint = 15, kLine = 1, kTriangle = 2, kTetrahedron = 4;
+
+}  // namespace
+
+const Key kMeshKey2 = {
+    .name = "mesh", .fallback = "- (a grid sheet)",
+    .doc = "instead of origin and size: a triangle surface mesh (relative to the scene file; Gmsh's .msh or any "
+           "format Gmsh opens, e.g. STL), possibly curved. Nodes at its vertices in ascending tag order, each with "
+           "a third of its triangles' areas (measure area x thickness); full weights within the horizon; spacing "
+           "optional (default: the mesh's mean edge length). Its triangles carry `pressure`, oriented as in the "
+           "file (right-hand rule: the pressure pushes along (b - a) x (c - a)). Only 3-node triangles, with "
+           "points and 2-node lines for physical groups; nodes no triangle uses are not the body's; no degenerate "
+           "triangle, no two nodes at one position. Named physical groups are regions "
+           "(`region: {body: <name>, group: <group>}`). A mesh with every node at one z is flat (as a grid sheet)"};
+const Key kMeshKey3 = {
+    .name = "mesh", .fallback = "- (a box)",
+    .doc = "instead of origin and size: a tetrahedral mesh (relative to the scene file; Gmsh's .msh or any format "
+           "Gmsh opens). Nodes at its vertices in ascending tag order, each with a quarter of its tetrahedra's "
+           "volumes; full weights within the horizon; spacing optional (default: the mesh's mean edge length). "
+           "Only 4-node tetrahedra, with points, 2-node lines and 3-node triangles for physical groups; nodes no "
+           "tetrahedron uses are not the body's; no degenerate or inverted tetrahedron, no two nodes at one "
+           "position. Named physical groups are regions (`region: {body: <name>, group: <group>}`)"};
+const Key kScaleKey = {.name = "scale", .fallback = "1",
+                       .doc = "with mesh: the factor on the file's coordinates (e.g. 0.001 for a mesh in mm), > 0"};
+
+void read_mesh_file(const Value& v, Body& b, int dimension) {
+  namespace fs = std::filesystem;
+  b.mesh = resolve_input_path(v, v.name());
+  const std::string& path = b.mesh;
+  const std::string key = "bodies." + b.name + ".mesh";
+  const char* cells = dimension == 2 ? "triangles" : "tetrahedra";
+  {
+    std::ifstream probe(path, std::ios::binary);
+    std::error_code ec;
+    if (!probe || fs::is_directory(path, ec)) {
+      const int err = errno;
+      v.fail("cannot read the mesh '" + path + "': " + (fs::is_directory(path, ec) ? "a directory" : std::strerror(err)));
+    }
+  }
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".geo" || ext == ".geo_unrolled")
+    v.fail("'" + path + "' is a Gmsh script, not a mesh (opening it would run it); mesh it first (gmsh -" +
+           std::to_string(dimension) + " -format msh41 " + fs::path(path).filename().string() + ") and name the .msh");
+  auto at_element = [&](std::size_t tag, const std::string& what) {
+    throw InputError(path + ": element " + std::to_string(tag) + ": " + key + ": " + what);
+  };
+  auto gmsh_failed = [&](const std::string& what) { v.fail("Gmsh cannot read the mesh '" + path + "': " + what); };
+
+  auto data = std::make_shared<MeshData>();
+  MeshData& m = *data;
+  std::vector<std::size_t> node_tags;
+  std::vector<double> coords;
+  std::vector<int> types;
+  std::vector<std::vector<std::size_t>> element_tags, element_nodes;
+  struct Group {
+    std::string name;
+    std::vector<std::size_t> tags;
+  };
+  std::vector<Group> groups;
+  {
+    const GmshSession session;
+    gmsh_call([&] { gmsh::open(path); }, gmsh_failed);
+    gmsh_call(
+        [&] {
+          std::vector<double> parametric;
+          gmsh::model::mesh::getNodes(node_tags, coords, parametric, -1, -1, false, false);
+          gmsh::model::mesh::getElements(types, element_tags, element_nodes);
+          // An element type the body cannot take: the one of the highest dimension is named.
+          int worst = -1, worst_dim = -1;
+          std::string worst_name;
+          for (std::size_t k = 0; k < types.size(); ++k) {
+            const int t = types[k];
+            const bool taken = t == kPoint || t == kLine || t == kTriangle || (dimension == 3 && t == kTetrahedron);
+            if (taken || element_tags[k].empty()) continue;
+            std::string name;
+            int dim = 0, order = 0, nodes = 0, primary = 0;
+            std::vector<double> local;
+            gmsh::model::mesh::getElementProperties(t, name, dim, order, nodes, local, primary);
+            if (dim > worst_dim) worst = static_cast<int>(k), worst_dim = dim, worst_name = name;
+          }
+          if (worst >= 0) {
+            std::string why = dimension == 2 ? "a membrane's mesh takes 3-node triangles (and points and 2-node lines "
+                                               "for physical groups)"
+                                             : "a solid's mesh takes 4-node tetrahedra (and points, 2-node lines and "
+                                               "3-node triangles for physical groups)";
+            if (dimension == 2 && types[worst] == kTetrahedron) why += "; for a volume mesh use kind: solid";
+            at_element(element_tags[worst].front(),
+                       "unsupported element type '" + worst_name + "' (Gmsh type " + std::to_string(types[worst]) +
+                           ", " + std::to_string(element_tags[worst].size()) + " of them, this the first); " + why);
+          }
+          gmsh::vectorpair physical;
+          gmsh::model::getPhysicalGroups(physical);
+          for (const auto& [dim, tag] : physical) {
+            std::string name;
+            gmsh::model::getPhysicalName(dim, tag, name);
+            if (name.empty()) continue;  // a group without a name cannot be named by a region
+            std::vector<std::size_t> tags;
+            std::vector<double> xyz;
+            gmsh::model::mesh::getNodesForPhysicalGroup(dim, tag, tags, xyz);
+            auto it = std::find_if(groups.begin(), groups.end(), [&](const Group& g) { return g.name == name; });
+            if (it == groups.end()) it = groups.insert(groups.end(), Group{name, {}});
+            it->tags.insert(it->tags.end(), tags.begin(), tags.end());
+          }
+        },
+        gmsh_failed);
+  }
+  // The body's cells: their tags and corners' node tags.
+  const int cell_type = dimension == 2 ? kTriangle : kTetrahedron;
+  const std::size_t corners = dimension == 2 ? 3 : 4;
+  std::vector<std::size_t> cell_tags, cell_nodes;
+  for (std::size_t k = 0; k < types.size(); ++k)
+    if (types[k] == cell_type) {
+      cell_tags.insert(cell_tags.end(), element_tags[k].begin(), element_tags[k].end());
+      cell_nodes.insert(cell_nodes.end(), element_nodes[k].begin(), element_nodes[k].end());
+    }
+  if (cell_tags.empty())
+    v.fail("the mesh '" + path + "' has no " + cells + " (" +
+           (dimension == 2 ? "expected a triangle surface mesh, e.g. gmsh -2" : "expected a tetrahedral mesh, e.g. gmsh -3") +
+           "; Gmsh saves only the elements of physical groups when a file defines any: add the " +
+           (dimension == 2 ? "surfaces" : "volumes") + " to one, or set Mesh.SaveAll = 1)");
+  // The nodes: those the cells use, ascending by tag.
+  std::unordered_map<std::size_t, std::size_t> position;  // tag -> index into node_tags
+  position.reserve(node_tags.size());
+  for (std::size_t i = 0; i < node_tags.size(); ++i) position.emplace(node_tags[i], i);
+  std::vector<std::size_t> used(cell_nodes);
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
+  std::unordered_map<std::size_t, std::int64_t> index;  // tag -> body node
+  index.reserve(used.size());
+  m.tags = used;
+  m.nodes.reserve(used.size());
+  for (std::size_t tag : used) {
+    const auto it = position.find(tag);
+    if (it == position.end()) throw InputError(path + ": node " + std::to_string(tag) + ": " + key + ": an element uses it but the file gives no position");
+    const double* x = &coords[3 * it->second];
+    index.emplace(tag, static_cast<std::int64_t>(m.nodes.size()));
+    m.nodes.push_back({x[0] * b.scale, x[1] * b.scale, x[2] * b.scale});
+  }
+  // The cells: corners as body nodes; areas and volumes; each edge once.
+  const std::size_t n_cells = cell_tags.size();
+  m.measure.assign(m.nodes.size(), 0.0);
+  m.element_tags = cell_tags;
+  std::vector<std::pair<std::int64_t, std::int64_t>> edges;
+  edges.reserve(n_cells * (dimension == 2 ? 3 : 6));
+  for (std::size_t e = 0; e < n_cells; ++e) {
+    std::array<std::int64_t, 4> c{};
+    for (std::size_t k = 0; k < corners; ++k) c[k] = index.at(cell_nodes[corners * e + k]);
+    const Vec3& a = m.nodes[c[0]];
+    double longest = 0;
+    for (std::size_t p = 0; p < corners; ++p)
+      for (std::size_t q = p + 1; q < corners; ++q) {
+        const Vec3 &x = m.nodes[c[p]], &y = m.nodes[c[q]];
+        const double d[3] = {y[0] - x[0], y[1] - x[1], y[2] - x[2]};
+        longest = std::max(longest, norm(d));
+        edges.emplace_back(std::min(c[p], c[q]), std::max(c[p], c[q]));
+      }
+    const double e1[3] = {m.nodes[c[1]][0] - a[0], m.nodes[c[1]][1] - a[1], m.nodes[c[1]][2] - a[2]};
+    const double e2[3] = {m.nodes[c[2]][0] - a[0], m.nodes[c[2]][1] - a[1], m.nodes[c[2]][2] - a[2]};
+    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    std::string corner_tags;
+    for (std::size_t k = 0; k < corners; ++k) corner_tags += (k ? ", " : "") + std::to_string(cell_nodes[corners * e + k]);
+    if (dimension == 2) {
+      const double area = 0.5 * norm(n);
+      // A triangle whose area is below 1e-10 of its longest edge squared: collinear corners.
+      if (!(area > 1e-10 * longest * longest))
+        at_element(cell_tags[e], "degenerate triangle (zero area) with nodes " + corner_tags +
+                                     "; expected three corners not on one line");
+      for (std::size_t k = 0; k < 3; ++k) m.measure[c[k]] += area / 3.0;
+      m.total += area;
+      m.triangles.push_back({c[0], c[1], c[2]});
+    } else {
+      const Vec3& d = m.nodes[c[3]];
+      const double e3[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+      const double volume = (n[0] * e3[0] + n[1] * e3[1] + n[2] * e3[2]) / 6.0;
+      if (!(std::fabs(volume) > 1e-10 * longest * longest * longest))
+        at_element(cell_tags[e], "degenerate tetrahedron (zero volume) with nodes " + corner_tags +
+                                     "; expected four corners not in one plane");
+      if (volume < 0)
+        at_element(cell_tags[e], "inverted tetrahedron (negative volume " + format_number(volume) + " m^3) with nodes " +
+                                     corner_tags + "; expected Gmsh's order, (b - a) x (c - a) . (d - a) > 0");
+      for (std::size_t k = 0; k < 4; ++k) m.measure[c[k]] += volume / 4.0;
+      m.total += volume;
+      m.tets.push_back(c);
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  double sum = 0;
+  for (const auto& [p, q] : edges) {
+    const double d[3] = {m.nodes[q][0] - m.nodes[p][0], m.nodes[q][1] - m.nodes[p][1], m.nodes[q][2] - m.nodes[p][2]};
+    sum += norm(d);
+  }
+  m.mean_edge = sum / static_cast<double>(edges.size());
+  // Two nodes closer than 1e-8 mean edges: one point given twice (hashed on cells of that size).
+  {
+    const double tol = 1e-8 * m.mean_edge;
+    struct CellHash {
+      std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
+        return static_cast<std::size_t>(c[0] * 73856093 ^ c[1] * 19349663 ^ c[2] * 83492791);
+      }
+    };
+    std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::int64_t>, CellHash> grid;
+    grid.reserve(m.nodes.size());
+    auto cell_of = [&](const Vec3& x) {
+      return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(x[0] / tol)),
+                                         static_cast<std::int64_t>(std::floor(x[1] / tol)),
+                                         static_cast<std::int64_t>(std::floor(x[2] / tol))};
+    };
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(m.nodes.size()); ++i) {
+      const Vec3& x = m.nodes[i];
+      const auto c = cell_of(x);
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            const auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
+            if (it == grid.end()) continue;
+            for (std::int64_t j : it->second) {
+              const double d[3] = {x[0] - m.nodes[j][0], x[1] - m.nodes[j][1], x[2] - m.nodes[j][2]};
+              if (norm(d) <= tol)
+                throw InputError(path + ": node " + std::to_string(m.tags[i]) + ": " + key + ": at " + point_text(x) +
+                                 ", the position of node " + std::to_string(m.tags[j]) +
+                                 " too (within 1e-8 mean edge lengths); expected each point once (merge the "
+                                 "duplicate nodes, e.g. Gmsh's Coherence Mesh)");
+            }
+          }
+      grid[c].push_back(i);
+    }
+  }
+  m.planar = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) { return x[2] == m.nodes[0][2]; });
+  for (const Group& g : groups) {
+    MeshGroup out{g.name, {}};
+    for (std::size_t tag : g.tags)
+      if (const auto it = index.find(tag); it != index.end()) out.nodes.push_back(it->second);
+    std::sort(out.nodes.begin(), out.nodes.end());
+    out.nodes.erase(std::unique(out.nodes.begin(), out.nodes.end()), out.nodes.end());
+    m.groups.push_back(std::move(out));
+  }
+  if (!b.spacing_given) b.spacing = m.mean_edge;
+  b.mesh_data = std::move(data);
+}
+
+void check_mesh_orientation(const Body& b) {
+  const MeshData& m = *b.mesh_data;
+  std::map<std::pair<std::int64_t, std::int64_t>, std::size_t> directed;  // edge a -> b: its triangle
+  for (std::size_t e = 0; e < m.triangles.size(); ++e)
+    for (int k = 0; k < 3; ++k) {
+      const std::pair<std::int64_t, std::int64_t> edge{m.triangles[e][k], m.triangles[e][(k + 1) % 3]};
+      const auto [it, fresh] = directed.emplace(edge, e);
+      if (!fresh)
+        throw InputError(b.mesh + ": element " + std::to_string(m.element_tags[e]) + ": bodies." + b.name +
+                         ".mesh: runs along the edge from node " + std::to_string(m.tags[edge.first]) + " to node " +
+                         std::to_string(m.tags[edge.second]) + " in the same direction as element " +
+                         std::to_string(m.element_tags[it->second]) +
+                         ": the triangles are not oriented alike, which the pressure (along (b - a) x (c - a)) "
+                         "needs; expected a consistently oriented surface (Gmsh: ReorientMesh, or "
+                         "`Reverse Surface`)");
+    }
+}
+
+}  // namespace peri::kinds

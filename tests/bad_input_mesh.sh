@@ -1,0 +1,146 @@
+#!/usr/bin/env bash
+# Hostile mesh files of mesh bodies (`mesh: file`) at the driver level, on 2 ranks: each case must
+# exit with status 2, print one message naming the mesh file and the element or node (or the scene
+# file's line for a file that cannot be read at all), the key and what was expected, and leave no
+# output directory behind. The meshes are tiny ASCII files written here (Gmsh's 2.2 format) or
+# made by the gmsh program from a .geo written here.
+# usage: bad_input_mesh.sh PERIDRIVE GMSH MPIEXEC [MPI flags...]
+set -u
+peridrive=$1 gmsh=$2 mpiexec=$3
+shift 3
+mpi=("$mpiexec" -n 2 "$@")
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cd "$work" || exit 1
+mkdir run data  # the working directory of every run: not the scenes' folder
+pass=0 fail=0
+
+# expect NAME EXPECTED_SUBSTRING -- peridrive arguments...
+expect() {
+  local name=$1 want=$2
+  shift 3
+  local out="$work/out-$name"
+  (cd run && "${mpi[@]}" "$peridrive" "$@" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr")
+  local rc=$?
+  local msg
+  msg=$(grep -c "peridrive: error:" "$work/stderr")
+  if [ "$rc" -ne 2 ]; then
+    echo "FAIL $name: exit status $rc, expected 2"; cat "$work/stderr"; fail=$((fail + 1))
+  elif ! grep -qF -- "$want" "$work/stderr"; then
+    echo "FAIL $name: message lacks '$want':"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ "$msg" -ne 1 ]; then
+    echo "FAIL $name: expected exactly one error line, got $msg"; cat "$work/stderr"; fail=$((fail + 1))
+  elif [ -e "$out" ]; then
+    echo "FAIL $name: output directory $out was created"; fail=$((fail + 1))
+  else
+    echo "ok   $name: $(grep "peridrive: error:" "$work/stderr")"; pass=$((pass + 1))
+  fi
+}
+line_of() { grep -n -m1 -F -- "$2" "$1" | cut -d: -f1; }
+
+# scene NAME KIND MESH [EXTRA_BODY_KEYS [EXTRA_SECTIONS]]: a scene (in $work) with one mesh body `m`.
+scene() {
+  local f="$work/$1.yaml" material="{model: membrane, density: 1000, bulk_modulus: 1.0e6}"
+  [ "$2" = solid ] && material="{model: pmb, density: 1000, bulk_modulus: 1.0e6}"
+  printf 'name: %s\nmaterials:\n  m: %s\nbodies:\n  m: {kind: %s, material: m, mesh: %s%s%s}\n%b\nstages:\n  - {kind: dynamic, steps: 1}\noutput: {frames: 1}\n' \
+    "$1" "$material" "$2" "$3" "$([ "$2" = membrane ] && echo ', thickness: 0.001')" "${4:-}" "${5:-}" > "$f"
+  echo "$f"
+}
+# msh NAME NODES ELEMENTS: a Gmsh 2.2 ASCII mesh in data/; NODES "tag x y z" and ELEMENTS
+# "tag type 2 0 1 nodes..." lines separated by ';'.
+msh() {
+  local f="$work/data/$1.msh"
+  local nodes elements
+  IFS=';' read -ra nodes <<< "$2"
+  IFS=';' read -ra elements <<< "$3"
+  { printf '$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%d\n' "${#nodes[@]}"
+    printf '%s\n' "${nodes[@]}"
+    printf '$EndNodes\n$Elements\n%d\n' "${#elements[@]}"
+    printf '%s\n' "${elements[@]}"
+    printf '$EndElements\n'; } > "$f"
+  echo "$f"
+}
+square='1 0 0 0;2 1 0 0;3 1 1 0;4 0 1 0;5 0.5 0.5 0'
+
+# The file itself.
+f=$(scene missing membrane data/none.msh)
+expect missing_file "$f:$(line_of "$f" 'mesh:'): bodies.m.mesh: cannot read the mesh '$work/data/none.msh': No such file or directory" -- "$f"
+echo 'this is no mesh' > data/garbage.msh
+f=$(scene garbage membrane data/garbage.msh)
+expect unreadable "bodies.m.mesh: Gmsh cannot read the mesh '$work/data/garbage.msh': " -- "$f"
+echo 'Point(1) = {0, 0, 0};' > data/script.geo
+f=$(scene script membrane data/script.geo)
+expect geo_script "bodies.m.mesh: '$work/data/script.geo' is a Gmsh script, not a mesh" -- "$f"
+# No cells of the body's kind.
+m=$(msh lines "$square" '1 1 2 0 1 1 2;2 1 2 0 1 2 3')
+f=$(scene no_triangles membrane data/lines.msh)
+expect no_triangles "bodies.m.mesh: the mesh '$m' has no triangles (expected a triangle surface mesh" -- "$f"
+m=$(msh flat_triangles "$square" '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 4 1 5')
+f=$(scene no_tets solid data/flat_triangles.msh)
+expect no_tets "bodies.m.mesh: the mesh '$m' has no tetrahedra" -- "$f"
+# Element types the body cannot take.
+m=$(msh quads "$square" '1 2 2 0 1 1 2 5;7 3 2 0 1 1 2 3 4')
+f=$(scene quads membrane data/quads.msh)
+expect unsupported_quad "$m: element 7: bodies.m.mesh: unsupported element type 'Quadrilateral 4' (Gmsh type 3, 1 of them, this the first)" -- "$f"
+tet='1 0 0 0;2 1 0 0;3 0 1 0;4 0 0 1'
+m=$(msh tet "$tet" '1 4 2 0 1 1 2 3 4')
+f=$(scene tet_in_membrane membrane data/tet.msh)
+expect tet_in_membrane "$m: element 1: bodies.m.mesh: unsupported element type 'Tetrahedron 4' (Gmsh type 4, 1 of them, this the first); a membrane's mesh takes 3-node triangles (and points and 2-node lines for physical groups); for a volume mesh use kind: solid" -- "$f"
+cat > data/second.geo <<'EOF'
+Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5}; Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+EOF
+"$gmsh" -2 -order 2 -format msh41 data/second.geo -o data/second.msh -v 0 > /dev/null 2>&1 || echo "gmsh failed on second.geo"
+f=$(scene second_order membrane data/second.msh)
+expect second_order "bodies.m.mesh: unsupported element type 'Triangle 6' (Gmsh type 9, " -- "$f"
+grep -qF "$work/data/second.msh: element " "$work/stderr" || { echo "FAIL second_order: the element not named"; fail=$((fail + 1)); }
+# Degenerate and inverted cells, duplicate points.
+m=$(msh collinear '1 0 0 0;2 1 0 0;3 2 0 0;4 0 1 0' '1 2 2 0 1 1 2 4;2 2 2 0 1 1 2 3')
+f=$(scene collinear membrane data/collinear.msh)
+expect degenerate_triangle "$m: element 2: bodies.m.mesh: degenerate triangle (zero area) with nodes 1, 2, 3; expected three corners not on one line" -- "$f"
+m=$(msh flat_tet "$tet;5 1 1 0" '1 4 2 0 1 1 2 3 4;2 4 2 0 1 1 2 3 5')
+f=$(scene flat_tet solid data/flat_tet.msh)
+expect degenerate_tet "$m: element 2: bodies.m.mesh: degenerate tetrahedron (zero volume) with nodes 1, 2, 3, 5; expected four corners not in one plane" -- "$f"
+m=$(msh inverted "$tet;5 1 1 1" '1 4 2 0 1 1 2 3 4;9 4 2 0 1 2 4 3 5')
+f=$(scene inverted solid data/inverted.msh)
+expect inverted_tet "$m: element 9: bodies.m.mesh: inverted tetrahedron (negative volume -0.3333333333333333 m^3) with nodes 2, 4, 3, 5" -- "$f"
+m=$(msh duplicate "$square;6 1 0 0" '1 2 2 0 1 1 2 5;2 2 2 0 1 6 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 4 1 5')
+f=$(scene duplicate membrane data/duplicate.msh)
+expect duplicate_node "$m: node 6: bodies.m.mesh: at (1, 0, 0), the position of node 2 too (within 1e-8 mean edge lengths); expected each point once" -- "$f"
+# A pressure on triangles oriented unlike.
+m=$(msh unlike "$square" '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 1 4 5')
+f=$(scene unlike membrane data/unlike.msh ', pressure: 100')
+expect pressure_orientation "$m: element 4: bodies.m.mesh: runs along the edge from node 4 to node 5 in the same direction as element 3: the triangles are not oriented alike" -- "$f"
+# Physical groups as regions.
+m=$(msh square "$square" '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 4 1 5')
+f=$(scene no_groups membrane data/square.msh '' 'boundaries:\n  - {name: rim, region: {body: m, group: rim}}')
+expect group_unknown "$f:$(line_of "$f" 'group: rim'): boundaries.0.region.group: the mesh '$m' has no physical group named 'rim'; its named groups: none" -- "$f"
+cat > data/grouped.geo <<'EOF'
+Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5}; Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
+Point(5) = {3, 3, 3, 0.5};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Physical Surface("sheet") = {1};
+Physical Curve("left") = {4};
+Physical Point("stray") = {5};
+EOF
+"$gmsh" -2 -format msh41 data/grouped.geo -o data/grouped.msh -v 0 > /dev/null 2>&1 || echo "gmsh failed on grouped.geo"
+f=$(scene wrong_group membrane data/grouped.msh '' 'boundaries:\n  - {name: rim, region: {body: m, group: right}}')
+expect group_listed "boundaries.0.region.group: the mesh '$work/data/grouped.msh' has no physical group named 'right'; its named groups: 'stray', 'left', 'sheet'" -- "$f"
+f=$(scene stray_group membrane data/grouped.msh '' 'boundaries:\n  - {name: rim, region: {body: m, group: stray}}')
+expect group_without_nodes "boundaries.0.region.group: physical group 'stray' of the mesh '$work/data/grouped.msh' holds no node of the body" -- "$f"
+f=$(scene group_and_box membrane data/grouped.msh '' 'boundaries:\n  - {name: rim, region: {body: m, group: left, min: [0, 0, 0]}}')
+expect group_with_box "boundaries.0.region.min: not with group" -- "$f"
+f=$(scene group_no_body membrane data/grouped.msh '' 'boundaries:\n  - {name: rim, region: {group: left}}')
+expect group_without_body "boundaries.0.region: missing required key 'body'" -- "$f"
+# Keys that exclude each other.
+f=$(scene with_origin membrane data/square.msh ', origin: [0, 0, 0]')
+expect mesh_with_origin "bodies.m.origin: not with mesh" -- "$f"
+f=$(scene partial membrane data/square.msh ', quadrature: partial_area')
+expect mesh_partial_area "bodies.m.quadrature: expected one of: full, taper; got partial_area" -- "$f"
+f=$(scene scale_zero membrane data/square.msh ', scale: 0')
+expect scale_zero "bodies.m.scale: expected a positive number, got 0" -- "$f"
+
+echo "$pass passed, $fail failed"
+[ "$fail" -eq 0 ]
