@@ -3,7 +3,7 @@
 # exit with status 2, print one message naming the mesh file and the element or node (or the scene
 # file's line for a file that cannot be read at all), the key and what was expected, and leave no
 # output directory behind. The meshes are tiny ASCII files written here (Gmsh's 2.2 format) or
-# made by the gmsh program from a .geo written here.
+# made by the gmsh program from a .geo written here. And a fiber's path file (`polyline`).
 # usage: bad_input_mesh.sh PERIDRIVE GMSH MPIEXEC [MPI flags...]
 set -u
 peridrive=$1 gmsh=$2 mpiexec=$3
@@ -141,6 +141,23 @@ f=$(scene partial membrane data/square.msh ', quadrature: partial_area')
 expect mesh_partial_area "bodies.m.quadrature: expected one of: full, taper; got partial_area" -- "$f"
 f=$(scene scale_zero membrane data/square.msh ', scale: 0')
 expect scale_zero "bodies.m.scale: expected a positive number, got 0" -- "$f"
+
+# A fiber's path from a file.
+fiber() {  # NAME FILE_TEXT
+  printf '%b' "$2" > "data/$1.xyz"
+  printf 'name: %s\nmaterials:\n  m: {model: membrane, density: 1100, youngs_modulus: 2.0e9}\nbodies:\n  f: {kind: fiber, material: m, polyline: data/%s.xyz, diameter: 0.0002, spacing: 0.0005}\nstages:\n  - {kind: dynamic, steps: 1}\noutput: {frames: 1}\n' "$1" "$1" > "$work/$1.yaml"
+  echo "$work/$1.yaml"
+}
+f=$(fiber two_numbers '0 0 0\n0.01 0\n')
+expect polyline_columns "$work/data/two_numbers.xyz:2: bodies.f.polyline: expected 3 numbers x, y, z [m], got '0.01 0'" -- "$f"
+f=$(fiber word '# x y z\n0 0 0\n0.01 zero 0\n')
+expect polyline_number "$work/data/word.xyz:3: bodies.f.polyline: expected 3 finite numbers x, y, z [m], got '0.01 zero 0'" -- "$f"
+f=$(fiber repeated '0 0 0\n0.01 0 0\n\n0.01, 0, 0\n')
+expect polyline_repeat "$work/data/repeated.xyz:4: bodies.f.polyline: the same point as line 2; expected each point different from the one before it" -- "$f"
+f=$(fiber single '0 0 0\n')
+expect polyline_one_point "$f:5: bodies.f.polyline: the polyline '$work/data/single.xyz' has 1 point; expected at least 2 lines x, y, z" -- "$f"
+rm data/single.xyz
+expect polyline_missing "$f:5: bodies.f.polyline: cannot read the polyline '$work/data/single.xyz': No such file or directory" -- "$f"
 
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

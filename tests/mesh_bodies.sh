@@ -13,6 +13,8 @@
 #  - a physical group as a boundary region: the tube's "bottom" ring clamped (its 32 nodes, those at
 #    z = 0, never move) while a follower pressure on the file's triangles inflates it (the radius
 #    grows), on 1 and 2 ranks with the same positions bit for bit; a tet solid likewise;
+#  - a fiber's path read from a file (`polyline`, with a comment, a blank line, commas and blanks)
+#    gives the nodes and the motion of the same path given inline, bit for bit;
 #  - --print-scene of a mesh scene reads back to the same text; --dry-run names the mesh's mean
 #    edge length and the spacing the horizon is measured in.
 # usage: mesh_bodies.sh PERIDRIVE GMSH MPIEXEC [MPI flags...]
@@ -64,7 +66,14 @@ solid box box.msh
 solid box2 box.msh ', scale: 2'
 solid rod rod.msh '' 'boundaries:\n  - {name: base, region: {body: block, group: base}, velocity: [0, 0, 1]}'
 sed -i 's/steps: 1}/steps: 20}/' rod.yaml
-for s in area stl strain box box2; do "$peridrive" $s.yaml --out out-$s --quiet; done
+# A fiber's path from a file (`polyline`) and inline: the same nodes.
+printf '# a bent fiber\n0, 0, 0\n\n0.01 0 0\n0.01,0.01,0.002\n' > bent.xyz
+fiber() {  # NAME PATH_KEY
+  printf 'name: %s\nmaterials:\n  nylon: {model: membrane, density: 1100, youngs_modulus: 2.0e9}\nbodies:\n  f: {kind: fiber, material: nylon, %s, diameter: 0.0002, spacing: 0.0005}\nboundaries:\n  - {name: pull, region: {min: [-1, -1, -1], max: [0.0003, 1, 1]}, velocity: [-1, 0, 0]}\nstages:\n  - {name: run, kind: dynamic, steps: 20}\noutput: {frames: 2}\n' "$1" "$2" > "$1.yaml"
+}
+fiber inline 'path: [[0, 0, 0], [0.01, 0, 0], [0.01, 0.01, 0.002]]'
+fiber polyline 'polyline: bent.xyz'
+for s in area stl strain box box2 inline polyline; do "$peridrive" $s.yaml --out out-$s --quiet; done
 for s in inflate rod; do
   "$peridrive" $s.yaml --out out-$s --quiet
   "$mpiexec" -n 2 "$@" "$peridrive" $s.yaml --out out-$s-np2 --quiet
@@ -123,6 +132,11 @@ fr2, _, _ = frames("rod-np2")
 x = fr[sorted(fr)[-1]]["position"]
 check("1 and 2 ranks, solid", np.array_equal(x, fr2[sorted(fr2)[-1]]["position"]) and np.abs(x - X).max() > 0,
       f"positions bit for bit (moved up to {np.abs(x - X).max():.2e} m)")
+fa, Xa, Va = frames("inline")
+fb, Xb, Vb = frames("polyline")
+xa, xb = fa[sorted(fa)[-1]]["position"], fb[sorted(fb)[-1]]["position"]
+check("polyline file", np.array_equal(Xa, Xb) and np.array_equal(Va, Vb) and np.array_equal(xa, xb) and len(Va) == 40 and np.abs(xb - Xb).max() > 0,
+      f"{len(Vb)} nodes, reference and final positions as the inline path's bit for bit")
 a, b = open(f"{tmp}/printed.yaml").read(), open(f"{tmp}/printed2.yaml").read()
 check("--print-scene round trip", a == b and "# spacing: not given; the mesh's mean edge length" in a and "group: bottom" in a, "same text")
 dry = open(f"{tmp}/dry.txt").read()

@@ -176,6 +176,7 @@ struct Body {
   // A = pi diameter^2 / 4; `segment_length` > 0 numbers the stretches of that length along the
   // fiber (segments) that long-range rules tell apart (0: the whole fiber is one segment).
   std::vector<Vec3> path;
+  std::string polyline;  ///< the file the path was read from (`polyline: file`, resolved), or empty
   std::optional<FiberNetwork> network;  ///< instead of path: many fibers in one body (cross-linked
                                         ///< where they pass within the horizon)
   double diameter = 0.0;        ///< [m] (> 0)

@@ -1,9 +1,14 @@
 // Body kind `fiber` (Silling & Bobaru section 6, eq. 31): nodes at equal arc-length steps along a
-// polyline, or along the many paths of a generated network (example 7.6), measure A ds with the
+// polyline (given inline or in a file), or along the many paths of a generated network (example 7.6), measure A ds with the
 // cross-section A = pi d^2 / 4; full weights within the horizon; long-range pairs between fibers.
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "common.hpp"
 #include "kinds.hpp"
@@ -144,14 +149,68 @@ FiberNetwork read_network(const Value& v) {
   return n;
 }
 
+// A path from a text file (`polyline: file`): one point x, y, z a line (commas or blanks between
+// the numbers), `#` lines and blank lines skipped; InputError naming the file and line.
+double read_polyline(const Value& v, Body& b) {
+  b.polyline = resolve_input_path(v, v.name());
+  const std::string key = "bodies." + b.name + ".polyline";
+  std::ifstream in(b.polyline, std::ios::binary);
+  std::error_code ec;
+  if (!in || std::filesystem::is_directory(b.polyline, ec)) {
+    const int err = errno;
+    v.fail("cannot read the polyline '" + b.polyline + "': " +
+           (std::filesystem::is_directory(b.polyline, ec) ? "a directory" : std::strerror(err)));
+  }
+  auto fail_at = [&](long line, const std::string& what) {
+    throw InputError(b.polyline + ":" + std::to_string(line) + ": " + key + ": " + what);
+  };
+  std::string text;
+  long line = 0, previous = 0;
+  double length = 0;
+  while (std::getline(in, text)) {
+    ++line;
+    const auto first = text.find_first_not_of(" \t\r");
+    if (first == std::string::npos || text[first] == '#') continue;
+    std::string t = text.substr(first, text.find_last_not_of(" \t\r") - first + 1);
+    std::vector<std::string> cells;
+    std::string cell;
+    for (char& c : t)
+      if (c == ',') c = ' ';
+    std::istringstream words(t);
+    while (words >> cell) cells.push_back(cell);
+    const std::string shown = "'" + (t.size() > 60 ? t.substr(0, 60) + "..." : t) + "'";
+    if (cells.size() != 3) fail_at(line, "expected 3 numbers x, y, z [m], got " + shown);
+    Vec3 p{};
+    for (int c = 0; c < 3; ++c)
+      if (scene_detail::parse_number(cells[c], p[c]) != scene_detail::NumberText::Ok)
+        fail_at(line, std::string("expected 3 finite numbers x, y, z [m], got ") + shown);
+    if (!b.path.empty()) {
+      const double d = distance(b.path.back(), p);
+      if (!(d > 0)) fail_at(line, "the same point as line " + std::to_string(previous) + "; expected each point "
+                                  "different from the one before it");
+      length += d;
+    }
+    b.path.push_back(p);
+    previous = line;
+  }
+  if (b.path.size() < 2)
+    v.fail("the polyline '" + b.polyline + "' has " + std::to_string(b.path.size()) +
+           " point" + (b.path.size() == 1 ? "" : "s") + "; expected at least 2 lines x, y, z");
+  return length;
+}
+
 // A fiber: polyline path, diameter, spacing along the path, horizon, segments (eq. 31).
 void read(const Map& m, Body& b, const Material&) {
   double length = INFINITY;  // of the one path (a network's fibers cross its box)
   if (auto x = m.get("network")) {
     if (m.given("path")) x->fail("give either path (one fiber) or network (many), not both");
+    if (m.given("polyline")) x->fail("give either polyline (one fiber) or network (many), not both");
     b.network = read_network(*x);
+  } else if (auto x = m.get("polyline")) {
+    if (auto y = m.get("path")) y->fail("give either path or polyline (a file of the path's points), not both");
+    length = read_polyline(*x, b);
   } else {
-    if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m (or network)");
+    if (!m.given("path")) m.missing("path", "polyline [[x, y, z], ...] of at least 2 points, m (or polyline, or network)");
     const Value path = m.at("path");
     const std::vector<Value> points = path.list("a list of at least 2 points [x, y, z], m");
     if (points.size() < 2) path.fail("expected a list of at least 2 points [x, y, z], m, got " + path.got());
@@ -190,6 +249,8 @@ void emit(Writer& w, const Body& b) {
     w.key(6, "step", n.step);
     w.key(6, "start_band", n.start_band);
     w.key(6, "seed", std::to_string(n.seed));
+  } else if (!b.polyline.empty()) {
+    w.key(4, "polyline", scene_detail::yaml_string(b.polyline));
   } else {
     std::vector<std::string> points;
     for (const Vec3& p : b.path) points.push_back(flow(p));
@@ -256,6 +317,10 @@ BodyKind fiber_kind() {
       {.name = "path", .unit = "m", .fallback = "required unless network",
        .doc = "a polyline [[x, y, z], ...] of at least 2 points, each different from the one before; n = round(L / "
               "spacing) nodes at the centres of n equal arc-length steps ds = L / n, measure A ds"},
+      {.name = "polyline", .fallback = "- (path)",
+       .doc = "instead of path: a text file (relative to the scene file) of the path's points, one `x, y, z` a "
+              "line [m] (commas or blanks between the numbers), at least 2, each different from the one before; "
+              "one path a file; `#` lines and blank lines are skipped"},
       {.name = "network",
        .doc = "instead of path: many fibers generated in a box, bonded wherever they pass within the horizon "
               "(cross-links) (`bodies.<name>.network`)"},
