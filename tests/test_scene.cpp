@@ -616,7 +616,9 @@ TEST(SceneOverride, ValidationErrorsOfOverriddenValuesReadSet) {
   EXPECT_THAT(error_of(kBase, {{"materials.rubber.hardening.coefficient", "1"}}),
               StartsWith("--set: materials.rubber.hardening: missing required key 'exponent'"));
   EXPECT_THAT(error_of(kBase, {{"bodies.sheet", "{material: rubber}"}}),
-              StartsWith("--set: bodies.sheet: missing required key 'origin'"));
+              StartsWith("--set: bodies.sheet: missing required key 'thickness'"));
+  EXPECT_THAT(error_of(kBase, {{"bodies.sheet", "{material: rubber, thickness: 0.001}"}}),
+              StartsWith("--set: bodies.sheet: missing required key 'origin' (lower corner [x, y, z], m; or mesh)"));
   EXPECT_THAT(error_of(kBase, {{"materials.rubber.youngs_modulus", "1e9"}}),
               StartsWith("--set: materials.rubber: give exactly one of"));
   EXPECT_THAT(error_of(kBase, {{"stages.0.steps", "2.5"}}),
@@ -812,9 +814,9 @@ TEST(SceneErrors, SolidBodies) {
   const std::string solid = with("material: rubber", "kind: solid\n    material: rubber");
   // A key of other kinds is refused first, with the keys this kind takes.
   EXPECT_EQ(error_of(solid),
-            "scene.yaml:13: bodies.sheet.thickness: not used by a solid body (a box of simple-cubic points, or a "
-            "point cloud from a file); expected one of: kind, material, origin, size, points, spacing, grid, "
-            "horizon_factor, horizon, quadrature, cutouts");
+            "scene.yaml:13: bodies.sheet.thickness: not used by a solid body (a box of simple-cubic points, a point "
+            "cloud or a tetrahedral mesh from a file); expected one of: kind, material, origin, size, points, mesh, "
+            "scale, spacing, grid, horizon_factor, horizon, quadrature, cutouts");
   EXPECT_THAT(error_of(with("    thickness: 0.0005\n", "", solid)),
               StartsWith("scene.yaml:12: bodies.sheet.size: expected a solid size [Lx, Ly, Lz]"));
   const std::string box = with("size: [0.01, 0.01]", "size: [0.01, 0.01, 0.01]", solid);
