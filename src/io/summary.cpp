@@ -88,7 +88,8 @@ std::string RunSummary::to_json() const {
       << ", \"cutbacks\": " << q.cutbacks << ", \"newton_iterations\": " << q.newton_iterations
       << ", \"linear_iterations\": " << q.linear_iterations << ", \"broken_bonds\": " << q.broken
       << ", \"seconds\": " << json_number(q.seconds) << ", \"residual_seconds\": " << json_number(q.residual_seconds)
-      << ", \"tangent_seconds\": " << json_number(q.tangent_seconds) << ", \"near_null_modes\": " << q.near_null_modes
+      << ", \"tangent_seconds\": " << json_number(q.tangent_seconds) << ", \"tangent_assemblies\": " << q.tangent_assemblies
+      << ", \"near_null_modes\": " << q.near_null_modes
       << ", \"support_work\": " << json_number(q.external_work)
       << ", \"work_error\": " << json_number(k < quasistatic_work_error.size() ? quasistatic_work_error[k] : NAN)
       << "}";

@@ -159,7 +159,9 @@ void emit_stage(Writer& w, const Stage& s) {
     w.key(4, "max_load_steps", std::to_string(s.max_load_steps));
     w.key(4, "max_load_step", s.max_load_step);
     w.key(4, "in_plane", to_text(s.in_plane));
-    w.key(4, "jacobian", s.matrix_free ? "matrix_free" : "assembled");
+    w.key(4, "jacobian", s.jacobian == Stage::Jacobian::Assembled    ? "assembled"
+                         : s.jacobian == Stage::Jacobian::MfOperator ? "mf_operator"
+                                                                      : "matrix_free");
     w.key(4, "jacobian_shift", s.jacobian_shift);
     w.key(4, "max_break_passes", std::to_string(s.max_break_passes));
     return;

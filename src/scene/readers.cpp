@@ -347,7 +347,9 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
       s.max_load_step = x->number_if("a number in (0, 1]", [](double f) { return f > 0 && f <= 1; });
     if (auto x = m.get("in_plane")) s.in_plane = x->boolean();
     if (auto x = m.get("jacobian"))
-      s.matrix_free = x->choice<bool>({{"assembled", false}, {"matrix_free", true}});
+      s.jacobian = x->choice<Stage::Jacobian>({{"assembled", Stage::Jacobian::Assembled},
+                                               {"mf_operator", Stage::Jacobian::MfOperator},
+                                               {"matrix_free", Stage::Jacobian::MatrixFree}});
     if (auto x = m.get("jacobian_shift"))
       s.jacobian_shift = x->number_if("a number in [0, 1)", [](double f) { return f >= 0 && f < 1; });
     if (auto x = m.get("max_break_passes")) s.max_break_passes = x->integer(1, 1000000);

@@ -266,9 +266,12 @@ inline const Keys kStageKeys = {
     {.name = "in_plane", .fallback = "true",
      .doc = "hold membranes' out-of-plane components where they are (a flat membrane has no out-of-plane "
             "stiffness at zero tension)"},
-    {.name = "jacobian", .fallback = "assembled",
-     .doc = "`assembled` (the bond tangent, block size 3) or `matrix_free` (finite-difference Newton-Krylov, no "
-            "preconditioner)"},
+    {.name = "jacobian", .fallback = "mf_operator",
+     .doc = "`mf_operator`: the Krylov solver's operator is the residual's directional difference (matrix-free) "
+            "and the assembled bond tangent (block size 3) builds the preconditioner, reassembled only when a "
+            "linear solve needs more than twice the iterations of the first after the last assembly, or bonds "
+            "broke; `assembled`: the tangent is assembled at every Newton iteration and is the operator too; "
+            "`matrix_free`: finite-difference Newton-Krylov, no preconditioner"},
     {.name = "jacobian_shift", .fallback = "1e-8",
      .doc = "in [0, 1): shift of the tangent's diagonal relative to the mean nodal stiffness; the residual is "
             "unchanged, so converged states are exact equilibria"},

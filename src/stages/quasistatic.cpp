@@ -33,8 +33,8 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
   PERI_PETSC(SNESCreate(comm_, snes_.out()));
   PERI_PETSC(SNESSetOptionsPrefix(snes_, "qs_"));
   PERI_PETSC(SNESSetFunction(snes_, r_, &QuasiStaticLoader::form_function, this));
-  if (stage_.matrix_free) {
-    PERI_PETSC(SNESSetUseMatrixFree(snes_, PETSC_TRUE, PETSC_FALSE));
+  if (stage_.jacobian == Stage::Jacobian::MatrixFree) {
+    PERI_PETSC(SNESSetUseMatrixFree(snes_, PETSC_FALSE, PETSC_TRUE));
   } else {
     // AIJ with block size 3, which algebraic multigrid (the default preconditioner) needs;
     // -qs_mat_type baij for block preconditioners.
@@ -48,6 +48,15 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
     PERI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
     PERI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PERI_PETSC(SNESSetJacobian(snes_, J_, J_, &QuasiStaticLoader::form_jacobian, this));
+    // The operator as differences of the residual (one residual, a bond loop, per product) and
+    // the assembled tangent as the preconditioner's matrix only: on example 7.1's sheet (25.6k
+    // nodes) a Krylov product through the assembled tangent (about 400 nonzeros per row) cost
+    // seven times a residual, and the tangent's assembly and the multigrid set-up at every
+    // Newton iteration half of the preload (docs/user/quasistatic.md).
+    if (stage_.jacobian == Stage::Jacobian::MfOperator) {
+      PERI_PETSC(SNESSetUseMatrixFree(snes_, PETSC_TRUE, PETSC_FALSE));
+      PERI_PETSC(SNESSetMaxLinearSolveFailures(snes_, 1000000));
+    }
   }
   // Defaults (any -qs_snes_* option overrides): an absolute residual of 1e-10 of a node's
   // stiffness times its spacing, 1e-9 relative, at most 50 Newton iterations per solve.
@@ -55,7 +64,7 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
   KSP ksp;
   PERI_PETSC(SNESGetKSP(snes_, &ksp));
   PERI_PETSC(KSPSetTolerances(ksp, 1e-6, PETSC_DEFAULT, PETSC_DEFAULT, 20000));
-  if (!stage_.matrix_free) {
+  if (stage_.jacobian != Stage::Jacobian::MatrixFree) {
     // Smoothed-aggregation algebraic multigrid on the assembled tangent, with the bodies' rigid
     // motions as its near null space (set_near_null_space): linear iterations per Newton step
     // that do not grow with the node count. The tangent couples every node to its whole family
@@ -75,6 +84,7 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
     }
   }
   PERI_PETSC(SNESSetFromOptions(snes_));
+  PERI_PETSC(KSPGetTolerances(ksp, nullptr, nullptr, nullptr, &max_linear_iterations_));  // -qs_ksp_max_it
 }
 
 QuasiStaticLoader::~QuasiStaticLoader() = default;
@@ -172,6 +182,7 @@ void QuasiStaticLoader::eval_jacobian(const double* x, Mat J) {
   if (stage_.jacobian_shift > 0) PERI_PETSC(MatShift(J, stage_.jacobian_shift * stiffness_));
   PERI_PETSC(MatZeroRows(J, static_cast<PetscInt>(constrained_rows_.size()), constrained_rows_.data(), stiffness_,
                          nullptr, nullptr));
+  ++tangent_assemblies_;
   tangent_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -184,12 +195,40 @@ PetscErrorCode QuasiStaticLoader::form_function(SNES, Vec x, Vec f, void* ctx) {
   });
 }
 
-PetscErrorCode QuasiStaticLoader::form_jacobian(SNES, Vec x, Mat J, Mat, void* ctx) {
+PetscErrorCode QuasiStaticLoader::form_jacobian(SNES, Vec x, Mat A, Mat P, void* ctx) {
   auto* self = static_cast<QuasiStaticLoader*>(ctx);
   return self->callback_error_.run([&] {
     const VecArrayRead xa(x);
-    self->eval_jacobian(xa.data(), J);
+    // The assembled tangent is the preconditioner's matrix; the operator is the same matrix, or
+    // a matrix-free one (jacobian: mf_operator), which only needs to learn the new base point.
+    KSP ksp;
+    PERI_PETSC(SNESGetKSP(self->snes_, &ksp));
+    const bool reuse = A != P && self->reuse_tangent(ksp);
+    PERI_PETSC(KSPSetReusePreconditioner(ksp, reuse ? PETSC_TRUE : PETSC_FALSE));
+    // A kept tangent gets the iterations that would have it reassembled, no more: a tangent far
+    // from the current one (the first Newton step of a large increment) can stall the Krylov
+    // solver for thousands of iterations. The unfinished direction still goes to the line
+    // search (SNESSetMaxLinearSolveFailures), and the next iteration assembles anew.
+    PERI_PETSC(KSPSetTolerances(ksp, PETSC_DEFAULT, PETSC_DEFAULT, PETSC_DEFAULT,
+                                reuse ? 2 * self->fresh_iterations_ + 3 : self->max_linear_iterations_));
+    if (!reuse) self->eval_jacobian(xa.data(), P);
+    if (A != P) {
+      PERI_PETSC(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
+      PERI_PETSC(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+    }
   });
+}
+
+bool QuasiStaticLoader::reuse_tangent(KSP ksp) {
+  PetscInt last = 0;
+  PERI_PETSC(KSPGetIterationNumber(ksp, &last));
+  if (have_tangent_ && fresh_iterations_ < 0) fresh_iterations_ = last;  // the solve after an assembly
+  // Keep the tangent while the solves it preconditions stay within twice the first one's
+  // iterations (+2: small counts vary by one or two); bonds that broke since clear it (run).
+  if (have_tangent_ && last <= 2 * fresh_iterations_ + 2) return true;
+  have_tangent_ = true;
+  fresh_iterations_ = -1;
+  return false;
 }
 
 int QuasiStaticLoader::solve(Vec x) {
@@ -212,6 +251,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   const std::size_t n = 3 * static_cast<std::size_t>(owned_);
   model_ = &model;
   constrained_ = &constrained;
+  have_tangent_ = false;
   PetscInt rstart;
   PERI_PETSC(VecGetOwnershipRange(x_, &rstart, nullptr));
   constrained_rows_.clear();
@@ -292,6 +332,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
       model.set_displacement(VecArrayRead(x_).data());
       const std::int64_t broke = model.break_bonds();
       if (broke == 0) break;
+      have_tangent_ = false;  // the tangent of the intact bonds: assemble it anew
       inc.broken += broke;
       if (++inc.break_passes > stage_.max_break_passes) {
         std::ostringstream msg;
@@ -350,6 +391,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats.residual_seconds = residual_seconds_;
   stats.tangent_seconds = tangent_seconds_;
+  stats.tangent_assemblies = tangent_assemblies_;
   stats.near_null_modes = near_null_modes_;
   model_ = nullptr;
   constrained_ = nullptr;

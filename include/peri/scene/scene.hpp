@@ -311,7 +311,11 @@ struct Stage {
   long max_load_steps = 1000;   ///< increments, cut-backs included, before giving up
   double max_load_step = 1.0;   ///< largest increment, a fraction of the stage's load in (0, 1]
   bool in_plane = true;         ///< membranes: out-of-plane components held where they are
-  bool matrix_free = false;     ///< Newton-Krylov without the assembled tangent (-snes_mf)
+  /// The Newton step's operator: the assembled tangent (also the preconditioner's matrix), the
+  /// residual's directional difference with the assembled tangent, reassembled only when it stops
+  /// paying, as the preconditioner's matrix (-snes_mf_operator), or differences alone (-snes_mf).
+  enum class Jacobian { Assembled, MfOperator, MatrixFree };
+  Jacobian jacobian = Jacobian::MfOperator;
   double jacobian_shift = 1e-8; ///< regularization of the tangent's diagonal (relative; not of the residual)
   long max_break_passes = 100;  ///< re-equilibrations per increment while bonds keep breaking
   // Release stages.

@@ -72,6 +72,7 @@ struct QuasiStaticStats {
   double seconds = 0;
   double residual_seconds = 0;  ///< of which in residuals (internal forces)
   double tangent_seconds = 0;   ///< of which in tangents (assembly)
+  long tangent_assemblies = 0;  ///< tangents assembled (jacobian: mf_operator reuses them across Newton iterations)
   int near_null_modes = 0;      ///< rigid motions given to the multigrid preconditioner
 };
 
@@ -114,6 +115,9 @@ class QuasiStaticLoader {
   static PetscErrorCode form_jacobian(SNES, Vec x, Mat J, Mat P, void* ctx);
   void eval_residual(const double* x, double* f);
   void eval_jacobian(const double* x, Mat J);
+  /// jacobian: mf_operator: whether the assembled tangent (the preconditioner) is kept for the
+  /// coming Newton iteration, from the last linear solve's iterations.
+  bool reuse_tangent(KSP ksp);
   int solve(Vec x);  // SNESConvergedReason
 
   MPI_Comm comm_;
@@ -131,6 +135,12 @@ class QuasiStaticLoader {
   std::vector<PetscInt> constrained_rows_;  // global point indices of constrained components
   int near_null_modes_ = 0;
   double residual_seconds_ = 0, tangent_seconds_ = 0;  // in eval_residual, eval_jacobian
+  long tangent_assemblies_ = 0;
+  // jacobian: mf_operator: a tangent is held (cleared by a new stage and by broken bonds), and the
+  // linear iterations of the first solve after it was assembled (-1: that solve is still to come).
+  bool have_tangent_ = false;
+  PetscInt fresh_iterations_ = -1;
+  PetscInt max_linear_iterations_ = 20000;  // the Krylov limit with a fresh tangent
 };
 
 }  // namespace peri
