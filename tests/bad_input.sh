@@ -107,7 +107,7 @@ expect sphere_spacing "bodies.balloon.spacing: spacing must not exceed the radiu
 expect sphere_tool_center "tools.0.center: expected a list of 3 numbers [x, y, z] [m]" -- "$balloon" --set 'tools.fragment.center=[1, 0]'
 expect membrane_pressure "bodies.sheet.pressure: only with mesh: pressure belongs to a membrane read from a mesh file" -- "$scene" --set bodies.sheet.pressure=1e5
 expect long_range_cutoff "long_range.cutoff: 1 m takes in" -- "$src/drivers/scenes/fiber_network.yaml" --set long_range.cutoff=1
-expect fiber_pressure "bodies.fiber.pressure: not used by a fiber body (nodes along a path, full weights within the horizon); expected one of: kind, material, path, network" -- "$fiber" --set bodies.fiber.pressure=1e5
+expect fiber_pressure "bodies.fiber.pressure: not used by a fiber body (nodes along a path, full weights within the horizon); expected one of: kind, material, path, polyline, network" -- "$fiber" --set bodies.fiber.pressure=1e5
 network=$src/drivers/scenes/fiber_network.yaml
 expect network_direction "bodies.net.network.families.0.direction: expected one of: x, y; got z" -- "$network" --set 'bodies.net.network.families=[{direction: z, count: 3}]'
 expect network_box "bodies.net.network.box.max: expected min < max in every component, got z: min 0, max 0" -- "$network" --set 'bodies.net.network.box={min: [0, 0, 0], max: [2e-7, 2e-7, 0]}'
