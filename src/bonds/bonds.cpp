@@ -55,9 +55,11 @@ LatticeStencil lattice_stencil(const Nodes& nodes, int body) {
   st.uniform_volume = std::all_of(nodes.volume.begin() + g.first, nodes.volume.begin() + g.first + g.count,
                                   [&](double v) { return v == nodes.volume[g.first]; });
   const double far = reach(g) + 1e-6 * g.spacing, far2 = far * far;
-  const std::int64_t mx = static_cast<std::int64_t>(std::ceil(far / g.spacing)) + 1;
-  const std::int64_t my = static_cast<std::int64_t>(std::ceil(far / unit[1])) + 1;
-  const std::int64_t mz = g.traits.dimension == 3 ? mx : 0;
+  // Offsets reach the horizon, but never beyond the grid: one that leaves it from every node
+  // would only be tested and skipped for each node (a horizon wider than the body).
+  const std::int64_t mx = std::min(static_cast<std::int64_t>(std::ceil(far / g.spacing)) + 1, nx - 1);
+  const std::int64_t my = std::min(static_cast<std::int64_t>(std::ceil(far / unit[1])) + 1, ny - 1);
+  const std::int64_t mz = g.traits.dimension == 3 ? std::min(static_cast<std::int64_t>(std::ceil(far / unit[2])) + 1, nz - 1) : 0;
   const int parities = g.grid == Grid::Hexagonal ? 2 : 1;
   for (int p = 0; p < parities; ++p)
     for (std::int64_t dk = -mz; dk <= mz; ++dk)  // (dk, dj, di) ascending: natural ids ascending
