@@ -87,6 +87,18 @@ class Run:
         with h5py.File(self.h5, "r") as f:
             self.reference = f["mesh/reference_position"][...]
             self.body = f["mesh/body"][...].astype(int)
+            # Mesh membranes' triangles (natural ids) as frame indices; with a node selection,
+            # only those whose three corners the frames hold. None: no mesh membrane.
+            self.triangles = None
+            if "mesh/triangles" in f:
+                tris = f["mesh/triangles"][...].astype(np.int64)
+                if "mesh/natural_id" in f:
+                    natural = f["mesh/natural_id"][...].astype(np.int64)
+                    at = np.searchsorted(natural, tris)
+                    at = np.minimum(at, len(natural) - 1)
+                    held = (natural[at] == tris).all(axis=1)
+                    tris = at[held]
+                self.triangles = tris
             self.frame_names = sorted(f["frames"].keys())
         if not self.frame_names:
             raise SystemExit(f"{self.h5}: no complete frame")

@@ -10,7 +10,8 @@ usage: /usr/bin/python3 tools/render3d.py OUTDIR [--frame N|last] [--time T]
 What is drawn, by body kind:
   membrane, lattice  a surface of triangles: a Delaunay triangulation of the reference (x, y)
                      positions (matplotlib.tri), drawn at the current positions (--deformed, the
-                     default) or the reference ones (--reference)
+                     default) or the reference ones (--reference); a mesh membrane (`mesh:`), the
+                     mesh's own triangles (frames.h5 /mesh/triangles), curved or not
   sphere             a closed surface: the convex hull of the reference positions (scipy's
                      ConvexHull; without scipy, a Delaunay triangulation of their stereographic
                      projection, which gives the same hull)
@@ -453,9 +454,15 @@ def main(argv=None):
         if len(idx) == 0:
             continue
         ref = run.reference[idx]
+        mesh_tris = None
+        if kind == "membrane" and run.triangles is not None:  # a mesh membrane: the file's triangles
+            mesh_tris = run.triangles[run.body[run.triangles[:, 0]] == b]
         if kind in ("membrane", "lattice", "sphere"):
-            local = sheet_triangles(ref) if kind != "sphere" else sphere_triangles(ref, not args.no_scipy)
-            tris = idx[local]
+            if mesh_tris is not None and len(mesh_tris):
+                tris = mesh_tris
+            else:
+                local = sheet_triangles(ref) if kind != "sphere" else sphere_triangles(ref, not args.no_scipy)
+                tris = idx[local]
             i, j = triangle_edges(tris)
         elif kind == "fiber":
             tris = idx[fiber_segments(ref)]

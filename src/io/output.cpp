@@ -218,6 +218,14 @@ H5Id FrameWriter::create(const std::string& path, hid_t fapl, const std::string&
     write_dataset(mesh.get(), "body", select(state.to_natural(body.data(), 1), 1, false), 1);
     write_dataset(mesh.get(), "volume", select(state.to_natural(domain.volume.data(), 1), 1, false), 1);
     write_connectivity(mesh.get());
+    if (!triangles_.empty()) {  // (natural ids: a node selection keeps them all; readers map them)
+      const hsize_t dims[2] = {triangles_.size(), 3};
+      const H5Id space = owned(H5Screate_simple(2, dims, nullptr), H5Sclose, "H5Screate_simple");
+      const H5Id dset = owned(H5Dcreate2(mesh.get(), "triangles", H5T_NATIVE_INT64, space.get(), H5P_DEFAULT,
+                                         H5P_DEFAULT, H5P_DEFAULT), H5Dclose, "triangles");
+      if (domain.rank == 0)
+        check_h5(H5Dwrite(dset.get(), H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, triangles_.data()), "triangles");
+    }
     if (output_.selects_nodes()) {  // which nodes the frames hold
       std::vector<std::int64_t> ids(pick_.size());
       for (std::size_t k = 0; k < pick_.size(); ++k) ids[k] = state.natural_begin() + pick_[k];

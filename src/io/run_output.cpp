@@ -24,11 +24,12 @@ RunOutput::RunOutput(const Output& output, std::int64_t total_steps, int rank) :
 
 void RunOutput::open(const std::string& dir, const Domain& domain, State& state, const std::string& resolved_scene,
                      const Output& output, std::int64_t resume_step, const std::string& series_columns, bool tips,
-                     MPI_Comm comm) {
+                     MPI_Comm comm, std::vector<std::array<std::int64_t, 3>> triangles) {
   dir_ = dir;
   comm_ = comm;
   make_output_dir(dir, comm);
   frames_ = std::make_unique<FrameWriter>(dir, "frames", domain, state, output);  // (writes nothing yet)
+  frames_->set_triangles(std::move(triangles));
   check_free_space(output, domain.global_nodes, resume_step);
   std::string error;
   if (rank_ == 0) {

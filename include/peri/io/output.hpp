@@ -6,6 +6,7 @@
 #include <hdf5.h>
 #include <mpi.h>
 
+#include <array>
 #include <cstdint>
 #include <fstream>
 #include <string>
@@ -56,6 +57,10 @@ class FrameWriter {
   /// a partly written frame is rebuilt from its whole frames up to that step, and one that cannot
   /// be opened is replaced (each with a note).
   void start(const std::string& resolved_scene, std::int64_t resume_step = -1);
+  /// The triangles of the mesh membranes (natural node ids, the files' orientation), which start()
+  /// writes as /mesh/triangles (T x 3 int64) so that pictures draw the surface the mesh gave;
+  /// none: no dataset. The same on every rank; set before start().
+  void set_triangles(std::vector<std::array<std::int64_t, 3>> triangles) { triangles_ = std::move(triangles); }
   /// Nodes a frame holds (all ranks).
   std::int64_t frame_nodes() const { return sel_total_; }
   /// About how many bytes a frame adds to the file.
@@ -99,6 +104,7 @@ class FrameWriter {
   H5Id file_;
   std::vector<double> work_, selected_;
   std::vector<float> selected_single_;
+  std::vector<std::array<std::int64_t, 3>> triangles_;
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
 };

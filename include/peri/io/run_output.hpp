@@ -5,6 +5,7 @@
 #pragma once
 #include <mpi.h>
 
+#include <array>
 #include <cstdint>
 #include <fstream>
 #include <memory>
@@ -24,14 +25,15 @@ class RunOutput {
 
   /// Opens the files in `dir` (collective): a fresh run (resume_step < 0) removes an earlier
   /// run's files first; a resumed one continues them up to resume_step. Series columns beside
-  /// the energies: `series_columns` (comma-separated); `tips`: write tips.csv.
+  /// the energies: `series_columns` (comma-separated); `tips`: write tips.csv; `triangles`: the
+  /// mesh membranes' triangles (natural ids) for /mesh/triangles.
   /// Frames hold the scene output's fields, nodes and precision; a run whose predicted output
   /// (frames still to write, the mesh, checkpoints by step count) exceeds the free space of dir's
   /// file system is refused first, with InputError on every rank, unless output.check_free_space
   /// is false.
   void open(const std::string& dir, const Domain& domain, State& state, const std::string& resolved_scene,
             const Output& output, std::int64_t resume_step, const std::string& series_columns, bool tips,
-            MPI_Comm comm);
+            MPI_Comm comm, std::vector<std::array<std::int64_t, 3>> triangles = {});
   /// Whether files are written (open() was called).
   bool writes() const { return frames_ != nullptr; }
 
