@@ -2,7 +2,8 @@
 # Hostile cutouts and point clouds at the driver level, on 2 ranks: each case must exit with
 # status 2, print one message naming the scene file's (or the point file's) line, the key and what
 # was expected, and leave no output directory behind. One good point cloud, named relative to its
-# scene file from another working directory, is read with all its rows.
+# scene file from another working directory, is read with all its rows, and as HDF5 (.h5: datasets
+# x, y, z, volume, material as fixed or variable-length strings) gives the same nodes and bonds.
 # usage: bad_input_geometry.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -u
 peridrive=$1 src=$2 mpiexec=$3
@@ -144,6 +145,60 @@ f=$(block empty 'x,y,z,volume\n')
 expect cloud_no_points "$work/data/empty.csv:1: bodies.block.points: the point cloud has no points after its header" -- "$f"
 f=$(block other_material 'x,y,z,volume,material\n0,0,0,1e-9,glass\n0.001,0,0,1e-9,steel\n')
 expect cloud_unclaimed_material "$work/data/other_material.csv:3: bodies.block.points: material 'steel' is no body's" -- "$f"
+# The same cloud as HDF5 (.h5): datasets x, y, z, volume and optionally material, written here by
+# h5py (SPEC: a Python expression of the dataset dict, from the good points P and volumes V).
+h5block() {  # h5block NAME SPEC: prints the scene's path
+  /usr/bin/python3 - "$work/data/$1.h5" "$2" <<'PY'
+import sys
+import h5py
+import numpy as np
+P = np.array([[0.0005, 0.0005, 0.0005], [0.0015, 0.0005, 0.0005], [0.0005, 0.0015, 0.0005], [0.0015, 0.0015, 0.0005]])
+V = np.full(4, 1e-9)
+vlen = h5py.string_dtype()
+spec = eval(sys.argv[2])
+with h5py.File(sys.argv[1], "w") as f:
+    for name, data in spec.items():
+        f[name] = data
+PY
+  local f="$work/$1.yaml"
+  sed "s|data/good.csv|data/$1.h5|" "$work/good.yaml" > "$f"
+  echo "$f"
+}
+xyz='"x": P[:, 0], "y": P[:, 1], "z": P[:, 2]'
+(cd run && "${mpi[@]}" "$peridrive" "$work/good.yaml" --dry-run > "$work/csv.out" 2> /dev/null)
+for case in good:"{$xyz, 'volume': V}" fixed_material:"{$xyz, 'volume': V, 'material': np.array([b'glass'] * 4, dtype='S8')}" \
+            vlen_material:"{$xyz, 'volume': V.astype(np.float32), 'material': np.array(['glass'] * 4, dtype=object).astype(vlen)}"; do
+  name=h5_${case%%:*}
+  f=$(h5block "$name" "${case#*:}")
+  (cd run && "${mpi[@]}" "$peridrive" "$f" --dry-run > "$work/stdout" 2> "$work/stderr")
+  if [ $? -eq 0 ] && grep -q "^estimate: 4 nodes" "$work/stdout" && \
+     [ "$(grep '^ordered_bonds' "$work/stdout")" = "$(grep '^ordered_bonds' "$work/csv.out")" ]; then
+    echo "ok   $name: 4 nodes, $(grep '^ordered_bonds' "$work/stdout"), as the CSV cloud"; pass=$((pass + 1))
+  else
+    echo "FAIL $name: expected the CSV cloud's 4 nodes and bonds"; cat "$work/stdout" "$work/stderr"; fail=$((fail + 1))
+  fi
+done
+f=$(h5block unclaimed "{$xyz, 'volume': V, 'material': np.array(['glass', 'steel', 'glass', 'glass'], dtype=object).astype(vlen)}")
+expect h5_unclaimed_material "$work/data/unclaimed.h5: point 1: bodies.block.points: material 'steel' is no body's" -- "$f"
+f=$(h5block no_volume "{$xyz}")
+expect h5_missing_dataset "$work/data/no_volume.h5: bodies.block.points: no dataset 'volume'; expected the 1D datasets x, y, z, volume" -- "$f"
+f=$(h5block short "{$xyz, 'volume': V[:3]}")
+expect h5_lengths "$work/data/short.h5: bodies.block.points: dataset 'volume' has 3 values, 'x' 4; expected one length" -- "$f"
+f=$(h5block matrix "{'x': P, 'y': P[:, 1], 'z': P[:, 2], 'volume': V}")
+expect h5_not_1d "$work/data/matrix.h5: bodies.block.points: dataset 'x': expected a 1D dataset, one value a point" -- "$f"
+f=$(h5block nan "{'x': P[:, 0], 'y': np.where(np.arange(4) == 2, np.nan, P[:, 1]), 'z': P[:, 2], 'volume': V}")
+expect h5_not_finite "$work/data/nan.h5: point 2: bodies.block.points: dataset y: expected a finite number" -- "$f"
+f=$(h5block zero "{$xyz, 'volume': np.where(np.arange(4) == 3, 0.0, V)}")
+expect h5_zero_volume "$work/data/zero.h5: point 3: bodies.block.points: dataset volume: expected a positive volume [m^3], got 0" -- "$f"
+f=$(h5block twice "{'x': P[[0, 1, 2, 1], 0], 'y': P[[0, 1, 2, 1], 1], 'z': P[[0, 1, 2, 1], 2], 'volume': V}")
+expect h5_duplicate "$work/data/twice.h5: point 3: bodies.block.points: duplicate point (0.0015, 0.0005, 0.0005), the same as point 1; expected each point once" -- "$f"
+f=$(h5block text_name "{$xyz, 'volume': V, 'material': np.array([b'glass', b'a b', b'glass', b'glass'])}")
+expect h5_bad_material_name "$work/data/text_name.h5: point 1: bodies.block.points: dataset material: expected a material name" -- "$f"
+f=$(h5block strings "{'x': np.array([b'a'] * 4), 'y': P[:, 1], 'z': P[:, 2], 'volume': V}")
+expect h5_not_numbers "$work/data/strings.h5: bodies.block.points: dataset 'x': expected numbers" -- "$f"
+f=$(h5block not_hdf5 "{}")
+printf 'x,y,z,volume\n0,0,0,1e-9\n' > "$work/data/not_hdf5.h5"
+expect h5_not_hdf5 "bodies.block.points: cannot read the point cloud '$work/data/not_hdf5.h5': not an HDF5 file" -- "$f"
 f=$(block with_origin "$good" ', origin: [0, 0, 0]')
 expect cloud_with_origin "bodies.block.origin: not with points" -- "$f"
 f=$(block cloud_cut "$good" ', cutouts: [{kind: sphere, center: [0.1, 0.1, 0.1], radius: 0.001}]')

@@ -162,7 +162,7 @@ Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {
 // material: every material it names is some such body's, or the rows would be lost unseen.
 void check_point_cloud_materials(const std::vector<Body>& bodies) {
   for (const Body& b : bodies)
-    for (const auto& [material, line] : b.cloud_materials) {
+    for (const auto& [material, place] : b.cloud_materials) {
       std::vector<std::string> readers;
       bool taken = false;
       for (const Body& other : bodies)
@@ -171,7 +171,7 @@ void check_point_cloud_materials(const std::vector<Body>& bodies) {
           taken = taken || other.material == material;
         }
       if (!taken)
-        throw InputError(b.points + ":" + std::to_string(line) + ": bodies." + b.name + ".points: material '" +
+        throw InputError(place + ": bodies." + b.name + ".points: material '" +
                          material + "' is no body's: the bodies that read this file are " + join(readers) +
                          "; expected one body with points: this file and material: " + material +
                          " for each material of the file");

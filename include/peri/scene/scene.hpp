@@ -194,8 +194,9 @@ struct Body {
   /// order (those whose material column names the body's material, or all of them).
   std::string points;
   std::vector<CloudPoint> cloud;
-  /// The materials the file's material column names, each with the line it first appears on.
-  std::vector<std::pair<std::string, long>> cloud_materials;
+  /// The materials the file's material column (dataset) names, each with the place it first
+  /// appears at ("file:line"; HDF5: "file: point k").
+  std::vector<std::pair<std::string, std::string>> cloud_materials;
   /// Membranes and solids from a mesh file (`mesh: file`): its path, resolved against the scene
   /// file's folder (empty: a grid body), the factor on its coordinates, whether the scene gave
   /// `spacing` (else spacing is the mesh's mean edge length), and what was read.

@@ -95,8 +95,9 @@ class CutSink {
 /// A file named by the scene value v, resolved against the scene file's folder (the working
 /// directory for a value set by --set), absolute.
 std::string resolve_input_path(const Value& v, const std::string& path);
-/// Reads the CSV file v names into b.points (its resolved path), b.cloud (the rows the body
-/// takes, in file order) and b.cloud_materials. InputError naming the file and line.
+/// Reads the point cloud v names (CSV; HDF5 for .h5 and .hdf5: the 1D datasets x, y, z, volume
+/// and optionally material) into b.points (its resolved path), b.cloud (the rows the body takes,
+/// in file order) and b.cloud_materials. InputError naming the file and line (HDF5: point).
 void read_point_cloud(const Value& v, Body& b);
 
 // Meshes (mesh_file.cpp).

@@ -146,7 +146,8 @@ BodyKind solid_kind() {
        .doc = "instead of origin and size: a CSV file (relative to the scene file) with the header x,y,z,volume or "
               "x,y,z,volume,material and one point a row [m, m^3]; nodes in file order, volumes > 0, no point twice; "
               "with a material column the body takes the rows naming its material; `#` lines and blank lines are "
-              "skipped"},
+              "skipped. Or an HDF5 file (.h5, .hdf5) with the 1D datasets x, y, z, volume (numbers) and optionally "
+              "material (strings), one point an index"},
       kMeshKey3,
       kScaleKey,
       {.name = "spacing", .what = "grid spacing, m", .unit = "m",
