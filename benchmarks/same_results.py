@@ -32,7 +32,7 @@ sys.path.insert(0, HERE)
 # summary.json fields that measure the machine, not the physics.
 VOLATILE = {"wall_seconds", "setup_seconds", "step_seconds", "output_seconds", "bond_updates_per_second",
             "bond_updates_per_second_per_rank", "partition_seconds", "memory", "git_revision",
-            "peridrive_version", "crack_tip_seconds", "quasistatic", "bytes_per_bond"}
+            "peridrive_version", "crack_tip_seconds", "quasistatic", "bytes_per_bond", "peak_bytes_per_bond"}
 
 
 # Datasets that hold the resolved scene text (with the revision that wrote it), not results.

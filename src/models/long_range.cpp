@@ -109,69 +109,72 @@ void check_segment_rules(const LongRange& spec, const LongRangeTable& table) {
   }
 }
 
-namespace {
+bool LongRangeList::stale(const double* x, std::int64_t count) const {
+  if (builds == 0 || x_built.size() != static_cast<std::size_t>(3 * count)) return true;
+  const double half2 = 0.25 * skin * skin;
+  for (std::int64_t p = 0; p < count; ++p)
+    if (std::pow(x[3 * p] - x_built[3 * p], 2) + std::pow(x[3 * p + 1] - x_built[3 * p + 1], 2) +
+            std::pow(x[3 * p + 2] - x_built[3 * p + 2], 2) >
+        half2)
+      return true;
+  return false;
+}
 
-// Rebuilds the list: a cell list on the current positions (cells at least the largest cutoff +
-// skin wide), every partner of each node of `mine` within its rule's cutoff + skin.
-void build_list(const PairLaw& law, const LongRangeTable& table, const double* x,
-                const std::vector<std::int64_t>& mine, LongRangeList& list) {
-  const std::int64_t n = table.size();
+void build_long_range_list(const PairLaw& law, const LongRangeTable& table, const PairNodes& nodes,
+                           const std::int64_t* rows, std::int64_t row_count, LongRangeList& list) {
+  if (nodes.count > std::numeric_limits<std::int32_t>::max())
+    throw RuntimeFailure("long-range pairs: more than 2^31 nodes seen by one rank");
+  const double* x = nodes.x;
   const double reach = law.reach + list.skin, reach2 = reach * reach;
   std::vector<double> rule_reach2(law.rules());
   for (int r = 0; r < law.rules(); ++r) rule_reach2[r] = (law.cutoffs[r] + list.skin) * (law.cutoffs[r] + list.skin);
-  const CellList cells(x, n, reach);
+  const CellList cells(x, nodes.count, reach);  // cells at least the largest cutoff + skin wide
   const double excl2 = law.exclusion * law.exclusion;
   list.begin.assign(1, 0);
   list.partner.clear();
   list.rule.clear();
-  for (const std::int64_t p : mine) {
-    const double* xp = &x[3 * p];
+  std::vector<std::pair<std::int64_t, std::int32_t>> found;  // (table index, node) of one row
+  std::vector<std::uint16_t> found_rule;
+  for (std::int64_t r = 0; r < row_count; ++r) {
+    const std::int64_t i = rows[r], p = nodes.table_index(i);
+    const double* xp = &x[3 * i];
     const double* Xp = &table.X[3 * p];
-    cells.for_each_candidate(xp, [&](std::int64_t q) {
+    found.clear();
+    cells.for_each_candidate(xp, [&](std::int64_t j) {
+      const std::int64_t q = nodes.table_index(j);
       if (q == p) return;
-      const double* xq = &x[3 * q];
+      const double* xq = &x[3 * j];
       const double y2 = std::pow(xq[0] - xp[0], 2) + std::pow(xq[1] - xp[1], 2) + std::pow(xq[2] - xp[2], 2);
       if (y2 > reach2) return;
       const int rule = law.rule_of(table, p, q);
       if (rule < 0 || y2 > rule_reach2[rule]) return;
       const double* Xq = &table.X[3 * q];
       if (std::pow(Xq[0] - Xp[0], 2) + std::pow(Xq[1] - Xp[1], 2) + std::pow(Xq[2] - Xp[2], 2) < excl2) return;
-      list.partner.push_back(q);
-      list.rule.push_back(static_cast<std::uint16_t>(rule));
+      found.push_back({q, static_cast<std::int32_t>(j)});
+      found_rule.push_back(static_cast<std::uint16_t>(rule));
     });
-    // Partners in ascending table order: the summation order then does not depend on where
-    // the nodes stood when the list was built (a run resumed from a checkpoint, whose first
-    // list is built later, sums the same pairs in the same order).
-    const std::int64_t b = list.begin.back(), e = static_cast<std::int64_t>(list.partner.size());
-    std::vector<std::pair<std::int64_t, std::uint16_t>> sorted_pairs;
-    for (std::int64_t k = b; k < e; ++k) sorted_pairs.push_back({list.partner[k], list.rule[k]});
-    std::sort(sorted_pairs.begin(), sorted_pairs.end());
-    for (std::int64_t k = b; k < e; ++k) {
-      list.partner[k] = sorted_pairs[k - b].first;
-      list.rule[k] = sorted_pairs[k - b].second;
+    // Partners in ascending table order: the summation order then depends neither on where the
+    // nodes stood when the list was built (a run resumed from a checkpoint, whose first list is
+    // built later, sums the same pairs in the same order) nor on which rank sees them, or where.
+    std::vector<std::size_t> order(found.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return found[a].first < found[b].first; });
+    for (const std::size_t k : order) {
+      list.partner.push_back(found[k].second);
+      list.rule.push_back(found_rule[k]);
     }
-    list.begin.push_back(e);
+    found_rule.clear();
+    list.begin.push_back(static_cast<std::int64_t>(list.partner.size()));
   }
-  list.x_built.assign(x, x + 3 * n);
+  list.x_built.assign(x, x + 3 * nodes.count);
   ++list.builds;
 }
 
-}  // namespace
-
-double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
-                         const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
-                         bool with_energy, double* energy_density) {
-  const std::int64_t n = table.size();
-  if (n == 0 || mine.empty()) return 0.0;
-  if (!(list.skin > 0)) list.skin = 0.25 * law.cutoff;  // the section's cutoff, not the reach
-  // Rebuild once some node has moved more than skin/2 (every rank decides alike: same x).
-  bool rebuild = list.x_built.size() != static_cast<std::size_t>(3 * n) || list.begin.size() != mine.size() + 1;
-  const double half2 = 0.25 * list.skin * list.skin;
-  for (std::int64_t p = 0; p < n && !rebuild; ++p)
-    rebuild = std::pow(x[3 * p] - list.x_built[3 * p], 2) + std::pow(x[3 * p + 1] - list.x_built[3 * p + 1], 2) +
-                  std::pow(x[3 * p + 2] - list.x_built[3 * p + 2], 2) > half2;
-  if (rebuild) build_list(law, table, x, mine, list);
-
+double long_range_pair_forces(const PairLaw& law, const PairNodes& nodes, const std::int64_t* rows,
+                              std::int64_t row_count, double* force, const LongRangeList& list, bool with_energy,
+                              double* energy_density) {
+  const double* x = nodes.x;
+  const double* volume = nodes.volume;
   // Per pair one division and no square root: with r2 = a^2 / y^2, w2'(y) / y =
   // (-12 alpha r2^6 + 6 beta r2^3) / y^2 (eq. 35) and w2 = alpha r2^6 - beta r2^3 (eq. 33).
   const double a2 = law.length * law.length;
@@ -195,8 +198,8 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
   auto sum_pairs = [&](auto one_cutoff_tag) {
     constexpr bool kOneCutoff = decltype(one_cutoff_tag)::value;
     const double cut2 = c[0].cut2;
-    for (std::size_t m = 0; m < mine.size(); ++m) {
-      const std::int64_t p = mine[m];
+    for (std::int64_t m = 0; m < row_count; ++m) {
+      const std::int64_t p = rows[m];
       const double* xp = &x[3 * p];
       double f[3] = {0, 0, 0}, e_p = 0;
       for (std::int64_t e = list.begin[m]; e < list.begin[m + 1]; ++e) {
@@ -208,12 +211,12 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
         const Coefficients& k = c[list.rule[e]];
         if ((!kOneCutoff && y2 > k.cut2) || !(y2 > 0)) continue;  // coincident nodes: no direction
         const double inv_y2 = 1.0 / y2, r2 = a2 * inv_y2, r6 = r2 * r2 * r2;
-        const double scale = (k.beta6 - k.alpha12 * r6) * r6 * inv_y2 * table.volume[q];
+        const double scale = (k.beta6 - k.alpha12 * r6) * r6 * inv_y2 * volume[q];
         for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
-        if (with_energy) e_p += ((k.alpha * r6 - k.beta) * r6 - k.shift) * table.volume[q];
+        if (with_energy) e_p += ((k.alpha * r6 - k.beta) * r6 - k.shift) * volume[q];
       }
       for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
-      energy += 0.5 * e_p * table.volume[p];
+      energy += 0.5 * e_p * volume[p];
       if (energy_density) energy_density[m] += 0.5 * e_p;
     }
   };
@@ -222,6 +225,19 @@ double long_range_forces(const PairLaw& law, const LongRangeTable& table, const 
   else
     sum_pairs(std::false_type{});
   return energy;
+}
+
+double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
+                         const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
+                         bool with_energy, double* energy_density) {
+  const std::int64_t n = table.size();
+  if (n == 0 || mine.empty()) return 0.0;
+  list.set_skin(law);
+  const PairNodes nodes{nullptr, x, table.volume.data(), n};
+  const std::int64_t rows = static_cast<std::int64_t>(mine.size());
+  if (list.stale(x, n) || list.begin.size() != mine.size() + 1)
+    build_long_range_list(law, table, nodes, mine.data(), rows, list);
+  return long_range_pair_forces(law, nodes, mine.data(), rows, force, list, with_energy, energy_density);
 }
 
 }  // namespace peri

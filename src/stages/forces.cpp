@@ -4,6 +4,7 @@
 #include <cmath>
 #include <iomanip>
 #include <limits>
+#include <numeric>
 #include <sstream>
 
 #include "peri/core/error.hpp"
@@ -12,36 +13,43 @@
 #include "peri/stages/events.hpp"
 
 namespace peri {
+void LongRangeForces::refresh(const double* X, const double* u) {
+  const std::size_t own = mine_local.size();
+  for (std::size_t k = 0; k < own; ++k)
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t i = static_cast<std::size_t>(mine_local[k]);
+      x[3 * k + c] = u ? X[3 * i + c] + u[3 * i + c] : X[3 * i + c];
+    }
+  halo.exchange(x.data(), x.data() + 3 * own);
+  // The list and the halo hold while no node has moved more than skin / 2 since they were built
+  // (LongRangeList: no pair within its cutoff can be missing). Each rank looks at the nodes it
+  // sees; every node is some rank's own, so the ranks' verdicts together cover all nodes, and
+  // every rank follows the same (global) decision.
+  if (!halo.on_any_rank(list.stale(x.data(), static_cast<std::int64_t>(id.size())))) return;
+  halo.rebuild(static_cast<std::int64_t>(own), id, x, law.reach + list.skin);
+  volume.resize(id.size());
+  for (std::size_t k = 0; k < id.size(); ++k) volume[k] = table.volume[static_cast<std::size_t>(id[k])];
+  build_long_range_list(law, table, nodes(), rows.data(), static_cast<std::int64_t>(own), list);
+}
+
 LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm) {
-  int ranks = 1;
-  MPI_Comm_size(comm, &ranks);
-  LongRangeForces lr(PairLaw(*scene.long_range), long_range_table(nodes));
+  LongRangeForces lr(PairLaw(*scene.long_range), long_range_table(nodes), comm);
   check_segment_rules(*scene.long_range, lr.table);
   for (std::int32_t i = 0; i < domain.owned; ++i) {
     const std::int64_t p = lr.table.index_of(domain.natural[i]);
     if (p < 0) continue;
-    lr.mine.push_back(p);
+    lr.id.push_back(p);
     lr.mine_local.push_back(i);
   }
-  const int n = static_cast<int>(lr.mine.size());
-  lr.counts.resize(ranks);
-  lr.displs.assign(ranks, 0);
-  MPI_Allgather(&n, 1, MPI_INT, lr.counts.data(), 1, MPI_INT, comm);
-  for (int r = 1; r < ranks; ++r) lr.displs[r] = lr.displs[r - 1] + lr.counts[r - 1];
-  lr.gathered.resize(lr.table.size());
-  MPI_Allgatherv(lr.mine.data(), n, MPI_INT64_T, lr.gathered.data(), lr.counts.data(), lr.displs.data(),
-                 MPI_INT64_T, comm);
-  for (int r = 0; r < ranks; ++r) {  // positions travel as 3 doubles per node
-    lr.counts[r] *= 3;
-    lr.displs[r] *= 3;
-  }
-  lr.send.resize(3 * static_cast<std::size_t>(n));
-  lr.recv.resize(3 * static_cast<std::size_t>(lr.table.size()));
-  lr.x.resize(lr.recv.size());
-  lr.force.resize(lr.send.size());
+  const std::size_t own = lr.mine_local.size();
+  lr.rows.resize(own);
+  std::iota(lr.rows.begin(), lr.rows.end(), std::int64_t{0});
+  lr.x.resize(3 * own);
+  lr.force.resize(3 * own);
+  lr.list.set_skin(lr.law);
   // The list at the reference positions: a cutoff that takes in most of the scene would hold
-  // O(N^2) pairs (12 bytes each); refuse it before anything is written.
-  long_range_forces(lr.law, lr.table, lr.table.X.data(), lr.mine, lr.force.data(), lr.list, false);
+  // O(N^2) pairs (6 bytes each); refuse it before anything is written.
+  lr.refresh(domain.X.data(), nullptr);
   double pairs = static_cast<double>(lr.list.partner.size()), all_pairs = 0;
   MPI_Allreduce(&pairs, &all_pairs, 1, MPI_DOUBLE, MPI_SUM, comm);
   const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
@@ -63,7 +71,6 @@ LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Do
         << " m): at most 5000 pairs per node and 2e8 in all";
     throw InputError(msg.str());
   }
-  std::fill(lr.force.begin(), lr.force.end(), 0.0);
   return lr;
 }
 
@@ -185,25 +192,14 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
 }
 
-void Forces::gather_fiber_positions(const double* u) {
-  LongRangeForces& lr = *long_range_;
-  for (std::size_t k = 0; k < lr.mine.size(); ++k)
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t i = static_cast<std::size_t>(lr.mine_local[k]);
-      lr.send[3 * k + c] = domain_.X[3 * i + c] + u[3 * i + c];
-    }
-  MPI_Allgatherv(lr.send.data(), static_cast<int>(lr.send.size()), MPI_DOUBLE, lr.recv.data(), lr.counts.data(),
-                 lr.displs.data(), MPI_DOUBLE, comm_);
-  for (std::size_t g = 0; g < lr.gathered.size(); ++g)
-    for (int c = 0; c < 3; ++c) lr.x[3 * lr.gathered[g] + c] = lr.recv[3 * g + c];
-}
-
 double Forces::add_long_range_forces(const double* u, bool with_energy) {
   LongRangeForces& lr = *long_range_;
-  gather_fiber_positions(u);
+  lr.refresh(domain_.X.data(), u);
   std::fill(lr.force.begin(), lr.force.end(), 0.0);
-  const double energy = long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, lr.force.data(), lr.list, with_energy);
-  for (std::size_t k = 0; k < lr.mine.size(); ++k)
+  const std::int64_t own = static_cast<std::int64_t>(lr.rows.size());
+  const double energy =
+      long_range_pair_forces(lr.law, lr.nodes(), lr.rows.data(), own, lr.force.data(), lr.list, with_energy);
+  for (std::size_t k = 0; k < lr.mine_local.size(); ++k)
     for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(lr.mine_local[k]) + c] += lr.force[3 * k + c];
   return energy;
 }
@@ -245,10 +241,11 @@ const double* Forces::energy_density() {
   }
   if (long_range_) {
     LongRangeForces& lr = *long_range_;
-    gather_fiber_positions(u.data());
-    std::vector<double> scratch(lr.force.size(), 0.0), share(lr.mine.size(), 0.0);
-    long_range_forces(lr.law, lr.table, lr.x.data(), lr.mine, scratch.data(), lr.list, true, share.data());
-    for (std::size_t k = 0; k < lr.mine.size(); ++k) energy_density_[lr.mine_local[k]] += share[k];
+    lr.refresh(domain_.X.data(), u.data());
+    std::vector<double> scratch(lr.force.size(), 0.0), share(lr.mine_local.size(), 0.0);
+    long_range_pair_forces(lr.law, lr.nodes(), lr.rows.data(), static_cast<std::int64_t>(lr.rows.size()),
+                           scratch.data(), lr.list, true, share.data());
+    for (std::size_t k = 0; k < lr.mine_local.size(); ++k) energy_density_[lr.mine_local[k]] += share[k];
   }
   density_current_ = false;  // it holds the long-range shares now: a second call starts over
   return energy_density_.data();

@@ -12,11 +12,12 @@
 // that of the potential shifted to zero at the cutoff (w2(y) - w2(cutoff)), so that pairs crossing
 // the cutoff do not make the energy balance jump; the forces are those of eq. 35.
 //
-// The table of participating nodes is replicated on every rank (natural id order); each step
-// every rank receives the current positions of all of them (simulation.cpp gathers them), and
-// this kernel, free of MPI, evaluates the pairs of the rank's own nodes through a cell list on
-// the current positions. Memory and exchange grow with the number of fiber nodes, not with the
-// rank count's share of it: meant for fiber scenes of up to some 1e5 nodes.
+// The table of participating nodes (natural id, fiber, segment, reference position, volume: 48
+// bytes per node) is replicated on every rank; the current positions are not. Each rank sums the
+// pairs of its own nodes (the rows) over the nodes it sees: its own and a halo of the nodes owned
+// elsewhere within the list's reach + skin (stages/long_range_halo.hpp exchanges them). This
+// kernel, free of MPI, builds the Verlet list through a cell list on the current positions of the
+// nodes seen and sums each row's pairs in ascending table order, whatever the rank count.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -77,26 +78,55 @@ struct PairLaw {
 /// segment of any of the table's fibers.
 void check_segment_rules(const LongRange& spec, const LongRangeTable& table);
 
-/// Verlet list of the long-range pairs of some nodes: every partner within its rule's cutoff +
-/// skin (and not excluded by the rules) when it was built; rebuilt once any node has moved more
-/// than skin / 2 since (then no pair within its cutoff can be missing from it).
-struct LongRangeList {
-  double skin = 0;                     ///< [m]; 0: 1/4 of the section's cutoff
-  std::vector<std::int64_t> begin;     ///< per node of `mine`, into partner (mine.size() + 1)
-  std::vector<std::int64_t> partner;   ///< table index
-  std::vector<std::uint16_t> rule;     ///< PairLaw's rule of each pair (kMaxPairRules at most)
-  std::vector<double> x_built;         ///< positions of all table nodes at the build
-  long builds = 0;
+/// The nodes a rank's pairs read: its rows and their possible partners, each with its table
+/// index, current position and measure.
+struct PairNodes {
+  const std::int64_t* id = nullptr;    ///< table index of each; nullptr: node k is table node k
+  const double* x = nullptr;           ///< current positions, 3 per node [m]
+  const double* volume = nullptr;      ///< measure of each [m^3]
+  std::int64_t count = 0;
+  std::int64_t table_index(std::int64_t k) const { return id ? id[k] : k; }
 };
 
-/// Forces and energy of the long-range pairs of the nodes `mine` (table indices), given the
-/// current positions `x` (3 per table node). Adds the force densities of mine[k] to
+/// Verlet list of the long-range pairs of some rows: every partner within its rule's cutoff +
+/// skin (and not excluded by the rules) when it was built; rebuilt once any node has moved more
+/// than skin / 2 since (then no pair within its cutoff can be missing from it: two nodes that
+/// were farther apart than cutoff + skin at the build have each moved at most skin / 2, so they
+/// are still farther apart than the cutoff).
+struct LongRangeList {
+  double skin = 0;                     ///< [m]; 0: 1/4 of the section's cutoff (set_skin)
+  std::vector<std::int64_t> begin;     ///< per row, into partner (rows + 1)
+  std::vector<std::int32_t> partner;   ///< index among the PairNodes, ascending table index per row
+  std::vector<std::uint16_t> rule;     ///< PairLaw's rule of each pair (kMaxPairRules at most)
+  std::vector<double> x_built;         ///< positions of the nodes seen at the build (3 each)
+  long builds = 0;
+  /// The default skin, a quarter of the section's cutoff, unless one was set.
+  void set_skin(const PairLaw& law) {
+    if (!(skin > 0)) skin = 0.25 * law.cutoff;  // the section's cutoff, not the reach
+  }
+  /// Whether some of the nodes seen has moved more than skin / 2 since the build, or their number
+  /// changed (or no list was built).
+  bool stale(const double* x, std::int64_t count) const;
+};
+
+/// Rebuilds `list` for the rows (indices among `nodes`): a cell list on the nodes' current
+/// positions, every partner within its rule's cutoff + skin, partners in ascending table order.
+void build_long_range_list(const PairLaw& law, const LongRangeTable& table, const PairNodes& nodes,
+                           const std::int64_t* rows, std::int64_t row_count, LongRangeList& list);
+
+/// Forces and energy of the long-range pairs of the rows (indices among `nodes`) through the
+/// current `list` (built for these rows; not rebuilt here). Adds the force density of rows[k] to
 /// force[3 * k ..] [N/m^3]; with_energy: returns half the shifted pair energies w2 V_i V_j summed
-/// over the pairs of those nodes (each pair is counted once over all ranks) [J], else 0. The
-/// pairs come from `list` (rebuilt here when needed; its order fixes the summation order, the
-/// same on every rank).
-/// With `energy_density` (and with_energy), also adds each node's share 1/2 sum_j (w2 - w2(cutoff)) V_j
-/// [J/m^3] to energy_density[k] for mine[k].
+/// over the rows' pairs (each pair is counted once over all ranks) [J], else 0. Each row sums its
+/// pairs in the list's order (ascending table index), the same on every rank. With
+/// `energy_density` (and with_energy), also adds each row's share 1/2 sum_j (w2 - w2(cutoff)) V_j
+/// [J/m^3] to energy_density[k].
+double long_range_pair_forces(const PairLaw& law, const PairNodes& nodes, const std::int64_t* rows,
+                              std::int64_t row_count, double* force, const LongRangeList& list,
+                              bool with_energy = true, double* energy_density = nullptr);
+
+/// The same where every table node is seen (one process; the tests): positions `x` of all table
+/// nodes, rows `mine` (table indices); the list is rebuilt here when stale.
 double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,
                          const std::vector<std::int64_t>& mine, double* force, LongRangeList& list,
                          bool with_energy = true, double* energy_density = nullptr);

@@ -1,8 +1,9 @@
 // The force model of a run: each body's bond law by the one bond loop (kernels/), with the
 // displacement halo exchange overlapped by the rows that need no ghost; the Marder lattice
 // bodies' two- and three-body forces, reduced onto their owners (forces_lattice.cpp); long-range
-// pair forces between fiber nodes (every rank gathers the fiber nodes' positions). Built once by
-// the setup; only the force terms the scene names exist.
+// pair forces between fiber nodes (each rank receives the positions of those fiber nodes within
+// the pairs' reach of its own: long_range_halo.hpp). Built once by the setup; only the force
+// terms the scene names exist.
 //
 // Also the other passes over the bonds: the strain energy of a state, each node's energy
 // density and damage, the stable step of each body, and for the quasi-static loader the
@@ -22,22 +23,33 @@
 #include "peri/partition/domain.hpp"
 #include "peri/scene/scene.hpp"
 #include "peri/state/state.hpp"
+#include "peri/stages/long_range_halo.hpp"
 #include "peri/stages/tip_advance.hpp"
 
 namespace peri {
 
-/// Long-range forces (scene long_range): every rank holds the table of all fiber nodes and, at
-/// each force evaluation, their current positions (gathered); it evaluates the pairs of its own.
+/// Long-range forces (scene long_range): every rank holds the table of all fiber nodes (48 bytes
+/// per node); at each force evaluation it refreshes the current positions of its own fiber nodes
+/// and of their halo (the nodes owned elsewhere within the list's reach + skin, LongRangeHalo),
+/// and evaluates the pairs of its own.
 struct LongRangeForces {
-  LongRangeForces(PairLaw l, LongRangeTable t) : law(l), table(std::move(t)) {}
+  LongRangeForces(PairLaw l, LongRangeTable t, MPI_Comm comm) : law(l), table(std::move(t)), halo(comm) {}
   PairLaw law;
   LongRangeTable table;
-  std::vector<std::int64_t> mine;         // table indices of this rank's owned fiber nodes
-  std::vector<std::int32_t> mine_local;   // their local (owned) indices
-  std::vector<int> counts, displs;        // per rank: how many, where in the gathered order
-  std::vector<std::int64_t> gathered;     // gathered order -> table index
-  std::vector<double> send, recv, x, force;
+  std::vector<std::int32_t> mine_local;  // local (owned) index of each own fiber node
+  std::vector<std::int64_t> rows;        // 0 .. own - 1: the own nodes among those seen
+  std::vector<std::int64_t> id;          // table index of each node seen: the own ones, then the halo
+  std::vector<double> x, volume;         // their current positions (3 each) and measures
+  std::vector<double> force;             // 3 per own node
   LongRangeList list;
+  LongRangeHalo halo;
+  /// The current positions of the nodes seen: the own ones X + u (u nullptr: X), the halo's
+  /// received. When some node has moved more than skin / 2 since the list was built (on any
+  /// rank), the halo and the list are rebuilt. Collective.
+  void refresh(const double* X, const double* u);
+  PairNodes nodes() const {
+    return {id.data(), x.data(), volume.data(), static_cast<std::int64_t>(id.size())};
+  }
 };
 
 /// The long-range table of the scene's fibers, from the global node arrays (before they are
@@ -73,8 +85,8 @@ class Forces {
   /// no lattice body has dashpots.
   const double* viscous() const { return has_kelvin_ ? viscous_.data() : nullptr; }
 
-  /// This rank's strain energy of the current state: a separate, non-breaking pass. Collective
-  /// only where the long-range term gathers.
+  /// This rank's strain energy of the current state: a separate, non-breaking pass over the bonds
+  /// and the lattice's terms (not the long-range pairs). Not collective.
   double strain_energy();
   /// Strain energy per unit volume of each owned node (bonds, long-range pairs; lattice nodes:
   /// 0), from the last force evaluation when it was an energy call on this state.
@@ -115,7 +127,6 @@ class Forces {
                       const double* velocity);
   void lattice_reduce();
   double lattice_energy(const BondView& view);
-  void gather_fiber_positions(const double* u);  // every rank: current positions of all fiber nodes (lr.x)
   double add_long_range_forces(const double* u, bool with_energy);  // returns this rank's energy share
 
   Domain& domain_;
