@@ -18,6 +18,10 @@ Events register_events() {
   PetscLogEventRegister("PeriHalo", id, &e.halo);
   PetscLogEventRegister("PeriUpdate", id, &e.update);
   PetscLogEventRegister("PeriOutput", id, &e.output);
+  // Inside PeriForces: the long-range pairs (their halo exchange and sums), and inside that the
+  // rebuilds of their halo and Verlet list.
+  PetscLogEventRegister("PeriLongRange", id, &e.long_range);
+  PetscLogEventRegister("PeriLongRangeBuild", id, &e.long_range_build);
   return e;
 }
 

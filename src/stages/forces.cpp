@@ -26,10 +26,12 @@ void LongRangeForces::refresh(const double* X, const double* u) {
   // sees; every node is some rank's own, so the ranks' verdicts together cover all nodes, and
   // every rank follows the same (global) decision.
   if (!halo.on_any_rank(list.stale(x.data(), static_cast<std::int64_t>(id.size())))) return;
+  PetscLogEventBegin(events().long_range_build, 0, 0, 0, 0);
   halo.rebuild(static_cast<std::int64_t>(own), id, x, law.reach + list.skin);
   volume.resize(id.size());
   for (std::size_t k = 0; k < id.size(); ++k) volume[k] = table.volume[static_cast<std::size_t>(id[k])];
   build_long_range_list(law, table, nodes(), rows.data(), static_cast<std::int64_t>(own), list);
+  PetscLogEventEnd(events().long_range_build, 0, 0, 0, 0);
 }
 
 LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm) {
@@ -193,6 +195,7 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
 }
 
 double Forces::add_long_range_forces(const double* u, bool with_energy) {
+  PetscLogEventBegin(events().long_range, 0, 0, 0, 0);
   LongRangeForces& lr = *long_range_;
   lr.refresh(domain_.X.data(), u);
   std::fill(lr.force.begin(), lr.force.end(), 0.0);
@@ -201,6 +204,7 @@ double Forces::add_long_range_forces(const double* u, bool with_energy) {
       long_range_pair_forces(lr.law, lr.nodes(), lr.rows.data(), own, lr.force.data(), lr.list, with_energy);
   for (std::size_t k = 0; k < lr.mine_local.size(); ++k)
     for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(lr.mine_local[k]) + c] += lr.force[3 * k + c];
+  PetscLogEventEnd(events().long_range, 0, 0, 0, 0);
   return energy;
 }
 
