@@ -87,6 +87,15 @@ int PairLaw::rule_of(const LongRangeTable& t, std::int64_t p, std::int64_t q) co
   return acts[k] ? k : -1;
 }
 
+std::vector<PairLaw::Coefficients> PairLaw::coefficients() const {
+  std::vector<Coefficients> c(potentials.size());
+  for (int k = 0; k < rules(); ++k) {
+    const LennardJonesPair& w = potentials[k];
+    c[k] = {w.alpha, w.beta, 12.0 * w.alpha, 6.0 * w.beta, cutoffs[k] * cutoffs[k], w.energy(cutoffs[k])};
+  }
+  return c;
+}
+
 void check_segment_rules(const LongRange& spec, const LongRangeTable& table) {
   std::int32_t count = 0;  // segments of the scene's longest fiber (in segments)
   int fibers = 0;
@@ -122,8 +131,8 @@ bool LongRangeList::stale(const double* x, std::int64_t count) const {
 
 void build_long_range_list(const PairLaw& law, const LongRangeTable& table, const PairNodes& nodes,
                            const std::int64_t* rows, std::int64_t row_count, LongRangeList& list) {
-  if (nodes.count > std::numeric_limits<std::int32_t>::max())
-    throw RuntimeFailure("long-range pairs: more than 2^31 nodes seen by one rank");
+  if (nodes.count > std::numeric_limits<std::int32_t>::max() / 3)  // (the pair sums index 3 q in 32 bits)
+    throw RuntimeFailure("long-range pairs: more than 2^31 / 3 nodes seen by one rank");
   const double* x = nodes.x;
   const double reach = law.reach + list.skin, reach2 = reach * reach;
   std::vector<double> rule_reach2(law.rules());
@@ -166,65 +175,16 @@ void build_long_range_list(const PairLaw& law, const LongRangeTable& table, cons
     found_rule.clear();
     list.begin.push_back(static_cast<std::int64_t>(list.partner.size()));
   }
+  list.partner.insert(list.partner.end(), LongRangeList::kPad, 0);  // the pair sums' whole lanes
+  list.rule.insert(list.rule.end(), LongRangeList::kPad, 0);
+  list.shared_rule = list.begin.back() == 0 ? -1 : list.rule.front();
+  for (std::int64_t e = 0; e < list.begin.back(); ++e)
+    if (list.rule[e] != list.shared_rule) {
+      list.shared_rule = -1;
+      break;
+    }
   list.x_built.assign(x, x + 3 * nodes.count);
   ++list.builds;
-}
-
-double long_range_pair_forces(const PairLaw& law, const PairNodes& nodes, const std::int64_t* rows,
-                              std::int64_t row_count, double* force, const LongRangeList& list, bool with_energy,
-                              double* energy_density) {
-  const double* x = nodes.x;
-  const double* volume = nodes.volume;
-  // Per pair one division and no square root: with r2 = a^2 / y^2, w2'(y) / y =
-  // (-12 alpha r2^6 + 6 beta r2^3) / y^2 (eq. 35) and w2 = alpha r2^6 - beta r2^3 (eq. 33).
-  const double a2 = law.length * law.length;
-  const int rules = law.rules();
-  struct Coefficients {
-    double alpha, beta, alpha12, beta6, cut2, shift;
-  };
-  constexpr int kFew = 8;  // most scenes: the three kinds and a few segments rules, on the stack
-  Coefficients few[kFew];
-  std::vector<Coefficients> many(rules > kFew ? rules : 0);
-  Coefficients* c = rules > kFew ? many.data() : few;
-  for (int k = 0; k < rules; ++k) {
-    const LennardJonesPair& w = law.potentials[k];
-    c[k] = {w.alpha, w.beta, 12.0 * w.alpha, 6.0 * w.beta, law.cutoffs[k] * law.cutoffs[k], w.energy(law.cutoffs[k])};
-  }
-  // One cutoff for every rule (every scene without rule cutoffs): compared with a constant
-  // before the rule is looked at, as the loop did before rules had their own.
-  bool one_cutoff = true;
-  for (int k = 1; k < rules; ++k) one_cutoff = one_cutoff && c[k].cut2 == c[0].cut2;
-  double energy = 0;
-  auto sum_pairs = [&](auto one_cutoff_tag) {
-    constexpr bool kOneCutoff = decltype(one_cutoff_tag)::value;
-    const double cut2 = c[0].cut2;
-    for (std::int64_t m = 0; m < row_count; ++m) {
-      const std::int64_t p = rows[m];
-      const double* xp = &x[3 * p];
-      double f[3] = {0, 0, 0}, e_p = 0;
-      for (std::int64_t e = list.begin[m]; e < list.begin[m + 1]; ++e) {
-        const std::int64_t q = list.partner[e];
-        const double* xq = &x[3 * q];
-        const double d[3] = {xq[0] - xp[0], xq[1] - xp[1], xq[2] - xp[2]};
-        const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        if (kOneCutoff && y2 > cut2) continue;
-        const Coefficients& k = c[list.rule[e]];
-        if ((!kOneCutoff && y2 > k.cut2) || !(y2 > 0)) continue;  // coincident nodes: no direction
-        const double inv_y2 = 1.0 / y2, r2 = a2 * inv_y2, r6 = r2 * r2 * r2;
-        const double scale = (k.beta6 - k.alpha12 * r6) * r6 * inv_y2 * volume[q];
-        for (int a = 0; a < 3; ++a) f[a] += scale * d[a];
-        if (with_energy) e_p += ((k.alpha * r6 - k.beta) * r6 - k.shift) * volume[q];
-      }
-      for (int a = 0; a < 3; ++a) force[3 * m + a] += f[a];
-      energy += 0.5 * e_p * volume[p];
-      if (energy_density) energy_density[m] += 0.5 * e_p;
-    }
-  };
-  if (one_cutoff)
-    sum_pairs(std::true_type{});
-  else
-    sum_pairs(std::false_type{});
-  return energy;
 }
 
 double long_range_forces(const PairLaw& law, const LongRangeTable& table, const double* x,

@@ -52,7 +52,7 @@ LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Do
   // The list at the reference positions: a cutoff that takes in most of the scene would hold
   // O(N^2) pairs (6 bytes each); refuse it before anything is written.
   lr.refresh(domain.X.data(), nullptr);
-  double pairs = static_cast<double>(lr.list.partner.size()), all_pairs = 0;
+  double pairs = static_cast<double>(lr.list.begin.back()), all_pairs = 0;
   MPI_Allreduce(&pairs, &all_pairs, 1, MPI_DOUBLE, MPI_SUM, comm);
   const double per_node = all_pairs / std::max<double>(1.0, static_cast<double>(lr.table.size()));
   if (all_pairs > 2e8 || per_node > 5000) {

@@ -72,6 +72,12 @@ struct PairLaw {
   /// cutoffs are not looked at here.
   int rule_of(const LongRangeTable& table, std::int64_t p, std::int64_t q) const;
   int rules() const { return static_cast<int>(potentials.size()); }
+  /// What the pair sums read of each rule: alpha, beta, 12 alpha, 6 beta, cutoff^2 and
+  /// w2(cutoff) (the energy's shift).
+  struct Coefficients {
+    double alpha, beta, alpha12, beta6, cut2, shift;
+  };
+  std::vector<Coefficients> coefficients() const;
 };
 
 /// Refuses (InputError naming the rule's `segments` key) a segments rule whose index names no
@@ -94,10 +100,12 @@ struct PairNodes {
 /// were farther apart than cutoff + skin at the build have each moved at most skin / 2, so they
 /// are still farther apart than the cutoff).
 struct LongRangeList {
+  static constexpr int kPad = 8;       ///< unused entries past the end of partner and rule (whole lanes)
   double skin = 0;                     ///< [m]; 0: 1/4 of the section's cutoff (set_skin)
-  std::vector<std::int64_t> begin;     ///< per row, into partner (rows + 1)
+  std::vector<std::int64_t> begin;     ///< per row, into partner (rows + 1); begin.back(): the pairs
   std::vector<std::int32_t> partner;   ///< index among the PairNodes, ascending table index per row
   std::vector<std::uint16_t> rule;     ///< PairLaw's rule of each pair (kMaxPairRules at most)
+  int shared_rule = -1;                ///< the rule of every pair where they share one, else -1
   std::vector<double> x_built;         ///< positions of the nodes seen at the build (3 each)
   long builds = 0;
   /// The default skin, a quarter of the section's cutoff, unless one was set.
