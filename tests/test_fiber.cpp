@@ -11,6 +11,7 @@
 #include "peri/bonds/bonds.hpp"
 #include "peri/geometry/discretization.hpp"
 #include "peri/models/long_range.hpp"
+#include "peri/stages/long_range_halo.hpp"
 #include "peri/models/model.hpp"
 #include "peri/scene/scene.hpp"
 
@@ -455,4 +456,45 @@ TEST(LongRange, SegmentsRuleIndicesWithinTheFiber) {
 }
 
 }  // namespace
+}  // namespace peri
+
+namespace peri {
+
+// The long-range halo's boxes (stages/long_range_halo.hpp): every point lies in one of them, at
+// most kBoxes are used, and points in two far clusters get boxes that leave the gap between them
+// out (one bounding box would send the whole gap's nodes); no point, no box.
+TEST(LongRangeHalo, BoxesHoldEveryPointAndLeaveGapsOut) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(0, 1e-8);
+  std::vector<double> x;
+  for (int k = 0; k < 1000; ++k) {
+    const double shift = k % 2 ? 1e-6 : 0.0;  // two clusters 1 um apart along x, 10 nm wide
+    x.insert(x.end(), {U(rng) + shift, U(rng), U(rng)});
+  }
+  const auto boxes = LongRangeHalo::boxes_of(x.data(), 1000);
+  int used = 0;
+  double volume = 0;
+  for (const LongRangeHalo::Box& b : boxes) {
+    if (b.lo[0] > b.hi[0]) continue;
+    ++used;
+    volume += (b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]) * (b.hi[2] - b.lo[2]);
+  }
+  EXPECT_EQ(used, LongRangeHalo::kBoxes);
+  EXPECT_LT(volume, 2 * 1e-24);  // the two clusters' volume, not the 1 um x 10 nm x 10 nm hull's
+  for (int k = 0; k < 1000; ++k) {
+    bool inside = false;
+    for (const LongRangeHalo::Box& b : boxes) {
+      bool in = true;
+      for (int d = 0; d < 3; ++d) in = in && b.lo[d] <= x[3 * k + d] && x[3 * k + d] <= b.hi[d];
+      inside = inside || in;
+    }
+    EXPECT_TRUE(inside) << "point " << k;
+  }
+  for (const LongRangeHalo::Box& b : LongRangeHalo::boxes_of(nullptr, 0)) EXPECT_GT(b.lo[0], b.hi[0]);
+  const auto one = LongRangeHalo::boxes_of(x.data(), 1);
+  EXPECT_EQ(one[0].lo[1], x[1]);
+  EXPECT_EQ(one[0].hi[1], x[1]);
+  EXPECT_GT(one[1].lo[0], one[1].hi[0]);
+}
+
 }  // namespace peri
