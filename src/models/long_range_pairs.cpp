@@ -38,11 +38,16 @@ Index load_index(const std::int32_t* at) { return _mm256_loadu_si256(reinterpret
 Index load_index(const std::uint16_t* at) { return _mm256_cvtepu16_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(at))); }
 Index times(Index i, int k) { return _mm256_mullo_epi32(i, _mm256_set1_epi32(k)); }
 Lanes::V gather(const double* a, Index i) { return _mm512_i32gather_pd(i, a, 8); }
-Lanes::V keep_within(Lanes::V y2, Lanes::V cut2, Lanes::V a) {
-  const __mmask8 in = _mm512_cmp_pd_mask(y2, _mm512_setzero_pd(), _CMP_GT_OQ) & _mm512_cmp_pd_mask(y2, cut2, _CMP_LE_OQ);
-  return _mm512_maskz_mov_pd(in, a);
+// Eight lanes keep only the pairs within the cutoff (and the row): packed to the front, so the
+// sums skip the others (which add exact zeros) as the scalar loop did.
+constexpr bool kPack = true;
+__mmask8 within(Lanes::V y2, Lanes::V cut2, std::int64_t left) {
+  const __mmask8 row = left >= 8 ? 0xff : static_cast<__mmask8>((1u << left) - 1);
+  return _mm512_cmp_pd_mask(y2, _mm512_setzero_pd(), _CMP_GT_OQ) & _mm512_cmp_pd_mask(y2, cut2, _CMP_LE_OQ) & row;
 }
+void store_packed(double* at, __mmask8 in, Lanes::V a) { _mm512_storeu_pd(at, _mm512_maskz_compress_pd(in, a)); }
 #elif defined(PERI_AVX2)
+constexpr bool kPack = false;
 using Lanes = simd::Simd4;
 using Index = __m128i;
 Index load_index(const std::int32_t* at) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(at)); }
@@ -54,6 +59,7 @@ Lanes::V keep_within(Lanes::V y2, Lanes::V cut2, Lanes::V a) {
   return _mm256_and_pd(in, a);
 }
 #else
+constexpr bool kPack = false;
 using Lanes = Scalar;
 using Index = std::int32_t;
 Index load_index(const std::int32_t* at) { return *at; }
@@ -80,7 +86,8 @@ double sum_rows(const PairLaw& law, const PairNodes& nodes, const std::int64_t* 
   for (std::int64_t m = 0; m < row_count; ++m) longest = std::max(longest, list.begin[m + 1] - list.begin[m]);
   static_assert(W <= LongRangeList::kPad);
   const std::size_t room = static_cast<std::size_t>((longest + W - 1) / W * W);
-  // Per pair of the row: the factors and d (lanes past the row's end are computed and not read).
+  // Per pair of the row: the factors and d (lanes past the row's end are computed and not read;
+  // packed, only the pairs within the cutoff).
   std::vector<double> s(room), d0(room), d1(room), d2(room), e(kEnergy ? room : 0), vq(kEnergy ? room : 0);
   const int rule = kOneRule ? list.shared_rule : 0;
   const V a2 = Lanes::set1(law.length * law.length), one = Lanes::set1(1.0), minus_one = Lanes::set1(-1.0);
@@ -88,6 +95,7 @@ double sum_rows(const PairLaw& law, const PairNodes& nodes, const std::int64_t* 
   for (std::int64_t m = 0; m < row_count; ++m) {
     const std::int64_t p = rows[m], b = list.begin[m], n = list.begin[m + 1] - b;
     const V xp0 = Lanes::set1(x[3 * p]), xp1 = Lanes::set1(x[3 * p + 1]), xp2 = Lanes::set1(x[3 * p + 2]);
+    std::int64_t used = kPack ? 0 : n;  // pairs for the sums
     for (std::int64_t k = 0; k < n; k += W) {
       const Index q = load_index(&list.partner[b + k]), q3 = times(q, 3);
       const Index r = kOneRule ? q : times(load_index(&list.rule[b + k]), kStride);
@@ -101,19 +109,34 @@ double sum_rows(const PairLaw& law, const PairNodes& nodes, const std::int64_t* 
       const V inv_y2 = Lanes::div(one, y2), r2 = Lanes::mul(a2, inv_y2), r6 = Lanes::mul(Lanes::mul(r2, r2), r2);
       const V v = gather(volume, q), cut2 = coeff(4);
       const V t = Lanes::fnmadd(coeff(2), r6, coeff(3));  // 6 beta - 12 alpha r6
-      Lanes::storeu(&s[k], keep_within(y2, cut2, Lanes::mul(Lanes::mul(Lanes::mul(t, r6), inv_y2), v)));
+      const V factor = Lanes::mul(Lanes::mul(Lanes::mul(t, r6), inv_y2), v);
+      V w{};
+      if constexpr (kEnergy)  // (-1 x: an exact negation, -0 for +0)
+        w = Lanes::fmadd(Lanes::fmadd(coeff(0), r6, Lanes::mul(minus_one, coeff(1))), r6, Lanes::mul(minus_one, coeff(5)));
+#if defined(PERI_AVX512VL)
+      const __mmask8 in = within(y2, cut2, n - k);
+      store_packed(&s[used], in, factor);
+      store_packed(&d0[used], in, e0);
+      store_packed(&d1[used], in, e1);
+      store_packed(&d2[used], in, e2);
+      if constexpr (kEnergy) {
+        store_packed(&e[used], in, w);
+        store_packed(&vq[used], in, v);
+      }
+      used += __builtin_popcount(in);
+#else
+      Lanes::storeu(&s[k], keep_within(y2, cut2, factor));
       Lanes::storeu(&d0[k], e0);
       Lanes::storeu(&d1[k], e1);
       Lanes::storeu(&d2[k], e2);
-      if constexpr (kEnergy) {  // (-1 x: an exact negation, -0 for +0)
-        const V w = Lanes::fmadd(Lanes::fmadd(coeff(0), r6, Lanes::mul(minus_one, coeff(1))), r6,
-                                 Lanes::mul(minus_one, coeff(5)));
+      if constexpr (kEnergy) {
         Lanes::storeu(&e[k], keep_within(y2, cut2, w));
         Lanes::storeu(&vq[k], v);
       }
+#endif
     }
     double f0 = 0, f1 = 0, f2 = 0, e_p = 0;
-    for (std::int64_t k = 0; k < n; ++k) {
+    for (std::int64_t k = 0; k < used; ++k) {
       f0 = Scalar::fmadd(s[k], d0[k], f0);
       f1 = Scalar::fmadd(s[k], d1[k], f1);
       f2 = Scalar::fmadd(s[k], d2[k], f2);
