@@ -15,27 +15,8 @@ cd "$work" || exit 1
 mkdir run data  # the working directory of every run: not the scenes' folder
 pass=0 fail=0
 
-# expect NAME EXPECTED_SUBSTRING -- peridrive arguments...
-expect() {
-  local name=$1 want=$2
-  shift 3
-  local out="$work/out-$name"
-  (cd run && "${mpi[@]}" "$peridrive" "$@" --out "$out" --quiet > "$work/stdout" 2> "$work/stderr")
-  local rc=$?
-  local msg
-  msg=$(grep -c "peridrive: error:" "$work/stderr")
-  if [ "$rc" -ne 2 ]; then
-    echo "FAIL $name: exit status $rc, expected 2"; cat "$work/stderr"; fail=$((fail + 1))
-  elif ! grep -qF -- "$want" "$work/stderr"; then
-    echo "FAIL $name: message lacks '$want':"; cat "$work/stderr"; fail=$((fail + 1))
-  elif [ "$msg" -ne 1 ]; then
-    echo "FAIL $name: expected exactly one error line, got $msg"; cat "$work/stderr"; fail=$((fail + 1))
-  elif [ -e "$out" ]; then
-    echo "FAIL $name: output directory $out was created"; fail=$((fail + 1))
-  else
-    echo "ok   $name: $(grep "peridrive: error:" "$work/stderr")"; pass=$((pass + 1))
-  fi
-}
+source "$(dirname "$0")/expect.sh"
+expect_dir=run
 line_of() { grep -n -m1 -F -- "$2" "$1" | cut -d: -f1; }
 
 # scene NAME KIND MESH [EXTRA_BODY_KEYS [EXTRA_SECTIONS]]: a scene (in $work) with one mesh body `m`.
