@@ -1,9 +1,7 @@
 // Mesh bodies (`mesh: file`): a triangle surface mesh for a membrane, a tetrahedral mesh for a
-// solid, read through Gmsh's C++ API while the scene is read (on every rank alike), so that every
+// solid, read through Gmsh's C API (loaded on first use) while the scene is read (on every rank alike), so that every
 // problem of the file is an input error before anything is built. Nodes at the mesh's vertices,
 // each with a third of its triangles' areas (a quarter of its tetrahedra's volumes).
-#include <gmsh.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <clocale>
@@ -15,6 +13,7 @@
 #include <unordered_map>
 
 #include "common.hpp"
+#include "gmsh_library.hpp"
 
 namespace peri::kinds {
 namespace {
@@ -27,38 +26,30 @@ using scene_detail::join;
 // "C"): restored when the session ends.
 class GmshSession {
  public:
-  GmshSession() {
+  explicit GmshSession(const GmshLibrary& g) : g_(g) {
     if (const char* l = std::setlocale(LC_ALL, nullptr)) locale_ = l;
-    gmsh::initialize(0, nullptr, false);
-    gmsh::option::setNumber("General.Terminal", 0);
-    gmsh::logger::start();
+    int ierr = 0;
+    g_.initialize(0, nullptr, 0, &ierr);
+    g_.check(ierr, "Gmsh cannot start");
+    g_.option_set_number("General.Terminal", 0, &ierr);
+    g_.logger_start(&ierr);
   }
   ~GmshSession() {
-    try {
-      gmsh::logger::stop();
-      gmsh::finalize();
-    } catch (...) {  // (a destructor: nothing to report to)
-    }
+    int ierr = 0;
+    g_.logger_stop(&ierr);
+    g_.finalize(&ierr);
     if (!locale_.empty()) std::setlocale(LC_ALL, locale_.c_str());
   }
   GmshSession(const GmshSession&) = delete;
   GmshSession& operator=(const GmshSession&) = delete;
 
-  // The last error Gmsh logged, or `fallback`.
-  static std::string last_error(const std::string& fallback) {
-    std::string e;
-    try {
-      gmsh::logger::getLastError(e);
-    } catch (...) {
-    }
-    return e.empty() ? fallback : e;
-  }
-
  private:
+  const GmshLibrary& g_;
   std::string locale_;
 };
 
-// Runs a Gmsh call; what it throws (Gmsh throws its message as a std::string) becomes `fail`'s.
+// Runs Gmsh calls; what they throw (GmshLibrary::check throws Gmsh's message as a std::string)
+// becomes `fail`'s.
 template <class F, class Fail>
 void gmsh_call(F f, Fail fail) {
   try {
@@ -68,9 +59,7 @@ void gmsh_call(F f, Fail fail) {
   } catch (const std::string& e) {
     fail(e);
   } catch (const std::exception& e) {
-    fail(GmshSession::last_error(e.what()));
-  } catch (...) {
-    fail(GmshSession::last_error("an error without a message"));
+    fail(e.what());
   }
 }
 
@@ -144,13 +133,44 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
   };
   std::vector<Group> groups;
   {
-    const GmshSession session;
-    gmsh_call([&] { gmsh::open(path); }, gmsh_failed);
+    const GmshLibrary* lib = nullptr;
+    gmsh_call([&] { lib = &GmshLibrary::get(); }, gmsh_failed);
+    const GmshLibrary& g = *lib;
+    const GmshSession session(g);
+    int ierr = 0;
+    gmsh_call([&] { g.open(path.c_str(), &ierr), g.check(ierr, "cannot open it"); }, gmsh_failed);
     gmsh_call(
         [&] {
-          std::vector<double> parametric;
-          gmsh::model::mesh::getNodes(node_tags, coords, parametric, -1, -1, false, false);
-          gmsh::model::mesh::getElements(types, element_tags, element_nodes);
+          {
+            GmshArray<std::size_t> tags(g);
+            GmshArray<double> xyz(g), parametric(g);
+            g.get_nodes(&tags.data, &tags.size, &xyz.data, &xyz.size, &parametric.data, &parametric.size, -1, -1, 0,
+                        0, &ierr);
+            g.check(ierr, "cannot list its nodes");
+            node_tags.assign(tags.begin(), tags.end());
+            coords.assign(xyz.begin(), xyz.end());
+          }
+          {
+            GmshArray<int> element_types(g);
+            std::size_t** etags = nullptr;
+            std::size_t** enodes = nullptr;
+            GmshArray<std::size_t> etags_n(g), enodes_n(g);
+            std::size_t etags_nn = 0, enodes_nn = 0;
+            g.get_elements(&element_types.data, &element_types.size, &etags, &etags_n.data, &etags_nn, &enodes,
+                           &enodes_n.data, &enodes_nn, -1, -1, &ierr);
+            etags_n.size = etags_nn, enodes_n.size = enodes_nn;
+            for (std::size_t k = 0; k < etags_nn; ++k) {
+              element_tags.emplace_back(etags[k], etags[k] + etags_n.data[k]);
+              g.free(etags[k]);
+            }
+            for (std::size_t k = 0; k < enodes_nn; ++k) {
+              element_nodes.emplace_back(enodes[k], enodes[k] + enodes_n.data[k]);
+              g.free(enodes[k]);
+            }
+            g.free(etags), g.free(enodes);
+            g.check(ierr, "cannot list its elements");
+            types.assign(element_types.begin(), element_types.end());
+          }
           // An element type the body cannot take: the one of the highest dimension is named.
           int worst = -1, worst_dim = -1;
           std::string worst_name;
@@ -158,11 +178,13 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
             const int t = types[k];
             const bool taken = t == kPoint || t == kLine || t == kTriangle || (dimension == 3 && t == kTetrahedron);
             if (taken || element_tags[k].empty()) continue;
-            std::string name;
+            char* name = nullptr;
             int dim = 0, order = 0, nodes = 0, primary = 0;
-            std::vector<double> local;
-            gmsh::model::mesh::getElementProperties(t, name, dim, order, nodes, local, primary);
-            if (dim > worst_dim) worst = static_cast<int>(k), worst_dim = dim, worst_name = name;
+            GmshArray<double> local(g);
+            g.get_element_properties(t, &name, &dim, &order, &nodes, &local.data, &local.size, &primary, &ierr);
+            const std::string type_name = g.take(name);
+            g.check(ierr, "cannot describe an element type");
+            if (dim > worst_dim) worst = static_cast<int>(k), worst_dim = dim, worst_name = type_name;
           }
           if (worst >= 0) {
             std::string why = dimension == 2 ? "a membrane's mesh takes 3-node triangles (and points and 2-node lines "
@@ -174,16 +196,21 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
                        "unsupported element type '" + worst_name + "' (Gmsh type " + std::to_string(types[worst]) +
                            ", " + std::to_string(element_tags[worst].size()) + " of them, this the first); " + why);
           }
-          gmsh::vectorpair physical;
-          gmsh::model::getPhysicalGroups(physical);
-          for (const auto& [dim, tag] : physical) {
-            std::string name;
-            gmsh::model::getPhysicalName(dim, tag, name);
+          GmshArray<int> physical(g);  // (dim, tag) pairs
+          g.get_physical_groups(&physical.data, &physical.size, -1, &ierr);
+          g.check(ierr, "cannot list its physical groups");
+          for (std::size_t k = 0; k + 1 < physical.size; k += 2) {
+            const int dim = physical.data[k], tag = physical.data[k + 1];
+            char* name_text = nullptr;
+            g.get_physical_name(dim, tag, &name_text, &ierr);
+            const std::string name = g.take(name_text);
+            g.check(ierr, "cannot name a physical group");
             if (name.empty()) continue;  // a group without a name cannot be named by a region
-            std::vector<std::size_t> tags;
-            std::vector<double> xyz;
-            gmsh::model::mesh::getNodesForPhysicalGroup(dim, tag, tags, xyz);
-            auto it = std::find_if(groups.begin(), groups.end(), [&](const Group& g) { return g.name == name; });
+            GmshArray<std::size_t> tags(g);
+            GmshArray<double> xyz(g);
+            g.get_nodes_for_physical_group(dim, tag, &tags.data, &tags.size, &xyz.data, &xyz.size, &ierr);
+            g.check(ierr, "cannot list a physical group's nodes");
+            auto it = std::find_if(groups.begin(), groups.end(), [&](const Group& gr) { return gr.name == name; });
             if (it == groups.end()) it = groups.insert(groups.end(), Group{name, {}});
             it->tags.insert(it->tags.end(), tags.begin(), tags.end());
           }
