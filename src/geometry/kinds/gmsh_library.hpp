@@ -1,5 +1,5 @@
 // Gmsh's C API (gmshc.h), loaded when a scene first names a mesh and not before: libgmsh brings
-// about 150 shared libraries (OpenCASCADE, FLTK, ...) whose relocations cost every process
+// about 70 shared libraries (OpenCASCADE, FLTK, ...) whose relocations cost every process
 // about 0.15-0.2 s of start-up, mesh or no mesh. Private to src/geometry/kinds/.
 #pragma once
 #include <gmshc.h>
