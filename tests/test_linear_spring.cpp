@@ -61,6 +61,7 @@ struct LinearSpringLaw {
     using Bonds = BondLanes<P, Energy ? kSlots : kXiLen>;  // (the energy's slots last)
     static constexpr bool kSlotValues = true;
     double c_row, crit_s, c_energy_s;
+    simd::Root<P> root;
     explicit Lanes(const LinearSpringLaw& L) : c_row(L.c), crit_s(L.failure.critical0), c_energy_s(0.5 * L.c) {}
     double row_factor() const { return c_row; }
     static const void* slot_tag() { return &Lanes<simd::Scalar, Shape, false>::slot_tag_storage; }
@@ -87,7 +88,7 @@ struct LinearSpringLaw {
       Front p;
       p.y2 = y2;
       p.y2g = P::max(y2, b.slot[kFloor]);
-      p.r = simd::Root<P>::front(p.y2g);
+      p.r = root.front(p.y2g);
       return p;
     }
     V coefficient(const Bonds& b, const Front& p, V& w, unsigned& fresh) const {
@@ -95,7 +96,7 @@ struct LinearSpringLaw {
       fresh = P::bits(reached) & ~b.dead & ((1u << W) - 1u);
       const M dead = P::with_lanes(reached, b.dead);
       V y, inv_y;
-      simd::Root<P>::finish(p.y2g, p.r, y, inv_y);
+      root.finish(p.y2g, p.r, y, inv_y);
       const V coef = P::fnmadd_or_zero(dead, b.slot[kWeightXi], inv_y, b.slot[kWeight]);  // w V (1 - |xi|/y)
       if constexpr (Energy) {
         const V stretch = P::sub(y, b.slot[kXiLen]);
@@ -105,7 +106,7 @@ struct LinearSpringLaw {
     }
     V slope(const Bonds& b, const Front& p) const {
       V y, inv_y;
-      simd::Root<P>::finish(p.y2g, p.r, y, inv_y);
+      root.finish(p.y2g, p.r, y, inv_y);
       return P::mul(P::mul(P::set1(0.5), b.slot[kWeightXi]), P::mul(inv_y, P::mul(inv_y, inv_y)));
     }
   };

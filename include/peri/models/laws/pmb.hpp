@@ -55,6 +55,7 @@ struct PmbLaw {
     static constexpr bool kSlotValues = true;
     double c_row, crit0_s, crit_slope_s, c_energy_s, inv_horizon_s;
     V zero, one, tiny, crit0, crit0_sq, crit_slope, inv_horizon;
+    simd::Root<P> root;  // (its constants: loop invariants)
     explicit Lanes(const PmbLaw& L)
         : c_row(L.c),
           crit0_s(L.failure.critical0),
@@ -108,7 +109,7 @@ struct PmbLaw {
       Front p;
       p.y2 = y2;
       p.y2g = P::max(y2, b.slot[kFloor]);
-      p.r = simd::Root<P>::front(p.y2g);
+      p.r = root.front(p.y2g);
       return p;
     }
     /// The lanes' coefficients (zero where dead or breaking now); `fresh`: lanes whose bond
@@ -118,7 +119,7 @@ struct PmbLaw {
       fresh = P::bits(reached) & ~b.dead & ((1u << W) - 1u);
       const M dead = P::with_lanes(reached, b.dead);
       V y, inv_y;
-      simd::Root<P>::finish(p.y2g, p.r, y, inv_y);
+      root.finish(p.y2g, p.r, y, inv_y);
       const V coef = P::fnmadd_or_zero(dead, b.slot[kWeight], inv_y, b.slot[kWeightPerXi]);  // g wV (1/xi - 1/y)
       if constexpr (Energy) {  // w = (c/2) g (y - xi)^2 / xi
         const V stretch = P::sub(y, b.slot[kXiLen]);
@@ -129,7 +130,7 @@ struct PmbLaw {
     /// d coefficient / d(y^2) of an intact bond: g w V / (2 y^3) (the SNES tangent).
     V slope(const Bonds& b, const Front& p) const {
       V y, inv_y;
-      simd::Root<P>::finish(p.y2g, p.r, y, inv_y);
+      root.finish(p.y2g, p.r, y, inv_y);
       return P::mul(P::mul(P::set1(0.5), b.slot[kWeight]), P::mul(inv_y, P::mul(inv_y, inv_y)));
     }
   };
