@@ -1,7 +1,8 @@
 // Mesh bodies (`mesh: file`): a triangle surface mesh for a membrane, a tetrahedral mesh for a
-// solid, read through Gmsh's C API (loaded on first use) while the scene is read (on every rank alike), so that every
-// problem of the file is an input error before anything is built. Nodes at the mesh's vertices,
-// each with a third of its triangles' areas (a quarter of its tetrahedra's volumes).
+// solid, read through Gmsh's C API (the library loaded on first use) while the scene is read (on
+// every rank alike), so that every problem of the file is an input error before anything is
+// built. Nodes at the mesh's vertices, each with a third of its triangles' areas (a quarter of
+// its tetrahedra's volumes).
 #include <algorithm>
 #include <cerrno>
 #include <clocale>
@@ -158,7 +159,6 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
             std::size_t etags_nn = 0, enodes_nn = 0;
             g.get_elements(&element_types.data, &element_types.size, &etags, &etags_n.data, &etags_nn, &enodes,
                            &enodes_n.data, &enodes_nn, -1, -1, &ierr);
-            etags_n.size = etags_nn, enodes_n.size = enodes_nn;
             for (std::size_t k = 0; k < etags_nn; ++k) {
               element_tags.emplace_back(etags[k], etags[k] + etags_n.data[k]);
               g.free(etags[k]);
