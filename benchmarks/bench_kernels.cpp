@@ -12,6 +12,8 @@
 #if defined(__AVX2__)
 #include <immintrin.h>
 #endif
+#include <filesystem>
+#include <fstream>
 #include <random>
 
 #include "peri/models/model.hpp"
@@ -37,19 +39,91 @@ output: {frames: 1, series_every: 1000000}
 }
 
 // The N^3 PMB block of benchmarks/compare_lammps.py (dx = 1 mm, horizon 3.015 dx, LAMMPS' taper).
-std::string solid_scene(int n, double critical_stretch) {
+std::string solid_scene(int n, double critical_stretch, const char* quadrature = "taper") {
   char text[1024];
   std::snprintf(text, sizeof text, R"(
 name: bench
 materials:
   glass: {model: pmb, density: 2200, bulk_modulus: 14.9e9, critical_stretch: %.17g}
 bodies:
-  block: {kind: solid, material: glass, origin: [0, 0, 0], size: [%.17g, %.17g, %.17g], spacing: 0.001, horizon: 0.003015, quadrature: taper}
+  block: {kind: solid, material: glass, origin: [0, 0, 0], size: [%.17g, %.17g, %.17g], spacing: 0.001, horizon: 0.003015, quadrature: %s}
 stages:
   - {name: run, steps: 1000000}
 output: {frames: 1, series_every: 1000000}
-)", critical_stretch, n * 1e-3, n * 1e-3, n * 1e-3);
+)", critical_stretch, n * 1e-3, n * 1e-3, n * 1e-3, quadrature);
   return text;
+}
+
+// Irregular node sets of the grids' density (spacing 1 mm), written once into the temporary
+// directory: `jittered_membrane_mesh(n)`, an n x n square of nodes each moved by up to `jitter`
+// spacings along x and y, two triangles per square (a Gmsh .msh 2.2 file); and
+// `jittered_cloud(n)`, an n^3 cube of points moved likewise in 3D, each with the volume of its cell
+// (a point-cloud CSV). The same density and family sizes as membrane_full and pmb_block_full.
+std::string jittered_membrane_mesh(int n, double jitter) {
+  const std::string path = (std::filesystem::temp_directory_path() / ("peri_bench_jittered_" + std::to_string(n) + ".msh")).string();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(-jitter, jitter);
+  std::ofstream out(path);
+  out << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" << n * n << "\n";
+  char line[128];
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      std::snprintf(line, sizeof line, "%d %.17g %.17g 0\n", j * n + i + 1, 1e-3 * (i + U(rng)), 1e-3 * (j + U(rng)));
+      out << line;
+    }
+  out << "$EndNodes\n$Elements\n" << 2 * (n - 1) * (n - 1) << "\n";
+  int e = 0;
+  for (int j = 0; j + 1 < n; ++j)
+    for (int i = 0; i + 1 < n; ++i) {
+      const int a = j * n + i + 1, b = a + 1, c = a + n + 1, d = a + n;
+      out << ++e << " 2 0 " << a << ' ' << b << ' ' << c << "\n" << ++e << " 2 0 " << a << ' ' << c << ' ' << d << "\n";
+    }
+  out << "$EndElements\n";
+  return path;
+}
+
+std::string jittered_cloud(int n, double jitter) {
+  const std::string path = (std::filesystem::temp_directory_path() / ("peri_bench_cloud_" + std::to_string(n) + ".csv")).string();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> U(-jitter, jitter);
+  std::ofstream out(path);
+  out << "x,y,z,volume\n";
+  char line[160];
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const double x = 1e-3 * (i + U(rng)), y = 1e-3 * (j + U(rng)), z = 1e-3 * (k + U(rng));
+        std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,1e-09\n", x, y, z);
+        out << line;
+      }
+  return path;
+}
+
+std::string mesh_membrane_scene(const std::string& mesh) {
+  return R"(
+name: bench
+materials:
+  m: {model: membrane, density: 1200, bulk_modulus: 800.0e6, critical_stretch: 5.0}
+bodies:
+  sheet: {material: m, mesh: ")" + mesh + R"(", thickness: 0.0005, spacing: 0.001}
+stages:
+  - {name: run, steps: 1000000}
+output: {frames: 1, series_every: 1000000}
+)";
+}
+
+std::string cloud_solid_scene(const std::string& cloud, const char* quadrature) {
+  return R"(
+name: bench
+materials:
+  glass: {model: pmb, density: 2200, bulk_modulus: 14.9e9, critical_stretch: 0.5}
+bodies:
+  block: {kind: solid, material: glass, points: ")" + cloud + R"(", spacing: 0.001, horizon: 0.003015, quadrature: )" +
+         quadrature + R"(}
+stages:
+  - {name: run, steps: 1000000}
+output: {frames: 1, series_every: 1000000}
+)";
 }
 
 // Kernel alone: the bond loop over every row of a one-rank domain (spacing 1 mm), displacements
@@ -104,6 +178,22 @@ void kernel_solid(benchmark::State& st, double critical_stretch, double strain) 
   kernel_of(st, solid_scene(static_cast<int>(st.range(0)), critical_stretch), 1e-7, strain);
 }
 
+// The intact 3D block with whole weights (the point cloud's quadrature), for kernel_cloud.
+void kernel_solid_full(benchmark::State& st) {
+  kernel_of(st, solid_scene(static_cast<int>(st.range(0)), 0.5, "full"), 1e-7, 0.0);
+}
+
+// Irregular node sets (no grid, no shared families) beside the grid cases of the same density:
+// the jittered membrane mesh (nodes moved up to 0.3 spacings) against membrane_full, and the
+// jittered point cloud against pmb_block_full (with whole weights, and with the point cloud's
+// default partial-volume weights, kept per bond).
+void kernel_mesh_membrane(benchmark::State& st) {
+  kernel_of(st, mesh_membrane_scene(jittered_membrane_mesh(static_cast<int>(st.range(0)), 0.3)), 1e-5, 0.0);
+}
+void kernel_cloud(benchmark::State& st, const char* quadrature) {
+  kernel_of(st, cloud_solid_scene(jittered_cloud(static_cast<int>(st.range(0)), 0.3), quadrature), 1e-7, 0.0);
+}
+
 // The ceiling a PMB bond loop cannot pass on this core: 1/|y| for four lanes as a square root and
 // a division (what the loop does per four bonds, AVX2 having no double-precision reciprocal square
 // root), nothing else. Counter: lanes per second (one lane = one bond).
@@ -146,6 +236,10 @@ BENCHMARK_CAPTURE(kernel, membrane_full, "membrane", "full", 5.0, 1e-5)->Arg(400
 BENCHMARK_CAPTURE(kernel, pmb_partial_area, "pmb", "partial_area", 0.5, 1e-5)->Arg(400)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(kernel_solid, pmb_block_intact, 0.5, 0.0)->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(kernel_solid, pmb_block_half_broken, 0.0005, 0.002)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK(kernel_solid_full)->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK(kernel_mesh_membrane)->Arg(400)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(kernel_cloud, full, "full")->Arg(64)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(kernel_cloud, partial_area, "partial_area")->Arg(64)->Unit(benchmark::kMillisecond);
 BENCHMARK(pmb_divider_ceiling);
 // A fixed iteration count: every rank must take the same number of (collective) steps.
 BENCHMARK_CAPTURE(full_step, membrane, "membrane")->Arg(400)->Arg(500)->Iterations(40)->Unit(benchmark::kMillisecond);

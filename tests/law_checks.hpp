@@ -1,8 +1,9 @@
 // The checks every bond law of the registry must pass (tests/test_laws.cpp runs them on each
 // built-in law, tests/test_linear_spring.cpp on a law defined in that test alone):
 //  - the SIMD accelerator and the portable walk give the same bits (forces, energies, flags,
-//    tallies), on a membrane grid (runs, boxes, strided and mirrored runs, the rest) and a solid
-//    block, intact and breaking;
+//    tallies), on a membrane grid (runs, boxes, strided and mirrored runs, the rest), a solid
+//    block, and irregular ones (a jittered sheet mesh, a jittered point cloud: free rows, which also
+//    match the same bonds with family patterns to round-off), intact and breaking;
 //  - the coefficient is the energy's gradient, the slope the coefficient's derivative, the SNES
 //    tangent's block row the derivative of the forces;
 //  - calibration: a small homogeneous strain of a finely resolved body stores the energy of the
@@ -14,7 +15,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <random>
 #include <string>
@@ -38,12 +42,59 @@ struct Sample {
   std::string linear;    ///< critical_stretch_at_horizon for eq. (29)'s linear lambda_0 ("": none)
 };
 
-inline std::string scene_text(const std::string& material, bool solid) {
-  const std::string body =
-      solid ? "  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.016, 0.017, 0.006], spacing: 0.001, "
-              "horizon: 0.003015, quadrature: taper}\n"
-            : "  s: {material: m, origin: [0, 0, 0], size: [0.020, 0.015], thickness: 0.0005, spacing: 0.001, "
-              "quadrature: partial_area}\n";
+/// Irregular node sets of the grids' sizes (spacing 1 mm), written once into the temporary
+/// directory: a 20 x 15 sheet of nodes each moved by up to 0.3 spacings, two triangles per square
+/// (a Gmsh .msh 2.2 file), and a 16 x 17 x 6 block of points moved likewise (a point-cloud CSV).
+/// Their rows have no family pattern (FamilyPatterns' free rows).
+inline std::string jittered_file(bool solid) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / (solid ? "peri_law_checks_cloud.csv" : "peri_law_checks_sheet.msh")).string();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-0.3e-3, 0.3e-3);
+  std::ofstream out(path);
+  char line[160];
+  if (solid) {
+    out << "x,y,z,volume\n";
+    for (int k = 0; k < 6; ++k)
+      for (int j = 0; j < 17; ++j)
+        for (int i = 0; i < 16; ++i) {
+          std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,1e-09\n", 1e-3 * i + U(rng), 1e-3 * j + U(rng),
+                        1e-3 * k + U(rng));
+          out << line;
+        }
+    return path;
+  }
+  const int nx = 20, ny = 15;
+  out << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" << nx * ny << "\n";
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      std::snprintf(line, sizeof line, "%d %.17g %.17g 0\n", j * nx + i + 1, 1e-3 * i + U(rng), 1e-3 * j + U(rng));
+      out << line;
+    }
+  out << "$EndNodes\n$Elements\n" << 2 * (nx - 1) * (ny - 1) << "\n";
+  int e = 0;
+  for (int j = 0; j + 1 < ny; ++j)
+    for (int i = 0; i + 1 < nx; ++i) {
+      const int a = j * nx + i + 1, b = a + 1, c = a + nx + 1, d = a + nx;
+      out << ++e << " 2 0 " << a << ' ' << b << ' ' << c << "\n" << ++e << " 2 0 " << a << ' ' << c << ' ' << d << "\n";
+    }
+  out << "$EndElements\n";
+  return path;
+}
+
+/// The sample's scene: a membrane grid sheet or a solid grid block, or (`irregular`) the jittered
+/// sheet mesh (whole weights) or point cloud (partial-volume weights) of the same size and spacing.
+inline std::string scene_text(const std::string& material, bool solid, bool irregular = false) {
+  std::string body;
+  if (irregular)
+    body = solid ? "  b: {kind: solid, material: m, points: \"" + jittered_file(true) +
+                       "\", spacing: 0.001, horizon: 0.003015}\n"
+                 : "  s: {material: m, mesh: \"" + jittered_file(false) + "\", thickness: 0.0005, spacing: 0.001}\n";
+  else
+    body = solid ? "  b: {kind: solid, material: m, origin: [0, 0, 0], size: [0.016, 0.017, 0.006], spacing: 0.001, "
+                   "horizon: 0.003015, quadrature: taper}\n"
+                 : "  s: {material: m, origin: [0, 0, 0], size: [0.020, 0.015], thickness: 0.0005, spacing: 0.001, "
+                   "quadrature: partial_area}\n";
   return "name: law-test\nmaterials:\n  m: {" + material + "}\nbodies:\n" + body + "stages:\n  - {name: r, steps: 1}\n";
 }
 
@@ -61,8 +112,8 @@ struct Body {
   Domain d;
   BondLaw law;
   std::vector<std::int32_t> rows;
-  Body(const std::string& material, bool solid) {
-    const Scene scene = parse_scene(scene_text(material, solid), "law-test");
+  Body(const std::string& material, bool solid, bool irregular = false) {
+    const Scene scene = parse_scene(scene_text(material, solid, irregular), "law-test");
     nodes = discretize(scene);
     law = calibrate(scene.materials[0], nodes.bodies[0], "law-test");
     const CellList cells(nodes, reach(nodes.bodies[0]));
@@ -76,9 +127,9 @@ struct Body {
 };
 
 /// The body, or nullptr where the law's scene keys or body kinds refuse this shape.
-inline std::unique_ptr<Body> body_if_accepted(const std::string& material, bool solid) {
+inline std::unique_ptr<Body> body_if_accepted(const std::string& material, bool solid, bool irregular = false) {
   try {
-    return std::make_unique<Body>(material, solid);
+    return std::make_unique<Body>(material, solid, irregular);
   } catch (const InputError&) {
     return nullptr;
   }
@@ -88,15 +139,21 @@ inline std::unique_ptr<Body> body_if_accepted(const std::string& material, bool 
 // state; each call by the accelerator (entry.forces) and the portable walk (entry.portable_forces)
 // from the same flags: forces, energy density, flags and tallies the same bits.
 inline void simd_and_portable_loops_give_the_same_bits(const Sample& s) {
-  int tested = 0;
-  for (int variant = 0; variant < 8; ++variant) {
-    const bool solid = variant & 1, conical = variant & 2, linear = variant & 4;
+  int tested = 0, irregular_tested = 0;
+  for (int variant = 0; variant < 16; ++variant) {
+    const bool solid = variant & 1, conical = variant & 2, linear = variant & 4, irregular = variant & 8;
     if (linear && s.linear.empty()) continue;
-    const std::unique_ptr<Body> body = body_if_accepted(variant_material(s, conical, linear), solid);
+    const std::unique_ptr<Body> body = body_if_accepted(variant_material(s, conical, linear), solid, irregular);
     if (!body) continue;
     ++tested;
     ASSERT_EQ(body->law.name(), s.law);
     const Domain& d = body->d;
+    irregular_tested += irregular;
+    if (irregular) {  // every row free (no family pattern), within 10 bytes per bond
+      EXPECT_EQ(d.bonds.patterns.patterns(), 0) << "variant " << variant;
+      EXPECT_EQ(d.bonds.patterns.free_weight.empty(), !solid) << "variant " << variant;
+      EXPECT_LE(d.bonds.bytes_per_bond(), 10.0) << "variant " << variant;
+    }
     const std::size_t n = static_cast<std::size_t>(d.local());
     std::mt19937 rng(11 + variant);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
@@ -125,11 +182,51 @@ inline void simd_and_portable_loops_give_the_same_bits(const Sample& s) {
       EXPECT_EQ(t_fast.dissipated, t_walk.dissipated) << where;
       EXPECT_EQ(t_fast.strain_energy, t_walk.strain_energy) << where;
       if (energy) EXPECT_EQ(e_fast, e_walk) << where;
+      if (irregular && call == 0) {
+        // Free rows against the same bonds with a family pattern per row (the representation they
+        // replace: |xi|^2 rounded, 1/|xi| a square root and a division): the same forces to
+        // round-off.
+        PatternBuilder builder;
+        std::vector<double> xi2, measure;
+        for (std::int32_t i = 0; i < d.owned; ++i) {
+          xi2.clear();
+          measure.clear();
+          for (std::int64_t b = d.bonds.offsets[i]; b < d.bonds.offsets[i + 1]; ++b) {
+            // (The weight from the quadrature itself, as the domain's neighbour search takes it.)
+            const std::int32_t j = d.bonds.neighbor[b];
+            double e[3];
+            reference_offset(body->nodes.bodies[0], &d.X[3 * static_cast<std::size_t>(i)],
+                             &d.X[3 * static_cast<std::size_t>(j)], e);
+            xi2.push_back(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+            const float w = static_cast<float>(quadrature_weight(body->nodes.bodies[0], e));
+            measure.push_back(static_cast<double>(w) * d.volume[j]);
+          }
+          builder.add_row(xi2, measure, body->nodes.bodies[0].horizon);
+        }
+        const FamilyPatterns patterned = builder.finish();
+        std::vector<std::uint8_t> flags_ref(d.bonds.broken.size(), 0);
+        BondView v_ref = body->view(x.data(), flags_ref.data());
+        v_ref.patterns = &patterned;
+        std::vector<double> f_ref(3 * n, 0.0);
+        BondTally t_ref;
+        entry.portable_forces(body->law.constants(), v_ref, plan_rows(v_ref, body->rows.data(), body->rows.size()),
+                              f_ref.data(), false, t_ref);
+        double fmax = 0, diff = 0;
+        for (std::size_t k = 0; k < f_ref.size(); ++k) {
+          fmax = std::max(fmax, std::fabs(f_ref[k]));
+          diff = std::max(diff, std::fabs(f_ref[k] - f_fast[k]));
+        }
+        // (The patterns' rounding of |xi|^2, 2^-46 relative, reaches the membrane law's coefficient
+        // g wV/|xi|^2 (1 - r^2) divided by the strain: about 1e-11 of the largest force here.)
+        EXPECT_LE(diff, 1e-10 * fmax) << where;
+        EXPECT_EQ(t_ref.newly_broken, t_fast.newly_broken) << where;
+      }
       broken += t_fast.newly_broken;
     }
     EXPECT_GT(broken, 0) << "variant " << variant << ": no bond broke, the failure path went untested";
   }
   EXPECT_GT(tested, 0) << s.law << ": no shape accepted";
+  EXPECT_GT(irregular_tested, 0) << s.law << ": no irregular body accepted";
 }
 
 // f / y = (dw/dy) / y for intact bonds, over compression and tension, for every shape.

@@ -311,6 +311,7 @@ PatternBuilder::~PatternBuilder() = default;
 
 void PatternBuilder::add_row(const std::vector<double>& xi2, const std::vector<double>& measure, double horizon) {
   const std::size_t n = xi2.size();
+  bonds_ += static_cast<std::int64_t>(n);
   thread_local std::vector<double> rounded;
   rounded.resize(n);
   std::uint64_t h = 1469598103934665603ull ^ n;  // FNV-1a over the slots' bits
@@ -354,7 +355,22 @@ void PatternBuilder::add_row(const std::vector<double>& xi2, const std::vector<d
   index_->by_hash.emplace(h, p);
 }
 
+void PatternBuilder::add_free_row(const std::vector<double>& weights) {
+  bool whole = true;
+  for (double w : weights) whole = whole && static_cast<float>(w) == 1.0f;
+  if (!whole && !weighted_) {  // the bonds so far weigh 1
+    p_.free_weight.assign(static_cast<std::size_t>(bonds_), 1.0f);
+    weighted_ = true;
+  }
+  if (weighted_)
+    for (double w : weights) p_.free_weight.push_back(static_cast<float>(w));
+  bonds_ += static_cast<std::int64_t>(weights.size());
+  p_.of_row.push_back(FamilyPatterns::kFree);
+  p_.has_free = true;
+}
+
 FamilyPatterns PatternBuilder::finish() {
+  if (weighted_) p_.free_weight.resize(static_cast<std::size_t>(bonds_), 1.0f);
   p_.xi2.shrink_to_fit();
   p_.inv_xi.shrink_to_fit();
   p_.measure.shrink_to_fit();
@@ -375,7 +391,8 @@ double BondFamilies::bytes_per_bond() const {
                        broken.size() + row_broken.size() + patterns.of_row.size() * sizeof(std::int32_t) +
                        patterns.begin.size() * sizeof(std::int64_t) +
                        (patterns.xi2.size() + patterns.inv_xi.size() + patterns.measure.size() +
-                        patterns.measure_per_xi2.size() + history.size()) * sizeof(double);
+                        patterns.measure_per_xi2.size() + history.size()) * sizeof(double) +
+                       patterns.free_weight.size() * sizeof(float);
   return bytes / static_cast<double>(neighbor.size());
 }
 

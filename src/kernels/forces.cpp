@@ -74,7 +74,7 @@ double stable_time_step(const BondLaw& law, double density, const BondView& v, c
   std::vector<char> pattern_done(v.patterns ? static_cast<std::size_t>(v.patterns->patterns()) : 0, 0);
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
-    if (v.patterns) {
+    if (v.patterned(i)) {
       char& done = pattern_done[v.patterns->of_row[i]];
       if (done) continue;
       done = 1;

@@ -163,6 +163,29 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     return plan;
   }
   const FamilyPatterns& P = *v.patterns;
+  // Free rows (no pattern: irregular node sets) go to their own list.
+  std::vector<std::int32_t> patterned;
+  if (P.has_free) {
+    patterned.reserve(nrows);
+    for (std::size_t r = 0; r < nrows; ++r) (P.is_free(rows[r]) ? plan.free : patterned).push_back(rows[r]);
+    rows = patterned.data();
+    nrows = patterned.size();
+    // By family size within windows of 256 rows (whose neighbours stay in cache): the eight rows
+    // of a vector group then end at nearly the same slot (lane slots per bond: the jittered
+    // 400 x 400 membrane mesh 1.006 instead of 1.080, the jittered 64^3 cloud 1.007 instead of
+    // 1.065).
+    constexpr std::size_t kFreeWindow = 256;
+    auto size_of = [&](std::int32_t i) { return v.offsets[i + 1] - v.offsets[i]; };
+    for (std::size_t w = 0; w < plan.free.size(); w += kFreeWindow)
+      std::stable_sort(plan.free.begin() + static_cast<std::ptrdiff_t>(w),
+                       plan.free.begin() + static_cast<std::ptrdiff_t>(std::min(plan.free.size(), w + kFreeWindow)),
+                       [&](std::int32_t a, std::int32_t b) { return size_of(a) < size_of(b); });
+    for (const std::int32_t i : plan.free) {
+      plan.free_nodes = std::max<std::int64_t>(plan.free_nodes, i + 1);
+      for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b)
+        plan.free_nodes = std::max<std::int64_t>(plan.free_nodes, v.neighbor[b] + 1);
+    }
+  }
   // Whether list entries a[0 .. m-1] continue a run from row `first` with stride s whose next row
   // is its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by
   // (q + l) s, or with `t` by (q + l) t_k for slot k.

@@ -115,10 +115,13 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         }
       }
     }
+    const BodyGeometry& g = nodes.bodies[nodes.body[i]];
     if (known != pattern_of_class.end()) {
-      patterns.repeat_pattern(known->second);
+      patterns.repeat_pattern(known->second, static_cast<std::int64_t>(ids.size()));
+    } else if (g.irregular) {
+      patterns.add_free_row(w);
     } else {
-      patterns.add_row(xi2, measure, nodes.bodies[nodes.body[i]].horizon);
+      patterns.add_row(xi2, measure, g.horizon);
       if (family >= 0) pattern_of_class.emplace(family, patterns.last_pattern());
     }
     (touches_ghost ? d.boundary_rows : d.interior_rows).push_back(r);

@@ -10,6 +10,7 @@
 #include <memory>
 #include <vector>
 
+#include "peri/core/simd.hpp"
 #include "peri/geometry/discretization.hpp"
 
 namespace peri {
@@ -113,18 +114,49 @@ bool crosses(const double* a, const double* b, const Crack& crack);
 /// 2^-46 of the horizon squared (below the round-off of the stored reference positions), so rows
 /// whose families differ only by round-off share a pattern, and both ends of a bond, on any
 /// rank, see the same |xi|^2 bit for bit.
+///
+/// Rows of irregular node sets (meshes, point clouds: BodyGeometry::irregular) share no family,
+/// and a pattern of their own would cost 32 bytes per bond. They keep none: *free* rows (of_row
+/// kFree), whose reference slots the loop computes from the reference positions and measures it
+/// loads (|xi|^2 = free_xi2, not rounded, the same bits from either end; 1/|xi| as the loop's 1/y:
+/// kernels/bond_loop.hpp free_slot), with w V = w_ij V_j from the bond's weight kept as a float
+/// (free_weight: 4 bytes per bond, the precision patterns keep weights in) where some free row
+/// has a partial weight, else w V = V_j.
 struct FamilyPatterns {
-  std::vector<std::int32_t> of_row;     ///< row -> pattern
+  static constexpr std::int32_t kFree = -1;
+  std::vector<std::int32_t> of_row;     ///< row -> pattern, or kFree
+  bool has_free = false;                ///< some row is free
+  /// Per ordered bond (CSR position): the quadrature weight w_ij of a free row's bond (1 for the
+  /// other rows' bonds); empty when every free row's bonds weigh 1.
+  std::vector<float> free_weight;
+  /// w_ij V_j of bond b (CSR position) of a free row, V_j its neighbour's measure.
+  double free_measure(std::int64_t b, double volume_j) const {
+    return free_weight.empty() ? volume_j : static_cast<double>(free_weight[b]) * volume_j;
+  }
   std::vector<std::int64_t> begin{0};   ///< pattern -> first slot (patterns + 1)
   std::vector<double> xi2;              ///< slot -> |xi|^2 [m^2]
   std::vector<double> inv_xi;           ///< slot -> 1 / |xi| [1/m] (from the rounded |xi|^2)
   std::vector<double> measure;          ///< slot -> w_ij V_j (quadrature weight x measure) [m^3]
   std::vector<double> measure_per_xi2;  ///< slot -> w_ij V_j / |xi|^2 [m] (membrane coefficient)
   std::int64_t patterns() const { return static_cast<std::int64_t>(begin.size()) - 1; }
+  bool is_free(std::int32_t row) const { return of_row[row] == kFree; }
+  /// Slot of a row's bond (not for free rows).
   std::int64_t slot(std::int32_t row, std::int64_t offset_in_family) const {
     return begin[of_row[row]] + offset_in_family;
   }
 };
+
+/// |xi|^2 of a free row's bond on the lanes of pack P from its reference vector e = X_j - X_i:
+/// (e2 e2 + e0 e0) + e1 e1 with a fused multiply-add (as the law loop's y^2). The same bits from
+/// either end.
+template <class P>
+inline typename P::V free_length2(typename P::V e0, typename P::V e1, typename P::V e2) {
+  return P::add(P::fmadd(e2, e2, P::mul(e0, e0)), P::mul(e1, e1));
+}
+/// free_length2 of the bond from Xi to Xj (free rows, and bonds without patterns).
+inline double free_xi2(const double* Xi, const double* Xj) {
+  return free_length2<simd::Scalar>(Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2]);
+}
 
 /// Builds FamilyPatterns row by row, sharing identical families.
 class PatternBuilder {
@@ -137,13 +169,21 @@ class PatternBuilder {
   /// `horizon` sets the rounding of |xi|^2.
   void add_row(const std::vector<double>& xi2, const std::vector<double>& measure, double horizon);
   /// Appends the next row with the pattern of an earlier one (last_pattern() after its add_row).
-  void repeat_pattern(std::int32_t pattern) { p_.of_row.push_back(pattern); }
+  void repeat_pattern(std::int32_t pattern, std::int64_t bonds) {
+    p_.of_row.push_back(pattern);
+    bonds_ += bonds;
+  }
+  /// Appends the next row as a free one (FamilyPatterns): its bonds' quadrature weights, kept
+  /// as floats (the measures add_row would store are float(w) V_j).
+  void add_free_row(const std::vector<double>& weights);
   std::int32_t last_pattern() const { return p_.of_row.back(); }
   FamilyPatterns finish();
 
  private:
   struct Index;
   FamilyPatterns p_;
+  std::int64_t bonds_ = 0;  // of the rows so far
+  bool weighted_ = false;   // free_weight kept (some free row has a partial weight)
   std::unique_ptr<Index> index_;
 };
 

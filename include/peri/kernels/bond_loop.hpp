@@ -16,25 +16,59 @@
 
 namespace peri {
 
-/// One bond of a row's family: its CSR position, neighbour and reference slot.
+/// The reference slot of a free row's bond (FamilyPatterns) on the lanes of pack P, from its
+/// reference vector e = X_j - X_i and its measure w_ij V_j (FamilyPatterns::free_measure):
+/// |xi|^2 = free_length2(e), 1/|xi| by simd::Root (as the laws' 1/y: on AVX-512 the estimate
+/// and its correction, no division), and w V / |xi|^2 = (w V / |xi|) / |xi|. The vector loop's
+/// lanes and the portable walk compute the same bits.
+template <class P, class B>
+__attribute__((always_inline)) inline void free_slot(const simd::Root<P>& root, typename P::V e0, typename P::V e1,
+                                                     typename P::V e2, typename P::V measure, B& b) {
+  b.xi2 = free_length2<P>(e0, e1, e2);
+  typename P::V xi;
+  root.finish(b.xi2, root.front(b.xi2), xi, b.inv_xi);
+  b.measure = measure;
+  b.measure_per_xi2 = P::mul(P::mul(measure, b.inv_xi), b.inv_xi);
+}
+
+/// One bond of a row's family: its CSR position, neighbour and reference slot (slot -1: none, the
+/// reference geometry from the positions; `free`: a free row's, free_slot).
 class FamilyBond {
  public:
-  FamilyBond(const BondView& v, std::int32_t i, std::int64_t b, std::int64_t slot) : v_(&v), i_(i), b_(b), slot_(slot) {}
+  FamilyBond(const BondView& v, std::int32_t i, std::int64_t b, std::int64_t slot, bool free = false)
+      : v_(&v), i_(i), b_(b), slot_(slot), free_(free) {}
   std::int64_t at() const { return b_; }  ///< CSR position
   std::int32_t j() const { return v_->neighbor[b_]; }
   bool broken() const { return v_->broken[b_] & kBrokenFlag; }
   std::uint8_t& flag() const { return v_->broken[b_]; }
-  /// |xi|^2 (the family pattern's, or from the reference positions without patterns).
+  /// |xi|^2 (the family pattern's, or from the reference positions: free rows, no patterns).
   double xi2() const { return slot_ >= 0 ? v_->patterns->xi2[slot_] : v_->xi2(i_, b_); }
   /// w_ij V_j [m^3].
-  double measure() const { return slot_ >= 0 ? v_->patterns->measure[slot_] : v_->volume[j()]; }
-  double inv_xi() const { return slot_ >= 0 ? v_->patterns->inv_xi[slot_] : 1.0 / std::sqrt(xi2()); }
-  double measure_per_xi2() const { return slot_ >= 0 ? v_->patterns->measure_per_xi2[slot_] : measure() / xi2(); }
+  double measure() const { return slot_ >= 0 ? v_->patterns->measure[slot_] : v_->measure(i_, b_); }
+  double inv_xi() const {
+    if (slot_ >= 0) return v_->patterns->inv_xi[slot_];
+    return free_ ? free_lanes().inv_xi : 1.0 / std::sqrt(xi2());
+  }
+  double measure_per_xi2() const {
+    if (slot_ >= 0) return v_->patterns->measure_per_xi2[slot_];
+    return free_ ? free_lanes().measure_per_xi2 : measure() / xi2();
+  }
 
  private:
+  struct Slot {
+    double xi2, inv_xi, measure, measure_per_xi2;
+  };
+  Slot free_lanes() const {
+    const double* Xi = v_->X + 3 * static_cast<std::int64_t>(i_);
+    const double* Xj = v_->X + 3 * static_cast<std::int64_t>(j());
+    Slot s;
+    free_slot<simd::Scalar>(simd::Root<simd::Scalar>{}, Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2], measure(), s);
+    return s;
+  }
   const BondView* v_;
   std::int32_t i_;
   std::int64_t b_, slot_;
+  bool free_;
 };
 
 /// The bonds of row i in CSR order: `for (const FamilyBond& bond : family(view, i))`.
@@ -42,11 +76,14 @@ class Family {
  public:
   Family(const BondView& v, std::int32_t i)
       : v_(&v), i_(i), begin_(v.offsets[i]), end_(v.offsets[i + 1]),
-        slot0_(v.patterns ? v.patterns->begin[v.patterns->of_row[i]] : -1) {}
+        slot0_(v.patterned(i) ? v.patterns->begin[v.patterns->of_row[i]] : -1),
+        free_(v.patterns && v.patterns->is_free(i)) {}
   struct iterator {
     const Family* f;
     std::int64_t b;
-    FamilyBond operator*() const { return {*f->v_, f->i_, b, f->slot0_ < 0 ? -1 : f->slot0_ + (b - f->begin_)}; }
+    FamilyBond operator*() const {
+      return {*f->v_, f->i_, b, f->slot0_ < 0 ? -1 : f->slot0_ + (b - f->begin_), f->free_};
+    }
     iterator& operator++() {
       ++b;
       return *this;
@@ -61,6 +98,7 @@ class Family {
   const BondView* v_;
   std::int32_t i_;
   std::int64_t begin_, end_, slot0_;
+  bool free_;
 };
 inline Family family(const BondView& v, std::int32_t i) { return Family(v, i); }
 

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <type_traits>
 #include <vector>
 
@@ -592,6 +593,255 @@ void group_avx2(const Law& law_of, const C& L, const BondView& v, const std::int
   finish_rows(law, v, rows, count, f0, f1, f2, w, newly, diss, force, tally);
 }
 
+// Slot k of a block of free rows, its bond vectors and reference slot set (free_slot): the law's
+// slot constants, the law, and each bond that reaches the failure test now flagged with its
+// lane's critical energy (free rows have a slot of their own on every lane).
+template <class Law, class C>
+__attribute__((always_inline)) inline void add_free_bond(const Law& law, const C& L, typename Law::Bonds& bonds,
+                                                         unsigned dead, std::int64_t k, typename Law::V& f0,
+                                                         typename Law::V& f1, typename Law::V& f2, typename Law::V& w,
+                                                         std::uint8_t* const* flag_row, int* newly, double* diss) {
+  using S = typename Law::Pack;
+  constexpr int W = S::W;
+  fill_slots<S>(law, bonds);
+  bonds.dead = dead;
+  const unsigned fresh = add_bond(law, bonds, f0, f1, f2, w);
+  if (fresh) [[unlikely]] {
+    double x2[W], m[W];
+    S::storeu(x2, bonds.xi2);
+    S::storeu(m, bonds.measure);
+    mark_fresh<W>(fresh, flag_row, k, [&](int l) { return L.critical_energy(x2[l]) * m[l]; }, newly, diss);
+  }
+}
+
+#if !defined(PERI_AVX512VL)
+// The free rows of AVX2 builds (free_records below serves AVX-512).
+// The gathers of the free rows' loop on pack S: W doubles at W 32-bit indices (Idx), and the W
+// 32-bit neighbour indices at W 64-bit CSR positions (Pos).
+template <class S>
+struct Gathers;
+template <>
+struct Gathers<simd::Simd4> {
+  using Idx = __m128i;
+  using Pos = __m256i;
+  static Pos load(const std::int64_t* a) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a)); }
+  static Pos plus(Pos a, std::int64_t k) { return _mm256_add_epi64(a, _mm256_set1_epi64x(k)); }
+  static Pos min(Pos a, Pos b) { return _mm256_blendv_epi8(a, b, _mm256_cmpgt_epi64(a, b)); }
+  static unsigned past(Pos at, Pos last) { return static_cast<unsigned>(_mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(at, last)))); }
+  static Idx neighbours(const std::int32_t* nbr, Pos at) { return _mm256_i64gather_epi32(nbr, at, 4); }
+  static Idx triple(Idx j) { return _mm_add_epi32(_mm_add_epi32(j, j), j); }
+  static __m256d at(const double* a, Idx j) { return _mm256_i32gather_pd(a, j, 8); }
+};
+
+// Up to W free rows (FamilyPatterns: no family pattern), one per lane of the law's pack (`count`
+// rows; idle lanes repeat the last row, flagged dead). Per slot k the lanes gather their k-th
+// neighbour's index, current and reference position and measure, and compute the reference slot
+// from them (free_slot), then evaluate the law as a block does; a lane past its row's end repeats
+// its last bond, flagged dead. `Intact`: the rows have no broken bond (no flag bytes read).
+template <bool Intact, class Law, class C>
+void free_group(const Law& law_of, const C& L, const BondView& v, const std::int32_t* group, int count,
+                double* force, BondTally& tally) {
+  using S = typename Law::Pack;
+  using G = Gathers<S>;
+  using V = typename S::V;
+  constexpr int W = S::W;
+  const Law law = law_of;  // a local copy, as in damaged_block
+  const simd::Root<S> root;
+  const float* weight = v.patterns->free_weight.empty() ? nullptr : v.patterns->free_weight.data();
+  std::int32_t rows[W];
+  // Per lane: the row's first CSR position, its last (-1 for a row without bonds), and the last
+  // it may read (0 for a row without bonds: its lane is dead throughout).
+  alignas(64) std::int64_t first[W], last[W], last_read[W];
+  std::uint8_t* flag_row[W];
+  std::int64_t nmax = 0;
+  for (int l = 0; l < W; ++l) {
+    rows[l] = group[std::min(l, count - 1)];
+    const std::int64_t b0 = v.offsets[rows[l]], n = v.offsets[rows[l] + 1] - b0;
+    first[l] = n > 0 ? b0 : 0;
+    last[l] = n > 0 ? b0 + n - 1 : -1;
+    last_read[l] = n > 0 ? b0 + n - 1 : 0;
+    flag_row[l] = v.broken + b0;
+    if (l < count) nmax = std::max(nmax, n);
+  }
+  const unsigned idle = ((1u << W) - 1u) & ~((1u << count) - 1u);
+  const typename G::Pos first_at = G::load(first), last_at = G::load(last), read_at = G::load(last_read);
+  const double* px = v.x;
+  const double* py = v.x + v.x_stride;
+  const double* pz = v.x + 2 * v.x_stride;
+  std::int32_t own3[W];
+  for (int l = 0; l < W; ++l) own3[l] = 3 * rows[l];
+  typename G::Idx own, own_3;
+  std::memcpy(&own, rows, sizeof own);
+  std::memcpy(&own_3, own3, sizeof own_3);
+  const V xi0 = G::at(px, own), xi1 = G::at(py, own), xi2 = G::at(pz, own);
+  const V Xi0 = G::at(v.X, own_3), Xi1 = G::at(v.X + 1, own_3), Xi2 = G::at(v.X + 2, own_3);
+  V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  int newly[W] = {};
+  double diss[W] = {};
+  // The neighbour indices one slot ahead (their gather's latency off the slot's chain).
+  typename G::Idx j_next = G::neighbours(v.neighbor, G::min(first_at, read_at));
+  for (std::int64_t k = 0; k < nmax; ++k) {
+    const typename G::Pos at = G::plus(first_at, k);
+    unsigned dead = idle | G::past(at, last_at);
+    const typename G::Pos b = G::min(at, read_at);
+    const typename G::Idx j = j_next;
+    j_next = G::neighbours(v.neighbor, G::min(G::plus(at, 1), read_at));
+    if constexpr (!Intact) {
+      alignas(64) std::int64_t bl[W];
+      std::memcpy(bl, &b, sizeof bl);
+      for (int l = 0; l < W; ++l) dead |= static_cast<unsigned>(v.broken[bl[l]] & kBrokenFlag) << l;
+    }
+    const typename G::Idx j3 = G::triple(j);
+    typename Law::Bonds bonds;
+    bonds.d0 = S::sub(G::at(px, j), xi0);
+    bonds.d1 = S::sub(G::at(py, j), xi1);
+    bonds.d2 = S::sub(G::at(pz, j), xi2);
+    V measure = G::at(v.volume, j);
+    if (weight) measure = S::mul(_mm256_cvtps_pd(_mm256_i64gather_ps(weight, b, 4)), measure);
+    free_slot<S>(root, S::sub(G::at(v.X, j3), Xi0), S::sub(G::at(v.X + 1, j3), Xi1), S::sub(G::at(v.X + 2, j3), Xi2),
+                 measure, bonds);
+    add_free_bond(law, L, bonds, dead, k, f0, f1, f2, w, flag_row, newly, diss);
+  }
+  finish_rows(law, v, rows, count, f0, f1, f2, w, newly, diss, force, tally);
+}
+#endif
+
+#if defined(PERI_AVX512VL)
+// The free rows' node records (RowBlocks::Scratch::records): the current positions of nodes
+// 0 .. free_nodes-1 copied in, and where the view's reference positions or measures are not
+// those the records hold, those too.
+inline void refresh_records(const BondView& v, const RowBlocks& plan) {
+  RowBlocks::Scratch& scratch = plan.scratch;
+  const std::int64_t n = plan.free_nodes;
+  if (n == 0) return;
+  double* __restrict rec = nullptr;
+  if (scratch.records.size() != static_cast<std::size_t>(8 * n) || scratch.records_of[0] != v.X ||
+      scratch.records_of[1] != v.volume) {
+    scratch.records.assign(static_cast<std::size_t>(8 * n), 0.0);
+    rec = scratch.records.data();
+    for (std::int64_t j = 0; j < n; ++j) {
+      rec[8 * j + 3] = v.volume[j];
+      for (int c = 0; c < 3; ++c) rec[8 * j + 4 + c] = v.X[3 * j + c];
+    }
+    scratch.records_of = {v.X, v.volume};
+  }
+  rec = scratch.records.data();
+  const double* __restrict x = v.x;
+  const double* __restrict y = v.x + v.x_stride;
+  const double* __restrict z = v.x + 2 * v.x_stride;
+  for (std::int64_t j = 0; j < n; ++j) {
+    rec[8 * j] = x[j];
+    rec[8 * j + 1] = y[j];
+    rec[8 * j + 2] = z[j];
+  }
+}
+
+// Eight node records (lane l's at rec[l], [x, y, z, V, X, Y, Z, 0]) as seven vectors of the
+// lanes' x, y, z, V, X, Y, Z: each half of a record loaded into a half of a vector (lanes l and
+// l + 4 in one: the insert may run on either vector port), then two stages of shuffles (15).
+struct Records8 {
+  __m512d x, y, z, V, X, Y, Z;
+};
+__attribute__((always_inline)) inline Records8 transpose_records(const double* const rec[8]) {
+  __m512d a[4], b[4];
+  for (int l = 0; l < 4; ++l) {
+    a[l] = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(rec[l])), _mm256_load_pd(rec[l + 4]), 1);
+    b[l] = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(rec[l] + 4)), _mm256_load_pd(rec[l + 4] + 4), 1);
+  }
+  // Pairs of lanes per 128-bit part: [x0 x1 | z0 z1 | x4 x5 | z4 z5], [y0 y1 | V0 V1 | y4 y5 | V4 V5], ...
+  const __m512d t0 = _mm512_unpacklo_pd(a[0], a[1]), t1 = _mm512_unpackhi_pd(a[0], a[1]);
+  const __m512d t2 = _mm512_unpacklo_pd(a[2], a[3]), t3 = _mm512_unpackhi_pd(a[2], a[3]);
+  const __m512d u0 = _mm512_unpacklo_pd(b[0], b[1]), u1 = _mm512_unpackhi_pd(b[0], b[1]);
+  const __m512d u2 = _mm512_unpacklo_pd(b[2], b[3]), u3 = _mm512_unpackhi_pd(b[2], b[3]);
+  const __m512i even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
+  Records8 o;
+  o.x = _mm512_permutex2var_pd(t0, even, t2);
+  o.z = _mm512_permutex2var_pd(t0, odd, t2);
+  o.y = _mm512_permutex2var_pd(t1, even, t3);
+  o.V = _mm512_permutex2var_pd(t1, odd, t3);
+  o.X = _mm512_permutex2var_pd(u0, even, u2);
+  o.Z = _mm512_permutex2var_pd(u0, odd, u2);
+  o.Y = _mm512_permutex2var_pd(u1, even, u3);
+  return o;
+}
+
+// Up to eight free rows (FamilyPatterns: no family pattern), one per lane (`count` rows; idle
+// lanes repeat the last row, flagged dead): per slot k each lane loads its k-th neighbour's node
+// record, the eight are transposed into vectors, the reference slot computed from them
+// (free_slot) and the law evaluated as in a block. A lane past its row's end repeats its last
+// bond, flagged dead. `Intact`: the rows have no broken bond (no flag bytes read); `Weighted`:
+// the measures carry the bonds' weights (FamilyPatterns::free_weight). The same bits as the
+// portable walk's rows (the same operations in CSR order). The vector ports bound this
+// loop: per slot the transpose (15 shuffles, 8 inserts) and the reference slot (15 operations)
+// come on top of the law's own work, about three times a grid block's operations per bond.
+template <bool Intact, bool Weighted, class Law, class C>
+void free_records(const Law& law_of, const C& L, const BondView& v, const double* rec, const std::int32_t* group,
+                  int count, double* force, BondTally& tally) {
+  using S = simd::Simd8;
+  static_assert(std::is_same_v<typename Law::Pack, S>, "free_records: eight lanes");
+  constexpr int W = 8;
+  const Law law = law_of;  // a local copy, as in damaged_block
+  const simd::Root<S> root;
+  std::int32_t rows[W];
+  std::int64_t n[W];
+  const std::int32_t* nbr[W];
+  std::uint8_t* flag_row[W];
+  std::int64_t nmin = INT64_MAX, nmax = 0;
+  const double* own_rec[W];
+  const float* weight[W];
+  for (int l = 0; l < W; ++l) {
+    rows[l] = group[std::min(l, count - 1)];
+    const std::int64_t b0 = v.offsets[rows[l]];
+    n[l] = v.offsets[rows[l] + 1] - b0;
+    nbr[l] = v.neighbor + b0;
+    if constexpr (Weighted) weight[l] = v.patterns->free_weight.data() + b0;
+    flag_row[l] = v.broken + b0;
+    nmin = std::min(nmin, n[l]);
+    nmax = std::max(nmax, n[l]);
+    own_rec[l] = rec + 8 * static_cast<std::int64_t>(rows[l]);
+  }
+  const unsigned idle = 0xFFu & ~((1u << count) - 1u);
+  const Records8 own = transpose_records(own_rec);
+  S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  int newly[W] = {};
+  double diss[W] = {};
+  for (std::int64_t k = 0; k < nmax; ++k) {
+    unsigned dead = idle;
+    const double* r[W];
+    float wk[W];
+    // (Each address pinned to a general register: GCC otherwise packs the eight into a vector and
+    // extracts them one by one, 0.6 times as fast.)
+    if (k < nmin) [[likely]] {
+      for (int l = 0; l < W; ++l) {
+        r[l] = rec + 8 * static_cast<std::int64_t>(nbr[l][k]);
+        __asm__("" : "+r"(r[l]));
+        if constexpr (Weighted) wk[l] = weight[l][k];
+      }
+    } else {  // a lane past its row's end repeats its last bond (without bonds, its own record)
+      for (int l = 0; l < W; ++l) {
+        dead |= static_cast<unsigned>(k >= n[l]) << l;
+        const std::int64_t kk = std::min(k, n[l] - 1);
+        r[l] = rec + 8 * static_cast<std::int64_t>(n[l] > 0 ? nbr[l][kk] : rows[l]);
+        __asm__("" : "+r"(r[l]));
+        if constexpr (Weighted) wk[l] = n[l] > 0 ? weight[l][kk] : 0.0f;
+      }
+    }
+    const Records8 o = transpose_records(r);
+    S::V measure = o.V;
+    if constexpr (Weighted) measure = S::mul(_mm512_cvtps_pd(_mm256_loadu_ps(wk)), measure);
+    if constexpr (!Intact)
+      for (int l = 0; l < W; ++l) dead |= static_cast<unsigned>(k < n[l] ? flag_row[l][k] & kBrokenFlag : 0) << l;
+    typename Law::Bonds bonds;
+    bonds.d0 = S::sub(o.x, own.x);
+    bonds.d1 = S::sub(o.y, own.y);
+    bonds.d2 = S::sub(o.z, own.z);
+    free_slot<S>(root, S::sub(o.X, own.X), S::sub(o.Y, own.Y), S::sub(o.Z, own.Z), measure, bonds);
+    add_free_bond(law, L, bonds, dead, k, f0, f1, f2, w, flag_row, newly, diss);
+  }
+  finish_rows(law, v, rows, count, f0, f1, f2, w, newly, diss, force, tally);
+}
+#endif
+
 // Whether rows first + l s (l < count) have no broken bond: from the rows' summary bytes
 // (BondFamilies::row_broken) where the view has them, else from the flags; for s = 1 either is
 // one range.
@@ -874,6 +1124,31 @@ void forces(const C& L, const BondView& v, const RowBlocks& rows, double* force,
                         P.of_row[group[0]] == P.of_row[group[2]] && P.of_row[group[0]] == P.of_row[group[3]];
     if (shared) group_avx2<true>(law, L, v, group, count, force, tally);
     else group_avx2<false>(law, L, v, group, count, force, tally);
+  }
+  constexpr int W = SimdWide::W;
+  const std::size_t nfree = rows.free.size();
+#if defined(PERI_AVX512VL)
+  refresh_records(v, rows);
+  const double* rec = rows.scratch.records.data();
+#endif
+  for (std::size_t r = 0; r < nfree; r += W) {
+    const std::int32_t* group = rows.free.data() + r;
+    const int count = static_cast<int>(std::min<std::size_t>(W, nfree - r));
+    bool intact = true;
+    for (int l = 0; l < count && intact; ++l)
+      intact = v.row_broken ? !v.row_broken[group[l]] : !any_flag(v.broken + v.offsets[group[l]], v.broken + v.offsets[group[l] + 1]);
+#if defined(PERI_AVX512VL)
+    if (P.free_weight.empty()) {
+      if (intact) free_records<true, false>(laws.wide, L, v, rec, group, count, force, tally);
+      else free_records<false, false>(laws.wide, L, v, rec, group, count, force, tally);
+    } else {
+      if (intact) free_records<true, true>(laws.wide, L, v, rec, group, count, force, tally);
+      else free_records<false, true>(laws.wide, L, v, rec, group, count, force, tally);
+    }
+#else
+    if (intact) free_group<true>(laws.wide, L, v, group, count, force, tally);
+    else free_group<false>(laws.wide, L, v, group, count, force, tally);
+#endif
   }
 }
 

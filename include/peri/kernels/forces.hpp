@@ -21,7 +21,7 @@ struct BondView {
   const std::int64_t* offsets = nullptr;
   const std::int32_t* neighbor = nullptr;
   std::uint8_t* broken = nullptr;
-  const FamilyPatterns* patterns = nullptr;  ///< nullptr: |xi|^2 from X, measure V_j (weight 1)
+  const FamilyPatterns* patterns = nullptr;  ///< nullptr: |xi|^2 from X, measure V_j (weight 1), as free rows
   const double* x = nullptr;        ///< current positions, three planes (bond_forces only)
   std::int64_t x_stride = 0;        ///< doubles from one plane of x to the next
   std::uint8_t* row_broken = nullptr;  ///< BondFamilies::row_broken, or nullptr: flags are read
@@ -39,16 +39,18 @@ struct BondView {
   /// there).
   const std::uint8_t* may_break = nullptr;
 
+  /// Whether row i's reference geometry comes from a family pattern (else from X and volume:
+  /// FamilyPatterns' free rows, or no patterns at all).
+  bool patterned(std::int32_t i) const noexcept { return patterns && !patterns->is_free(i); }
   /// Reference |xi|^2 of bond b of row i.
   double xi2(std::int32_t i, std::int64_t b) const noexcept {
-    if (patterns) return patterns->xi2[patterns->slot(i, b - offsets[i])];
-    double s2 = 0;
-    for (int c = 0; c < 3; ++c) s2 += (X[3 * neighbor[b] + c] - X[3 * i + c]) * (X[3 * neighbor[b] + c] - X[3 * i + c]);
-    return s2;
+    if (patterned(i)) return patterns->xi2[patterns->slot(i, b - offsets[i])];
+    return free_xi2(&X[3 * static_cast<std::int64_t>(i)], &X[3 * static_cast<std::int64_t>(neighbor[b])]);
   }
   /// Quadrature measure w_ij V_j of bond b of row i [m^3].
   double measure(std::int32_t i, std::int64_t b) const noexcept {
-    return patterns ? patterns->measure[patterns->slot(i, b - offsets[i])] : volume[neighbor[b]];
+    if (patterned(i)) return patterns->measure[patterns->slot(i, b - offsets[i])];
+    return patterns ? patterns->free_measure(b, volume[neighbor[b]]) : volume[neighbor[b]];
   }
 };
 
@@ -129,12 +131,18 @@ struct RowBox {
   std::vector<BoxSlot> slots;  ///< one per slot of the pattern
 };
 
-/// A list of owned rows grouped for the vector loop: `runs`, and `rest`, every other row
-/// (corners, partition boundaries, irregular node sets), sorted by family pattern, whose lanes
-/// the loop gathers element by element. Each row's force is the same bits either way.
+/// A list of owned rows grouped for the vector loop: `runs`, `rest`, every other row with a
+/// family pattern (corners, partition boundaries), sorted by pattern, whose lanes the loop gathers
+/// element by element, and `free`, the rows without one. Each row's force is the same bits
+/// either way.
 struct RowBlocks {
   std::vector<RowRun> runs;
   std::vector<std::int32_t> rest;
+  /// FamilyPatterns' free rows (irregular node sets), by family size within windows of 256 rows
+  /// of the list: the loop evaluates them a vector width at a time, gathering the neighbours' current and reference positions and
+  /// measures and computing each bond's reference slot from them.
+  std::vector<std::int32_t> free;
+  std::int64_t free_nodes = 0;  ///< local nodes the free rows read: 0 .. free_nodes-1
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
   std::vector<std::int32_t> slot_shifts;  ///< per-slot neighbour shifts of some strided runs (RowRun)
   /// Strided runs read their neighbours' positions with one vector load per coordinate, as
@@ -194,6 +202,12 @@ struct RowBlocks {
     };
     LimitsKey limits_of;
     simd::AlignedVector<double> mirror;
+    /// The free rows' node records (AVX-512): per local node 0 .. free_nodes-1, one cache line
+    /// [x, y, z, V, X, Y, Z, 0] (current position, measure, reference position); the current
+    /// positions copied by each call, the rest where the view's X or volume differ from
+    /// `records_of`.
+    simd::AlignedVector<double> records;
+    std::array<const double*, 2> records_of{nullptr, nullptr};
     std::vector<std::uint8_t> dead_cache, dead_known;  ///< lane bytes, and whether each entry holds them
     std::vector<std::uint32_t> live_cache;             ///< each entry's live slots (bits, live_words words)
     std::int64_t dead_stride = 0;                      ///< bytes per entry
@@ -206,7 +220,7 @@ struct RowBlocks {
     for (const RowRun& r : runs) n += static_cast<std::size_t>(r.count);
     return n;
   }
-  std::size_t rows() const { return run_rows() + rest.size(); }
+  std::size_t rows() const { return run_rows() + rest.size() + free.size(); }
 };
 
 /// Groups `rows` into runs (first of consecutive rows in list order, then, among the others

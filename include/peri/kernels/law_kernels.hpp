@@ -53,12 +53,13 @@ decltype(auto) with_lanes(const void* constants, bool energy, F&& f) {
   });
 }
 
-// The rows of a plan in plan order (runs, then the rest), as the portable walk takes them.
+// The rows of a plan in plan order (runs, the rest, the free rows), as the portable walk takes them.
 template <class F>
 void each_row(const RowBlocks& rows, F&& f) {
   for (const RowRun& run : rows.runs)
     for (std::int32_t l = 0; l < run.count; ++l) f(run.first + l * run.stride);
   for (std::int32_t i : rows.rest) f(i);
+  for (std::int32_t i : rows.free) f(i);
 }
 
 }  // namespace law_entry

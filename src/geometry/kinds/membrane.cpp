@@ -85,6 +85,7 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
   if (b.mesh.empty()) return grid_sheet_nodes(b, g, sink);
   const MeshData& m = *b.mesh_data;
   g.traits.grid = false;
+  g.irregular = true;
   g.traits.flat = m.planar;
   g.thickness = b.thickness;
   g.cell_area = m.total / static_cast<double>(m.nodes.size());

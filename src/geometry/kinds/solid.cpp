@@ -99,6 +99,7 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& all) {
   if (!b.mesh.empty()) {  // the mesh's vertices in ascending tag order, a quarter of their tets' volumes
     const MeshData& m = *b.mesh_data;
     g.traits.grid = false;
+    g.irregular = true;
     g.mesh_mean_edge = m.mean_edge;
     for (std::size_t k = 0; k < m.nodes.size(); ++k) all.add(m.nodes[k][0], m.nodes[k][1], m.nodes[k][2], m.measure[k]);
     g.cells = {static_cast<std::int64_t>(m.nodes.size()), 1, 1};
@@ -107,6 +108,7 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& all) {
   CutSink sink(b, all);
   if (!b.points.empty()) {
     g.traits.grid = false;
+    g.irregular = true;
     for (const CloudPoint& p : b.cloud) sink.add(p.x[0], p.x[1], p.x[2], p.volume);
     sink.finish();
     return;
