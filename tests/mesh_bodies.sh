@@ -15,6 +15,8 @@
 #    grows), on 1 and 2 ranks with the same positions bit for bit; a tet solid likewise;
 #  - a fiber's path read from a file (`polyline`, with a comment, a blank line, commas and blanks)
 #    gives the nodes and the motion of the same path given inline, bit for bit;
+#  - frames_surface.xdmf holds the tube's frames over its triangles (meshio reads them), and a tet
+#    solid writes none;
 #  - --print-scene of a mesh scene reads back to the same text; --dry-run names the mesh's mean
 #    edge length and the spacing the horizon is measured in.
 # usage: mesh_bodies.sh PERIDRIVE GMSH MPIEXEC [MPI flags...]
@@ -137,6 +139,20 @@ fb, Xb, Vb = frames("polyline")
 xa, xb = fa[sorted(fa)[-1]]["position"], fb[sorted(fb)[-1]]["position"]
 check("polyline file", np.array_equal(Xa, Xb) and np.array_equal(Va, Vb) and np.array_equal(xa, xb) and len(Va) == 40 and np.abs(xb - Xb).max() > 0,
       f"{len(Vb)} nodes, reference and final positions as the inline path's bit for bit")
+# frames_surface.xdmf: the same frames over the file's triangles, as meshio reads it (a rod of
+# tetrahedra has no surface file).
+import os, meshio
+with h5py.File(f"{tmp}/out-inflate/frames.h5", "r") as f:
+    tri = f["mesh/triangles"][()]
+    X = f["mesh/reference_position"][()]
+    last = f["frames"][sorted(f["frames"].keys())[-1]]["position"][()]
+with meshio.xdmf.TimeSeriesReader(f"{tmp}/out-inflate/frames_surface.xdmf") as r:
+    points, cells = r.read_points_cells()
+    t, point_data, _ = r.read_data(r.num_steps - 1)
+cells = {c.type: c.data for c in cells}
+check("surface XDMF", list(cells) == ["triangle"] and np.array_equal(cells["triangle"], tri) and len(points) == len(X)
+      and np.array_equal(point_data["displacement"] + X, last) and not os.path.exists(f"{tmp}/out-rod/frames_surface.xdmf"),
+      f"{len(tri)} triangles over {len(points)} nodes, {r.num_steps} steps; none for the tet rod")
 a, b = open(f"{tmp}/printed.yaml").read(), open(f"{tmp}/printed2.yaml").read()
 check("--print-scene round trip", a == b and "# spacing: not given; the mesh's mean edge length" in a and "group: bottom" in a, "same text")
 dry = open(f"{tmp}/dry.txt").read()

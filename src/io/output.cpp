@@ -479,6 +479,13 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
 }
 
 void FrameWriter::write_xdmf() const {
+  write_xdmf_file(stem_ + ".xdmf", false);
+  // The mesh membranes' triangles over the same frames (every node written: the triangles'
+  // natural ids are the frames' node order).
+  if (!triangles_.empty() && !output_.selects_nodes()) write_xdmf_file(stem_ + "_surface.xdmf", true);
+}
+
+void FrameWriter::write_xdmf_file(const std::string& name, bool surface) const {
   const std::string h5 = stem_ + ".h5";
   const long long n = sel_total_;
   std::ostringstream x;
@@ -496,10 +503,16 @@ void FrameWriter::write_xdmf() const {
   for (std::size_t k = 0; k < times_.size(); ++k) {
     const std::string f = frame_name(static_cast<int>(k));
     x << "   <Grid Name=\"frame" << k << "\" GridType=\"Uniform\">\n"
-      << "    <Time Value=\"" << times_[k] << "\"/>\n"
-      << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\">"
-      << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5
-      << ":/mesh/connectivity</DataItem></Topology>\n"
+      << "    <Time Value=\"" << times_[k] << "\"/>\n";
+    if (surface)
+      x << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << triangles_.size() << "\">"
+        << "<DataItem Dimensions=\"" << triangles_.size() << " 3\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">"
+        << h5 << ":/mesh/triangles</DataItem></Topology>\n";
+    else
+      x << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\">"
+        << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5
+        << ":/mesh/connectivity</DataItem></Topology>\n";
+    x
       << "    <Geometry GeometryType=\"XYZ\">"
       << (output_.has_field("position") ? item(f + "/position", 3, field_precision)
                                         : item("/mesh/reference_position", 3, 8))
@@ -515,7 +528,7 @@ void FrameWriter::write_xdmf() const {
       << "   </Grid>\n";
   }
   x << "  </Grid>\n </Domain>\n</Xdmf>\n";
-  write_text_file(dir_ + "/" + stem_ + ".xdmf", x.str());
+  write_text_file(dir_ + "/" + name, x.str());
 }
 
 std::string rows_up_to(const std::string& path, const std::string& header, std::int64_t step) {

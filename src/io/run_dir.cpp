@@ -118,7 +118,7 @@ const std::vector<std::string>& run_file_names() {
       "tips.csv",            "summary.json",      "FAILED",              "checkpoint.h5",
       "checkpoint.prev.h5",  "checkpoint.h5.tmp", "frames.h5.salvage",   "scene.resolved.yaml.tmp",
       "frames.xdmf.tmp",     "series.csv.tmp",    "summary.json.tmp",    "FAILED.tmp",
-      "quasistatic.csv"};
+      "quasistatic.csv",     "frames_surface.xdmf", "frames_surface.xdmf.tmp"};
   return names;
 }
 

@@ -88,7 +88,10 @@ class FrameWriter {
   void agree(bool ok, const std::string& what);
   /// This rank's reason for a failed write that the free space does not show, or "".
   std::string local_reason() const;
+  /// <stem>.xdmf (the nodes as vertices), and with mesh membranes' triangles and every node in the
+  /// frames, <stem>_surface.xdmf (the same frames over the triangles).
   void write_xdmf() const;
+  void write_xdmf_file(const std::string& name, bool surface) const;
   bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
   /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
   /// that replaces it (false if it cannot be opened at all). Collective.
