@@ -16,7 +16,7 @@
 #  - a fiber's path read from a file (`polyline`, with a comment, a blank line, commas and blanks)
 #    gives the nodes and the motion of the same path given inline, bit for bit;
 #  - frames_surface.xdmf holds the tube's frames over its triangles (meshio reads them), and a tet
-#    solid writes none;
+#    solid writes none; --dry-run's output size counts the triangles;
 #  - --print-scene of a mesh scene reads back to the same text; --dry-run names the mesh's mean
 #    edge length and the spacing the horizon is measured in.
 # usage: mesh_bodies.sh PERIDRIVE GMSH MPIEXEC [MPI flags...]
@@ -158,6 +158,12 @@ check("--print-scene round trip", a == b and "# spacing: not given; the mesh's m
 dry = open(f"{tmp}/dry.txt").read()
 edge = [float(l.split("=")[1]) for l in dry.splitlines() if l.startswith("shell.mesh_mean_edge_length")]
 spacing = [float(l.split("=")[1]) for l in dry.splitlines() if l.startswith("shell.spacing")]
+# The output's size counts the triangles /mesh/triangles holds (24 bytes each) beside the frames
+# and the mesh's 48 bytes per node (and 64 KiB of headroom); the figures printed to 4 digits.
+out = {l.split("=")[0].strip(): float(l.split("=")[1]) for l in dry.splitlines() if l.startswith("output.")}
+rest = out["output.bytes"] - out["output.frames"] * out["output.frame_bytes"] - 48 * out["output.frame_nodes"] - 65536
+check("output size counts the triangles", abs(rest - 24 * len(tri)) < 1e-3 * out["output.bytes"],
+      f"{out['output.bytes']:.4g} bytes: {rest:.0f} beyond the frames and nodes, 24 x {len(tri)} triangles = {24 * len(tri)}")
 check("--dry-run names the mean edge", edge and spacing and edge == spacing and abs(delta / (3 * edge[0]) - 1) < 1e-9,
       f"mean edge {edge}, spacing {spacing}, horizon {delta} = 3 spacings")
 sys.exit(0 if all(checks) else 1)

@@ -84,4 +84,11 @@ std::vector<std::int64_t> select_nodes(const Nodes& nodes, const Scene& scene,
   return ids;
 }
 
+std::vector<std::array<std::int64_t, 3>> mesh_triangles(const std::vector<BodyGeometry>& bodies) {
+  std::vector<std::array<std::int64_t, 3>> triangles;
+  for (const BodyGeometry& g : bodies)
+    if (g.mesh_mean_edge > 0) triangles.insert(triangles.end(), g.triangles.begin(), g.triangles.end());
+  return triangles;
+}
+
 }  // namespace peri

@@ -115,14 +115,17 @@ double frame_bytes(const Output& output, std::int64_t nodes) {
   return (output.single_precision ? 4.0 : 8.0) * values * static_cast<double>(nodes) + 65536.0;  // + metadata
 }
 
-double mesh_bytes(const Output& output, std::int64_t nodes) {
-  // reference positions, body, volume (doubles), cells (int64), natural ids with a selection
-  return (8.0 * 5 + 8.0 + (output.selects_nodes() ? 8.0 : 0.0)) * static_cast<double>(nodes) + 65536.0;
+double mesh_bytes(const Output& output, std::int64_t nodes, std::int64_t triangles) {
+  // reference positions, body, volume (doubles), cells (int64), natural ids with a selection; the
+  // mesh membranes' triangles (3 int64 each)
+  return (8.0 * 5 + 8.0 + (output.selects_nodes() ? 8.0 : 0.0)) * static_cast<double>(nodes) +
+         24.0 * static_cast<double>(triangles) + 65536.0;
 }
 
 double output_bytes(const Output& output, std::int64_t frames, std::int64_t frame_nodes, std::int64_t nodes, bool mesh,
-                    std::string* parts) {
-  const double frame = frame_bytes(output, frame_nodes), mesh_part = mesh ? mesh_bytes(output, frame_nodes) : 0.0;
+                    std::int64_t triangles, std::string* parts) {
+  const double frame = frame_bytes(output, frame_nodes),
+               mesh_part = mesh ? mesh_bytes(output, frame_nodes, triangles) : 0.0;
   // Checkpoints by step count: the current one and the previous, displacement and velocity at
   // least (broken bonds add 16 bytes each).
   const double checkpoints = output.checkpoint_every_steps > 0 ? 2.0 * (48.0 * static_cast<double>(nodes) + 65536.0) : 0.0;

@@ -62,7 +62,7 @@ double RunOutput::predicted_bytes(const Output& output, std::int64_t nodes, std:
                                   std::string* parts) const {
   std::int64_t frames = 0;
   for (std::int64_t s : frame_steps_) frames += s > resume_step;
-  return output_bytes(output, frames, frames_->frame_nodes(), nodes, resume_step < 0, parts);
+  return output_bytes(output, frames, frames_->frame_nodes(), nodes, resume_step < 0, frames_->triangles(), parts);
 }
 
 void RunOutput::check_free_space(const Output& output, std::int64_t nodes, std::int64_t resume_step) const {

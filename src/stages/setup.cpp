@@ -316,7 +316,8 @@ void derived_constants(const Problem& p, RunSummary& summary) {
   summary.output = {{"frames", double(frames)},
                     {"frame_nodes", double(p.frame_nodes)},
                     {"frame_bytes", frame_bytes(p.scene.output, p.frame_nodes)},
-                    {"bytes", output_bytes(p.scene.output, frames, p.frame_nodes, p.domain.global_nodes, true)}};
+                    {"bytes", output_bytes(p.scene.output, frames, p.frame_nodes, p.domain.global_nodes, true,
+                                           static_cast<std::int64_t>(mesh_triangles(p.bodies).size()))}};
 }
 
 }  // namespace

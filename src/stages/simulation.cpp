@@ -69,12 +69,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       if (!columns.empty()) columns += ',';
       columns += p_->tools->series_columns();
     }
-    std::vector<std::array<std::int64_t, 3>> triangles;  // the mesh membranes' surfaces
-    for (const BodyGeometry& g : p_->bodies)
-      if (g.mesh_mean_edge > 0) triangles.insert(triangles.end(), g.triangles.begin(), g.triangles.end());
     output_.open(options_.out_dir, domain_, state_, p_->resolved, scene_.output,
                  options_.restart ? options_.restart->step : -1, columns, tips_ != nullptr, comm_,
-                 std::move(triangles));
+                 mesh_triangles(p_->bodies));
     if (std::any_of(scene_.stages.begin(), scene_.stages.end(),
                     [](const Stage& s) { return s.kind == StageKind::QuasiStatic; })) {
       std::string qs = "step,stage,increment,load_factor,newton_iterations,linear_iterations,broken_bonds,"

@@ -51,6 +51,10 @@ struct Nodes {
   std::int64_t size() const { return static_cast<std::int64_t>(volume.size()); }
 };
 
+/// The triangles of the mesh membranes among `bodies` (natural ids, the files' orientation), in
+/// body order: the surfaces the frames draw (a sphere's triangles carry its pressure only).
+std::vector<std::array<std::int64_t, 3>> mesh_triangles(const std::vector<BodyGeometry>& bodies);
+
 /// Where a body kind's discretize appends its nodes: the scene's node arrays, for one body.
 class NodeSink {
  public:

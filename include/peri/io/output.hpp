@@ -33,14 +33,15 @@ void write_text_file(const std::string& path, const std::string& text);
 
 /// About how many bytes a frame of `nodes` nodes with the output's fields adds to a file.
 double frame_bytes(const Output& output, std::int64_t nodes);
-/// About how many bytes the mesh of `nodes` frame nodes takes (positions, body, volume, cells).
-double mesh_bytes(const Output& output, std::int64_t nodes);
+/// About how many bytes the mesh of `nodes` frame nodes takes (positions, body, volume, cells)
+/// with `triangles` mesh-membrane triangles.
+double mesh_bytes(const Output& output, std::int64_t nodes, std::int64_t triangles = 0);
 
-/// About how many bytes a run writes: `frames` frames of `frame_nodes` nodes, the mesh (`mesh`),
-/// and checkpoints by step count of `nodes` nodes (their displacement and velocity); `parts`
-/// receives these in words.
+/// About how many bytes a run writes: `frames` frames of `frame_nodes` nodes, the mesh (`mesh`,
+/// with `triangles` mesh-membrane triangles), and checkpoints by step count of `nodes` nodes
+/// (their displacement and velocity); `parts` receives these in words.
 double output_bytes(const Output& output, std::int64_t frames, std::int64_t frame_nodes, std::int64_t nodes, bool mesh,
-                    std::string* parts = nullptr);
+                    std::int64_t triangles = 0, std::string* parts = nullptr);
 /// Frames a run of total_steps steps writes: output.frames, at most one per step.
 std::int64_t output_frames(const Output& output, std::int64_t total_steps);
 
@@ -63,6 +64,8 @@ class FrameWriter {
   void set_triangles(std::vector<std::array<std::int64_t, 3>> triangles) { triangles_ = std::move(triangles); }
   /// Nodes a frame holds (all ranks).
   std::int64_t frame_nodes() const { return sel_total_; }
+  /// Triangles /mesh/triangles holds (set_triangles).
+  std::int64_t triangles() const { return static_cast<std::int64_t>(triangles_.size()); }
   /// About how many bytes a frame adds to the file.
   double frame_bytes() const;
   ~FrameWriter();
