@@ -87,7 +87,10 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
     const std::int64_t i = d.natural[r];
     const std::int64_t family = family_class(nodes, cells, i);
     const auto known = family >= 0 ? pattern_of_class.find(family) : pattern_of_class.end();
-    neighbours_of(nodes, cells, i, ids, w, known == pattern_of_class.end() ? &xi2 : nullptr);
+    const BodyGeometry& g = nodes.bodies[nodes.body[i]];
+    // A row with a new pattern needs its bonds' |xi|^2 and measures; a free row its weights alone.
+    const bool new_pattern = known == pattern_of_class.end() && !g.irregular;
+    neighbours_of(nodes, cells, i, ids, w, new_pattern ? &xi2 : nullptr);
     measure.clear();
     for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
       const std::size_t k = static_cast<std::size_t>(b - d.bonds.offsets[r]);
@@ -102,7 +105,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
       }
       d.bonds.neighbor[b] = lj;
       // Weights are kept to float precision, as the per-bond weights they replace were.
-      if (known == pattern_of_class.end())
+      if (new_pattern)
         measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);
       if (nodes.bodies[nodes.body[i]].traits.cut_by_cracks()) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
@@ -115,7 +118,6 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         }
       }
     }
-    const BodyGeometry& g = nodes.bodies[nodes.body[i]];
     if (known != pattern_of_class.end()) {
       patterns.repeat_pattern(known->second, static_cast<std::int64_t>(ids.size()));
     } else if (g.irregular) {
