@@ -316,7 +316,9 @@ TEST(LinearSpring, SnesTangentIsTheDerivativeOfTheInternalForce) {
   MatSetType(J, MATAIJ);
   MatSetUp(J);
   MatSetOption(J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE);
-  sim.add_tangent(J);
+  DofLayout layout;  // all 3 components of every node, in the domain's global numbering
+  layout.block.assign(d.global.begin(), d.global.end());
+  sim.add_tangent(J, layout);
   MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY);
   MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY);
   PetscInt first = 0, last = 0, total = 0;

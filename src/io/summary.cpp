@@ -89,7 +89,7 @@ std::string RunSummary::to_json() const {
       << ", \"linear_iterations\": " << q.linear_iterations << ", \"broken_bonds\": " << q.broken
       << ", \"seconds\": " << json_number(q.seconds) << ", \"residual_seconds\": " << json_number(q.residual_seconds)
       << ", \"tangent_seconds\": " << json_number(q.tangent_seconds) << ", \"tangent_assemblies\": " << q.tangent_assemblies
-      << ", \"near_null_modes\": " << q.near_null_modes
+      << ", \"near_null_modes\": " << q.near_null_modes << ", \"unknowns\": " << q.unknowns
       << ", \"support_work\": " << json_number(q.external_work)
       << ", \"work_error\": " << json_number(k < quasistatic_work_error.size() ? quasistatic_work_error[k] : NAN)
       << "}";

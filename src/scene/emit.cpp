@@ -174,6 +174,7 @@ void emit_stage(Writer& w, const Stage& s) {
                          : s.jacobian == Stage::Jacobian::MfOperator ? "mf_operator"
                                                                       : "matrix_free");
     w.key(4, "jacobian_shift", s.jacobian_shift);
+    w.key(4, "prescribed", s.prescribed == Stage::Prescribed::Eliminated ? "eliminated" : "scaled_rows");
     w.key(4, "max_break_passes", std::to_string(s.max_break_passes));
     return;
   }

@@ -352,6 +352,9 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
                                                {"matrix_free", Stage::Jacobian::MatrixFree}});
     if (auto x = m.get("jacobian_shift"))
       s.jacobian_shift = x->number_if("a number in [0, 1)", [](double f) { return f >= 0 && f < 1; });
+    if (auto x = m.get("prescribed"))
+      s.prescribed = x->choice<Stage::Prescribed>(
+          {{"eliminated", Stage::Prescribed::Eliminated}, {"scaled_rows", Stage::Prescribed::ScaledRows}});
     if (auto x = m.get("max_break_passes")) s.max_break_passes = x->integer(1, 1000000);
     return s;
   }

@@ -268,13 +268,18 @@ inline const Keys kStageKeys = {
             "stiffness at zero tension)"},
     {.name = "jacobian", .fallback = "mf_operator",
      .doc = "`mf_operator`: the Krylov solver's operator is the residual's directional difference (matrix-free) "
-            "and the assembled bond tangent (block size 3) builds the preconditioner, reassembled only when a "
+            "and the assembled bond tangent builds the preconditioner, reassembled only when a "
             "linear solve needs more than twice the iterations of the first after the last assembly, or bonds "
             "broke; `assembled`: the tangent is assembled at every Newton iteration and is the operator too; "
             "`matrix_free`: finite-difference Newton-Krylov, no preconditioner"},
     {.name = "jacobian_shift", .fallback = "1e-8",
      .doc = "in [0, 1): shift of the tangent's diagonal relative to the mean nodal stiffness; the residual is "
             "unchanged, so converged states are exact equilibria"},
+    {.name = "prescribed", .fallback = "eliminated",
+     .doc = "`eliminated`: prescribed components are no unknowns of the Newton system (nodes held in all "
+            "components drop out, and where every node's out-of-plane component is held, flat membranes in an "
+            "in_plane stage, each node keeps its 2 in-plane ones: block size 2); `scaled_rows`: all 3 components "
+            "of every node are unknowns, the prescribed ones held by rows s (u - u_prescribed)"},
     {.name = "max_break_passes", .fallback = "100",
      .doc = "re-equilibrations of one increment while bonds keep breaking, an integer in 1 .. 1e6"},
     {.name = "cracks", .fallback = "required",
@@ -295,6 +300,7 @@ inline const std::map<std::string, StageKind> kStageKeyKind = {
     {"max_load_step", StageKind::QuasiStatic},
     {"in_plane", StageKind::QuasiStatic},     {"jacobian", StageKind::QuasiStatic},
     {"jacobian_shift", StageKind::QuasiStatic}, {"max_break_passes", StageKind::QuasiStatic},
+    {"prescribed", StageKind::QuasiStatic},
     {"cracks", StageKind::Release},
 };
 

@@ -287,21 +287,27 @@ double Forces::reference_stiffness_sum() {
   return sum;
 }
 
-void Forces::add_tangent(Mat J) {
+void Forces::add_tangent(Mat J, const PetscInt* block, int components) {
   BondView view = bond_view();
   LocalArray u(state_.displacement());  // ghosts current: the loader's displacement was exchanged
   view.u = u.data();
   current_positions(domain_.X.data(), u.data(), 0, domain_.local(), position_stride_, positions_.data());
   std::vector<std::int32_t> cols;
-  std::vector<PetscInt> global_cols;
+  std::vector<PetscInt> block_cols;
   std::vector<double> blocks;
+  const int bs = components;
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
+    const PetscInt row = block[i];
+    if (row < 0) continue;
     row_tangent(intact_laws_[domain_.body[i]], view, i, cols, blocks);
-    global_cols.resize(cols.size());
-    for (std::size_t k = 0; k < cols.size(); ++k) global_cols[k] = static_cast<PetscInt>(domain_.global[cols[k]]);
-    const PetscInt row = static_cast<PetscInt>(domain_.global[i]);
-    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, static_cast<PetscInt>(cols.size()), global_cols.data(), blocks.data(),
-                                   ADD_VALUES));
+    const std::size_t nc = cols.size();
+    block_cols.resize(nc);
+    for (std::size_t k = 0; k < nc; ++k) block_cols[k] = block[cols[k]];  // -1 (no unknowns): ignored
+    if (bs < 3)  // the leading bs x bs part of each 3 x 3 block, in place (row r of the 3 x 3nc row)
+      for (int r = 0; r < bs; ++r)
+        for (std::size_t k = 0; k < nc; ++k)
+          for (int c = 0; c < bs; ++c) blocks[(r * nc + k) * bs + c] = blocks[(r * nc + k) * 3 + c];
+    PERI_PETSC(MatSetValuesBlocked(J, 1, &row, static_cast<PetscInt>(nc), block_cols.data(), blocks.data(), ADD_VALUES));
   }
 }
 

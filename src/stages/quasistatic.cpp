@@ -20,15 +20,23 @@ std::string fmt(double v) {
 
 }  // namespace
 
-QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const std::vector<PetscInt>& d_nnz,
-                                     const std::vector<PetscInt>& o_nnz, double stiffness_scale,
+QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, DofLayout layout, double stiffness_scale,
                                      double length_scale, const Stage& stage)
-    : comm_(comm), owned_(owned), stage_(stage), stiffness_(stiffness_scale > 0 ? stiffness_scale : 1.0),
-      length_(length_scale) {
+    : comm_(comm), owned_(owned), layout_(std::move(layout)), stage_(stage),
+      stiffness_(stiffness_scale > 0 ? stiffness_scale : 1.0), length_(length_scale) {
   MPI_Comm_rank(comm_, &rank_);
-  const PetscInt n = 3 * static_cast<PetscInt>(owned);
+  const int bs = layout_.components;
+  if ((bs != 2 && bs != 3) || layout_.d_nnz.size() != layout_.nodes.size() ||
+      layout_.o_nnz.size() != layout_.nodes.size() || layout_.block.size() < static_cast<std::size_t>(owned))
+    throw Error("QuasiStaticLoader: inconsistent unknowns layout");
+  for (const std::int32_t i : layout_.nodes)
+    for (int c = 0; c < bs; ++c) dof_.push_back(3 * static_cast<std::size_t>(i) + c);
+  const PetscInt n = static_cast<PetscInt>(dof_.size());
   PERI_PETSC(VecCreateMPI(comm_, n, PETSC_DETERMINE, x_.out()));
-  PERI_PETSC(VecSetBlockSize(x_, 3));
+  PERI_PETSC(VecSetBlockSize(x_, bs));
+  PetscInt size;
+  PERI_PETSC(VecGetSize(x_, &size));
+  unknowns_ = size;
   PERI_PETSC(VecDuplicate(x_, r_.out()));
   PERI_PETSC(SNESCreate(comm_, snes_.out()));
   PERI_PETSC(SNESSetOptionsPrefix(snes_, "qs_"));
@@ -36,15 +44,15 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const st
   if (stage_.jacobian == Stage::Jacobian::MatrixFree) {
     PERI_PETSC(SNESSetUseMatrixFree(snes_, PETSC_FALSE, PETSC_TRUE));
   } else {
-    // AIJ with block size 3, which algebraic multigrid (the default preconditioner) needs;
-    // -qs_mat_type baij for block preconditioners.
+    // AIJ with the unknowns' block size, which algebraic multigrid (the default preconditioner)
+    // needs; -qs_mat_type baij for block preconditioners.
     PERI_PETSC(MatCreate(comm_, J_.out()));
     PERI_PETSC(MatSetSizes(J_, n, n, PETSC_DETERMINE, PETSC_DETERMINE));
-    PERI_PETSC(MatSetBlockSize(J_, 3));
+    PERI_PETSC(MatSetBlockSize(J_, bs));
     PERI_PETSC(MatSetType(J_, MATAIJ));
     PERI_PETSC(MatSetOptionsPrefix(J_, "qs_"));
     PERI_PETSC(MatSetFromOptions(J_));
-    PERI_PETSC(MatXAIJSetPreallocation(J_, 3, d_nnz.data(), o_nnz.data(), nullptr, nullptr));
+    PERI_PETSC(MatXAIJSetPreallocation(J_, bs, layout_.d_nnz.data(), layout_.o_nnz.data(), nullptr, nullptr));
     PERI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
     PERI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
     PERI_PETSC(SNESSetJacobian(snes_, J_, J_, &QuasiStaticLoader::form_jacobian, this));
@@ -92,18 +100,18 @@ QuasiStaticLoader::~QuasiStaticLoader() = default;
 void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const std::vector<std::uint8_t>& constrained) {
   if (!J_) return;
   // Centre and size of the nodes (all ranks), so that the rotations are well scaled.
-  double local[4] = {0, 0, 0, static_cast<double>(owned_)}, sum[4];
-  for (std::size_t i = 0; i < static_cast<std::size_t>(owned_); ++i)
-    for (int c = 0; c < 3; ++c) local[c] += x[3 * i + c];
+  double local[4] = {0, 0, 0, static_cast<double>(layout_.nodes.size())}, sum[4];
+  for (const std::int32_t i : layout_.nodes)
+    for (int c = 0; c < 3; ++c) local[c] += x[3 * static_cast<std::size_t>(i) + c];
   MPI_Allreduce(local, sum, 4, MPI_DOUBLE, MPI_SUM, comm_);
   const double count = std::max(sum[3], 1.0), centre[3] = {sum[0] / count, sum[1] / count, sum[2] / count};
   double reach = 0, all_reach = 0;
-  for (std::size_t i = 0; i < static_cast<std::size_t>(owned_); ++i)
-    for (int c = 0; c < 3; ++c) reach = std::max(reach, std::fabs(x[3 * i + c] - centre[c]));
+  for (const std::int32_t i : layout_.nodes)
+    for (int c = 0; c < 3; ++c) reach = std::max(reach, std::fabs(x[3 * static_cast<std::size_t>(i) + c] - centre[c]));
   MPI_Allreduce(&reach, &all_reach, 1, MPI_DOUBLE, MPI_MAX, comm_);
   const double scale = all_reach > 0 ? 1.0 / all_reach : 1.0;
-  // The six rigid motions, zero on the constrained components (whose rows hold them in place):
-  // for a flat sheet held out of its plane the three in-plane ones remain. A motion that the
+  // The six rigid motions on the unknowns, zero on the constrained ones (whose rows hold them in
+  // place): for a flat sheet held out of its plane the three in-plane ones remain. A motion that the
   // constraints leave only a trace of (a rotation out of the plane of a sheet with a small
   // out-of-plane seed: 1e-4 of a translation) is no near null vector and is dropped.
   std::vector<OwnedVec> raw(6);
@@ -113,7 +121,9 @@ void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const 
     PERI_PETSC(VecDuplicate(x_, raw[m].out()));
     {
       VecArray a(raw[m]);
-      for (std::size_t i = 0; i < static_cast<std::size_t>(owned_); ++i) {
+      const int bs = layout_.components;
+      for (std::size_t node = 0; node < layout_.nodes.size(); ++node) {
+        const std::size_t i = static_cast<std::size_t>(layout_.nodes[node]);
         const double r[3] = {(x[3 * i] - centre[0]) * scale, (x[3 * i + 1] - centre[1]) * scale,
                              (x[3 * i + 2] - centre[2]) * scale};
         double u[3] = {0, 0, 0};
@@ -124,7 +134,7 @@ void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const 
           u[a1] = -r[a2];
           u[a2] = r[a1];
         }
-        for (int c = 0; c < 3; ++c) a[3 * i + c] = constrained[3 * i + c] ? 0.0 : u[c];
+        for (int c = 0; c < bs; ++c) a[bs * node + c] = constrained[3 * i + c] ? 0.0 : u[c];
       }
     }
     PERI_PETSC(VecNorm(raw[m], NORM_2, &size[m]));
@@ -159,22 +169,31 @@ void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const 
   if (all_held == 0) PERI_PETSC(MatSetNullSpace(J_, space));
 }
 
+void QuasiStaticLoader::expand(const double* x) {
+  full_ = target_;  // the components that are no unknowns are constrained: at their targets
+  for (std::size_t k = 0; k < dof_.size(); ++k) full_[dof_[k]] = x[k];
+}
+
 void QuasiStaticLoader::eval_residual(const double* x, double* f) {
   const auto t0 = std::chrono::steady_clock::now();
-  const std::size_t n = 3 * static_cast<std::size_t>(owned_);
-  model_->set_displacement(x);
-  force_.resize(n);
+  expand(x);
+  model_->set_displacement(full_.data());
+  force_.resize(full_.size());
   model_->internal_force(force_.data());
   const std::vector<std::uint8_t>& fixed = *constrained_;
-  for (std::size_t k = 0; k < n; ++k) f[k] = fixed[k] ? stiffness_ * (x[k] - target_[k]) : -force_[k];
+  for (std::size_t k = 0; k < dof_.size(); ++k) {
+    const std::size_t d = dof_[k];
+    f[k] = fixed[d] ? stiffness_ * (x[k] - target_[d]) : -force_[d];
+  }
   residual_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void QuasiStaticLoader::eval_jacobian(const double* x, Mat J) {
   const auto t0 = std::chrono::steady_clock::now();
-  model_->set_displacement(x);
+  expand(x);
+  model_->set_displacement(full_.data());
   PERI_PETSC(MatZeroEntries(J));
-  model_->add_tangent(J);
+  model_->add_tangent(J, layout_);
   PERI_PETSC(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
   PERI_PETSC(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
   // Regularization of the tangent only (the residual is untouched, so the converged state is the
@@ -252,11 +271,19 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   model_ = &model;
   constrained_ = &constrained;
   have_tangent_ = false;
+  {
+    std::vector<std::uint8_t> unknown(n, 0);
+    for (const std::size_t d : dof_) unknown[d] = 1;
+    for (std::size_t k = 0; k < n; ++k)
+      if (!unknown[k] && !constrained[k])
+        throw Error("QuasiStaticLoader::run: a free component (node " + std::to_string(k / 3) + ", component " +
+                    std::to_string(k % 3) + ") is no unknown of the layout");
+  }
   PetscInt rstart;
   PERI_PETSC(VecGetOwnershipRange(x_, &rstart, nullptr));
   constrained_rows_.clear();
-  for (std::size_t k = 0; k < n; ++k)
-    if (constrained[k]) constrained_rows_.push_back(rstart + static_cast<PetscInt>(k));
+  for (std::size_t k = 0; k < dof_.size(); ++k)
+    if (constrained[dof_[k]]) constrained_rows_.push_back(rstart + static_cast<PetscInt>(k));
 
   std::vector<double> u0(n), u_conv(n), u_prev(n), reaction(n, 0.0), reaction_new(n), f(n);
   model.get_displacement(u0.data());
@@ -276,7 +303,8 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   double load = 0, load_prev = -1;
   double step = std::min(1.0 / static_cast<double>(stage_.load_steps), stage_.max_load_step);
   long attempts = 0;
-  target_.resize(n);
+  target_.assign(n, 0.0);
+  std::vector<double> predicted(n);
   while (load < 1.0) {
     if (++attempts > stage_.max_load_steps) {
       std::ostringstream msg;
@@ -294,12 +322,14 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     // 102k-node sheet of docs/user/quasistatic.md 21 Newton iterations (13 line-search cuts) where
     // this takes 3.
     {
-      const VecArray x(x_);
       const double ratio = load_prev >= 0 ? (next - load) / (load - load_prev) : 0.0;
       for (std::size_t k = 0; k < n; ++k) {
         target_[k] = constrained[k] ? u0[k] + next * increment[k] : 0.0;
-        x[k] = constrained[k] ? (load_prev >= 0 ? target_[k] : u_conv[k]) : u_conv[k] + ratio * (u_conv[k] - u_prev[k]);
+        predicted[k] =
+            constrained[k] ? (load_prev >= 0 ? target_[k] : u_conv[k]) : u_conv[k] + ratio * (u_conv[k] - u_prev[k]);
       }
+      const VecArray x(x_);
+      for (std::size_t k = 0; k < dof_.size(); ++k) x[k] = predicted[dof_[k]];
     }
     LoadIncrement inc;
     inc.load_factor = next;
@@ -333,7 +363,8 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     inc.linear_iterations = static_cast<int>(lits);
     // Bonds break only between converged solves; re-equilibrate at the same load until none do.
     for (;;) {
-      model.set_displacement(VecArrayRead(x_).data());
+      expand(VecArrayRead(x_).data());
+      model.set_displacement(full_.data());
       const std::int64_t broke = model.break_bonds();
       if (broke == 0) break;
       have_tangent_ = false;  // the tangent of the intact bonds: assemble it anew
@@ -364,11 +395,8 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     PERI_PETSC(SNESGetFunctionNorm(snes_, &fnorm));
     inc.residual = fnorm;
     // Work of the support reactions and the loads over the increment (trapezoidal rule).
-    std::vector<double> x_new(n);
-    {
-      const VecArrayRead xa(x_);
-      std::copy(xa.data(), xa.data() + n, x_new.begin());
-    }
+    expand(VecArrayRead(x_).data());
+    std::vector<double> x_new = full_;
     reactions(x_new.data(), reaction_new, load_force_new);
     for (std::size_t k = 0; k < n; ++k)
       stats.external_work += 0.5 * (reaction[k] + reaction_new[k] + load_force[k] + load_force_new[k]) *
@@ -397,12 +425,15 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   stats.tangent_seconds = tangent_seconds_;
   stats.tangent_assemblies = tangent_assemblies_;
   stats.near_null_modes = near_null_modes_;
+  stats.unknowns = unknowns_;
   model_ = nullptr;
   constrained_ = nullptr;
   return stats;
 }
 
 void QuasiStaticLoader::residual(EquilibriumModel& model, const std::vector<double>& u, std::vector<double>& r) {
+  if (u.size() != dof_.size() || u.size() != 3 * static_cast<std::size_t>(owned_))
+    throw Error("QuasiStaticLoader::residual: needs a layout with every component of every owned node");
   std::vector<std::uint8_t> free_all(u.size(), 0);
   model_ = &model;
   constrained_ = &free_all;
@@ -415,7 +446,10 @@ void QuasiStaticLoader::residual(EquilibriumModel& model, const std::vector<doub
 
 Mat QuasiStaticLoader::jacobian(EquilibriumModel& model, const std::vector<double>& u) {
   if (!J_) throw Error("QuasiStaticLoader::jacobian: matrix-free stage has no assembled tangent");
+  if (u.size() != dof_.size() || u.size() != 3 * static_cast<std::size_t>(owned_))
+    throw Error("QuasiStaticLoader::jacobian: needs a layout with every component of every owned node");
   model_ = &model;
+  target_.assign(u.size(), 0.0);
   constrained_rows_.clear();
   const double shift = stage_.jacobian_shift;
   stage_.jacobian_shift = 0;

@@ -318,6 +318,10 @@ struct Stage {
   enum class Jacobian { Assembled, MfOperator, MatrixFree };
   Jacobian jacobian = Jacobian::MfOperator;
   double jacobian_shift = 1e-8; ///< regularization of the tangent's diagonal (relative; not of the residual)
+  /// Prescribed components: no unknowns of the Newton system (nodes held in all components drop
+  /// out; flat membranes in an in_plane stage keep 2 per node), or unknowns held by scaled rows.
+  enum class Prescribed { Eliminated, ScaledRows };
+  Prescribed prescribed = Prescribed::Eliminated;
   long max_break_passes = 100;  ///< re-equilibrations per increment while bonds keep breaking
   // Release stages.
   std::vector<std::string> cracks;  ///< names of entries of Scene::cracks broken by this stage

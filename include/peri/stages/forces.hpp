@@ -118,8 +118,10 @@ class Forces {
   // Quasi-static loader (intact laws).
   /// Sum over this rank's rows of each row's reference stiffness.
   double reference_stiffness_sum();
-  /// Adds K = -d(F V)/du at the current displacement to J (ghosts current).
-  void add_tangent(Mat J);
+  /// Adds K = -d(F V)/du at the current displacement to J (ghosts current): the rows and columns
+  /// of the local nodes with a block index >= 0 in `block` (owned, then ghosts), the leading
+  /// `components` x `components` part of each node block.
+  void add_tangent(Mat J, const PetscInt* block, int components);
 
  private:
   void lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& bodies);

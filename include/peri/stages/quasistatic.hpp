@@ -2,11 +2,15 @@
 // owned degrees of freedom by PETSc SNES (Newton with line search), with load stepping on the
 // prescribed boundary displacements. Owns its PETSc objects (SNES, tangent Mat, work Vecs).
 //
-// Unknowns: all 3 components of every owned node, in the global order of the ghosted State.
-// Constrained components (prescribed boundary components; out-of-plane components of membranes
-// when the stage is in_plane) are kept at their prescribed values: their residual rows are
-// s (u - u_prescribed) and their tangent rows s e_k (s: a stiffness scale), so every Newton step
-// and line search leaves them in place, with or without an assembled matrix.
+// Unknowns (DofLayout): by default the components that are not prescribed. Nodes whose
+// components are all prescribed (support bands) have none, and when every node's out-of-plane
+// component is prescribed (flat membranes in an in_plane stage) each node has the two in-plane
+// ones: block size 2, a tangent with 4/9 of the nonzeros of the 3-component one. Prescribed
+// components of the nodes that keep unknowns (a roller holding one component) stay unknowns kept
+// at their prescribed values: their residual rows are s (u - u_prescribed) and their tangent rows
+// s e_k (s: a stiffness scale), so every Newton step and line search leaves them in place, with
+// or without an assembled matrix. `prescribed: scaled_rows` keeps all 3 components of every node
+// that way (the formulation before 2026-11-27).
 //
 // Bonds never break inside a Newton iteration: residuals and tangents use the intact laws. After
 // each converged increment the model's breaking pass runs; if bonds broke, the same load is
@@ -29,6 +33,18 @@
 
 namespace peri {
 
+/// The loader's unknowns: `components` per node that has any (3, or 2: x and y), in blocks.
+struct DofLayout {
+  int components = 3;
+  std::vector<std::int32_t> nodes;  ///< owned nodes with unknowns, ascending
+  /// Per local node (owned, then ghosts): the global block (node) index of its unknowns in the
+  /// loader's vectors and tangent, -1 for a node without (PETSc ignores negative indices).
+  std::vector<PetscInt> block;
+  /// Per node of `nodes`: block columns of its tangent row owned here (itself included) and by
+  /// other ranks (the matrix's preallocation).
+  std::vector<PetscInt> d_nnz, o_nnz;
+};
+
 /// What the loader needs from the model of the run (implemented by Simulation).
 class EquilibriumModel {
  public:
@@ -46,8 +62,10 @@ class EquilibriumModel {
   virtual bool load_force(double* /*f_owned*/) { return false; }
   /// Make `level` in [0, 1] the loads' quasi-static level (set_quasistatic_level).
   virtual void set_load_level(double /*level*/) {}
-  /// Add K = -d(F V)/du at the current displacement to `J` (global block indices; ADD_VALUES).
-  virtual void add_tangent(Mat J) = 0;
+  /// Add K = -d(F V)/du at the current displacement to `J` (ADD_VALUES): the rows and columns
+  /// of the `layout`'s unknowns, in its block indices (the first `layout.components` components of
+  /// each 3 x 3 node block).
+  virtual void add_tangent(Mat J, const DofLayout& layout) = 0;
   /// Break the bonds that fail at the current displacement; returns the number broken on all
   /// ranks (bonds, not ordered bonds). Collective.
   virtual std::int64_t break_bonds() = 0;
@@ -74,6 +92,7 @@ struct QuasiStaticStats {
   double tangent_seconds = 0;   ///< of which in tangents (assembly)
   long tangent_assemblies = 0;  ///< tangents assembled (jacobian: mf_operator reuses them across Newton iterations)
   int near_null_modes = 0;      ///< rigid motions given to the multigrid preconditioner
+  long long unknowns = 0;       ///< the Newton system's size (all ranks)
 };
 
 /// Called after each converged increment (bonds broken and re-equilibrated): the stage's figures
@@ -84,35 +103,39 @@ using IncrementObserver = std::function<void(const QuasiStaticStats& stats, cons
 
 class QuasiStaticLoader {
  public:
-  /// `d_nnz`/`o_nnz`: per owned node, the number of block columns owned by this rank / by others
-  /// (the row itself included in d_nnz). `stiffness_scale` [N/m]: typical diagonal of the tangent.
-  QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, const std::vector<PetscInt>& d_nnz,
-                    const std::vector<PetscInt>& o_nnz, double stiffness_scale, double length_scale,
-                    const Stage& stage);
+  /// `owned`: the model's owned nodes (3 components each); `layout`: the unknowns among them.
+  /// `stiffness_scale` [N/m]: typical diagonal of the tangent.
+  QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, DofLayout layout, double stiffness_scale,
+                    double length_scale, const Stage& stage);
   ~QuasiStaticLoader();
   QuasiStaticLoader(const QuasiStaticLoader&) = delete;
   QuasiStaticLoader& operator=(const QuasiStaticLoader&) = delete;
 
   /// Load from the model's current displacement to it plus `increment` on the constrained
-  /// components (`constrained[k] != 0`); free components follow. Throws RuntimeFailure when an
+  /// components (`constrained[k] != 0`, 3 per owned node); free components follow. Every component
+  /// that is no unknown of the layout must be constrained. Throws RuntimeFailure when an
   /// increment cannot converge within the stage's limits. `observer` (if set) sees every converged
   /// increment.
   QuasiStaticStats run(EquilibriumModel& model, const std::vector<std::uint8_t>& constrained,
                        const std::vector<double>& increment, bool verbose, const IncrementObserver& observer = {});
 
   /// The near null space of the tangent for the multigrid preconditioner: the rigid motions of
-  /// nodes at `x` (3 per owned node), zero on the `constrained` components, orthonormalized.
+  /// nodes at `x` (3 per owned node) on the unknowns, zero on the `constrained` ones, orthonormalized.
   /// Collective; without it GAMG assumes a scalar problem.
   void set_near_null_space(const std::vector<double>& x, const std::vector<std::uint8_t>& constrained);
   int near_null_modes() const { return near_null_modes_; }
 
-  /// Residual and Jacobian at the model's current state (tests: finite-difference checks).
+  /// Residual and Jacobian at `u` (3 per owned node) with nothing constrained (tests:
+  /// finite-difference checks); the layout must hold every component of every owned node.
   void residual(EquilibriumModel& model, const std::vector<double>& u, std::vector<double>& r);
   Mat jacobian(EquilibriumModel& model, const std::vector<double>& u);
 
  private:
   static PetscErrorCode form_function(SNES, Vec x, Vec f, void* ctx);
   static PetscErrorCode form_jacobian(SNES, Vec x, Mat J, Mat P, void* ctx);
+  /// The model's displacement (3 per owned node) with the unknowns from `x` and the other
+  /// components at their targets, in full_.
+  void expand(const double* x);
   void eval_residual(const double* x, double* f);
   void eval_jacobian(const double* x, Mat J);
   /// jacobian: mf_operator: whether the assembled tangent (the preconditioner) is kept for the
@@ -123,6 +146,9 @@ class QuasiStaticLoader {
   MPI_Comm comm_;
   int rank_ = 0;
   std::int32_t owned_ = 0;
+  DofLayout layout_;
+  std::vector<std::size_t> dof_;  // per local unknown: its index among the 3 per owned node
+  long long unknowns_ = 0;        // all ranks
   Stage stage_;
   double stiffness_ = 1, length_ = 1;
   OwnedVec x_, r_;
@@ -131,7 +157,7 @@ class QuasiStaticLoader {
   CallbackError callback_error_;  // an exception of form_function / form_jacobian, rethrown by solve
   EquilibriumModel* model_ = nullptr;
   const std::vector<std::uint8_t>* constrained_ = nullptr;
-  std::vector<double> target_, force_;  // prescribed values; internal force work array
+  std::vector<double> target_, force_, full_;  // prescribed values; internal force; displacement (3 per node)
   std::vector<PetscInt> constrained_rows_;  // global point indices of constrained components
   int near_null_modes_ = 0;
   double residual_seconds_ = 0, tangent_seconds_ = 0;  // in eval_residual, eval_jacobian

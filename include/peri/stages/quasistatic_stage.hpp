@@ -21,7 +21,7 @@ class ProblemEquilibrium final : public EquilibriumModel {
   void internal_force(double* f_owned) override;
   bool load_force(double* f_owned) override;
   void set_load_level(double level) override;
-  void add_tangent(Mat J) override;
+  void add_tangent(Mat J, const DofLayout& layout) override;
   std::int64_t break_bonds() override;
 
  private:
@@ -31,9 +31,16 @@ class ProblemEquilibrium final : public EquilibriumModel {
   std::vector<double> load_force_;  // the loads' part of the last internal_force [N]
 };
 
+/// The unknowns of a loader: with `held` (3 per owned node: components held where they are),
+/// the components that are not (nodes with all held have none; 2 per node where every node's
+/// out-of-plane component is held); without, all 3 components of every owned node. Collective.
+DofLayout dof_layout(const Problem& p, const std::vector<std::uint8_t>* held);
+
 /// A loader for `stage`, sized for the problem's bonds (its stiffness scale the mean reference
-/// stiffness of a row, its length scale the finest spacing). Collective.
-std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& stage);
+/// stiffness of a row, its length scale the finest spacing), on dof_layout(p, held).
+/// Collective.
+std::unique_ptr<QuasiStaticLoader> make_loader(const Problem& p, const Stage& stage,
+                                               const std::vector<std::uint8_t>* held = nullptr);
 
 /// Runs quasi-static `stage` on `model` (the problem's): the boundaries' prescribed components
 /// and, for an in-plane stage, the flat membranes' out-of-plane components are constrained; the
