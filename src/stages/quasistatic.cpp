@@ -71,7 +71,11 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, DofLayou
   PERI_PETSC(SNESSetTolerances(snes_, 1e-10 * stiffness_ * length_, 1e-9, 1e-12, 50, -1));
   KSP ksp;
   PERI_PETSC(SNESGetKSP(snes_, &ksp));
-  PERI_PETSC(KSPSetTolerances(ksp, 1e-6, PETSC_DEFAULT, PETSC_DEFAULT, 20000));
+  // At most 1000 Krylov iterations per Newton step (-qs_ksp_max_it): the multigrid needs 10 to 60
+  // where it works, and an unfinished direction still goes to the line search
+  // (SNESSetMaxLinearSolveFailures); a tangent that stalls GMRES (a sheet just torn) cost up to
+  // 20000 iterations per step with a larger limit.
+  PERI_PETSC(KSPSetTolerances(ksp, 1e-6, PETSC_DEFAULT, PETSC_DEFAULT, 1000));
   if (stage_.jacobian != Stage::Jacobian::MatrixFree) {
     // Smoothed-aggregation algebraic multigrid on the assembled tangent, with the bodies' rigid
     // motions as its near null space (set_near_null_space): linear iterations per Newton step
@@ -240,11 +244,14 @@ PetscErrorCode QuasiStaticLoader::form_jacobian(SNES, Vec x, Mat A, Mat P, void*
 
 bool QuasiStaticLoader::reuse_tangent(KSP ksp) {
   PetscInt last = 0;
+  KSPConvergedReason reason;
   PERI_PETSC(KSPGetIterationNumber(ksp, &last));
+  PERI_PETSC(KSPGetConvergedReason(ksp, &reason));
   if (have_tangent_ && fresh_iterations_ < 0) fresh_iterations_ = last;  // the solve after an assembly
-  // Keep the tangent while the solves it preconditions stay within twice the first one's
-  // iterations (+2: small counts vary by one or two); bonds that broke since clear it (run).
-  if (have_tangent_ && last <= 2 * fresh_iterations_ + 2) return true;
+  // Keep the tangent while the solves it preconditions converge within twice the first one's
+  // iterations (+2: small counts vary by one or two); bonds that broke since clear it (run). A
+  // tangent whose first solve did not converge is no yardstick: assemble anew.
+  if (have_tangent_ && reason > 0 && last <= 2 * fresh_iterations_ + 2) return true;
   have_tangent_ = true;
   fresh_iterations_ = -1;
   return false;

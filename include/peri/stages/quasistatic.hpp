@@ -166,7 +166,7 @@ class QuasiStaticLoader {
   // linear iterations of the first solve after it was assembled (-1: that solve is still to come).
   bool have_tangent_ = false;
   PetscInt fresh_iterations_ = -1;
-  PetscInt max_linear_iterations_ = 20000;  // the Krylov limit with a fresh tangent
+  PetscInt max_linear_iterations_ = 1000;  // the Krylov limit with a fresh tangent
 };
 
 }  // namespace peri
