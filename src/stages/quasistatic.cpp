@@ -173,8 +173,12 @@ void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const 
   if (all_held == 0) PERI_PETSC(MatSetNullSpace(J_, space));
 }
 
-void QuasiStaticLoader::expand(const double* x) {
+void QuasiStaticLoader::set_targets(const std::vector<double>& target) {
+  target_ = target;
   full_ = target_;  // the components that are no unknowns are constrained: at their targets
+}
+
+void QuasiStaticLoader::expand(const double* x) {
   for (std::size_t k = 0; k < dof_.size(); ++k) full_[dof_[k]] = x[k];
 }
 
@@ -310,8 +314,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   double load = 0, load_prev = -1;
   double step = std::min(1.0 / static_cast<double>(stage_.load_steps), stage_.max_load_step);
   long attempts = 0;
-  target_.assign(n, 0.0);
-  std::vector<double> predicted(n);
+  std::vector<double> target(n, 0.0), predicted(n);
   while (load < 1.0) {
     if (++attempts > stage_.max_load_steps) {
       std::ostringstream msg;
@@ -331,10 +334,11 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     {
       const double ratio = load_prev >= 0 ? (next - load) / (load - load_prev) : 0.0;
       for (std::size_t k = 0; k < n; ++k) {
-        target_[k] = constrained[k] ? u0[k] + next * increment[k] : 0.0;
+        target[k] = constrained[k] ? u0[k] + next * increment[k] : 0.0;
         predicted[k] =
-            constrained[k] ? (load_prev >= 0 ? target_[k] : u_conv[k]) : u_conv[k] + ratio * (u_conv[k] - u_prev[k]);
+            constrained[k] ? (load_prev >= 0 ? target[k] : u_conv[k]) : u_conv[k] + ratio * (u_conv[k] - u_prev[k]);
       }
+      set_targets(target);
       const VecArray x(x_);
       for (std::size_t k = 0; k < dof_.size(); ++k) x[k] = predicted[dof_[k]];
     }
@@ -444,7 +448,7 @@ void QuasiStaticLoader::residual(EquilibriumModel& model, const std::vector<doub
   std::vector<std::uint8_t> free_all(u.size(), 0);
   model_ = &model;
   constrained_ = &free_all;
-  target_.assign(u.size(), 0.0);
+  set_targets(std::vector<double>(u.size(), 0.0));
   r.resize(u.size());
   eval_residual(u.data(), r.data());
   model_ = nullptr;
@@ -456,7 +460,7 @@ Mat QuasiStaticLoader::jacobian(EquilibriumModel& model, const std::vector<doubl
   if (u.size() != dof_.size() || u.size() != 3 * static_cast<std::size_t>(owned_))
     throw Error("QuasiStaticLoader::jacobian: needs a layout with every component of every owned node");
   model_ = &model;
-  target_.assign(u.size(), 0.0);
+  set_targets(std::vector<double>(u.size(), 0.0));
   constrained_rows_.clear();
   const double shift = stage_.jacobian_shift;
   stage_.jacobian_shift = 0;

@@ -14,8 +14,7 @@ void ProblemEquilibrium::set_displacement(const double* u_owned) {
     std::copy(u_owned, u_owned + 3 * static_cast<std::size_t>(p_.domain.owned), u.data());
   }
   p_.forces->displacement_changed();
-  p_.state->halo_begin();
-  p_.state->halo_end();
+  ghosts_current_ = false;  // the force pass exchanges them; add_tangent does if it comes first
 }
 
 void ProblemEquilibrium::get_displacement(double* u_owned) {
@@ -28,7 +27,8 @@ bool ProblemEquilibrium::loaded() const {
 }
 
 void ProblemEquilibrium::internal_force(double* f_owned) {
-  p_.forces->compute(false, true, ledger_.bonds);
+  p_.forces->compute(false, true, ledger_.bonds);  // (exchanges the ghosts' displacement)
+  ghosts_current_ = true;
   double* force = p_.forces->force();
   const std::size_t n = 3 * static_cast<std::size_t>(p_.domain.owned);
   if (loaded()) {
@@ -56,6 +56,11 @@ void ProblemEquilibrium::set_load_level(double level) {
 }
 
 void ProblemEquilibrium::add_tangent(Mat J, const DofLayout& layout) {
+  if (!ghosts_current_) {
+    p_.state->halo_begin();
+    p_.state->halo_end();
+    ghosts_current_ = true;
+  }
   p_.forces->add_tangent(J, layout.block.data(), layout.components);  // (it leaves the current positions in forces->positions())
   if (!loaded()) return;
   const LoadTarget target{p_.forces->positions(), p_.forces->position_stride(), nullptr, 0.0};
@@ -75,6 +80,7 @@ void ProblemEquilibrium::add_tangent(Mat J, const DofLayout& layout) {
 std::int64_t ProblemEquilibrium::break_bonds() {
   const std::int64_t before = ledger_.bonds.newly_broken;
   p_.forces->compute(false, false, ledger_.bonds);
+  ghosts_current_ = true;
   long long local = ledger_.bonds.newly_broken - before, global = 0;
   MPI_Allreduce(&local, &global, 1, MPI_LONG_LONG, MPI_SUM, p_.comm);
   return global / 2;
@@ -154,6 +160,8 @@ QuasiStaticStats run_quasistatic(Problem& p, const Stage& stage, double t, Equil
     loader->set_near_null_space(x, constrained);
   }
   QuasiStaticStats stats = loader->run(model, constrained, increment, verbose, observer);
+  p.state->halo_begin();  // the ghosts of the final state (the model leaves them to the force pass)
+  p.state->halo_end();
   ledger.external_work += stats.external_work;
   // Equilibrium: at rest.
   PERI_PETSC(VecSet(p.state->velocity(), 0.0));

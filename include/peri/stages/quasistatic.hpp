@@ -133,6 +133,8 @@ class QuasiStaticLoader {
  private:
   static PetscErrorCode form_function(SNES, Vec x, Vec f, void* ctx);
   static PetscErrorCode form_jacobian(SNES, Vec x, Mat J, Mat P, void* ctx);
+  /// Prescribed values (3 per owned node; components that are no unknowns take theirs in full_).
+  void set_targets(const std::vector<double>& target);
   /// The model's displacement (3 per owned node) with the unknowns from `x` and the other
   /// components at their targets, in full_.
   void expand(const double* x);

@@ -29,6 +29,7 @@ class ProblemEquilibrium final : public EquilibriumModel {
   Problem& p_;
   EnergyLedger& ledger_;
   std::vector<double> load_force_;  // the loads' part of the last internal_force [N]
+  bool ghosts_current_ = true;      // the ghosts' displacement is that of the last set_displacement
 };
 
 /// The unknowns of a loader: with `held` (3 per owned node: components held where they are),
