@@ -455,7 +455,7 @@ TEST(QuasiStatic, SnesPreloadMatchesDampedDynamics) {
                 "relative displacement difference %.2e, wall-time ratio %.1f\n",
                 t_snes, a.summary().quasistatic.at(0).second.newton_iterations, t_dyn,
                 static_cast<long long>(b.total_steps()), rel, t_dyn / t_snes);
-  EXPECT_LT(rel, 1e-4);
+  EXPECT_LT(rel, 1e-6);  // (measured: 5e-15 at 1 and 2 ranks)
 }
 
 // Prescribed components as unknowns held by scaled rows (prescribed: scaled_rows, the formulation
