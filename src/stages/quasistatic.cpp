@@ -160,12 +160,15 @@ void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const 
     PERI_PETSC(VecScale(v, 1.0 / after));
     modes.push_back(std::move(v));
   }
+  near_null_modes_ = static_cast<int>(modes.size());
+  // No unknown free (every component prescribed: the tangent is the scaled rows' diagonal): no
+  // near null space; GAMG fails on an empty one.
+  if (modes.empty()) return;
   std::vector<Vec> vecs;
   for (const OwnedVec& v : modes) vecs.push_back(v);
   OwnedNullSpace space;
   PERI_PETSC(MatNullSpaceCreate(comm_, PETSC_FALSE, static_cast<PetscInt>(vecs.size()), vecs.data(), space.out()));
   PERI_PETSC(MatSetNearNullSpace(J_, space));
-  near_null_modes_ = static_cast<int>(vecs.size());
   // Nothing held (a balloon under pressure alone): the rigid motions are the tangent's null
   // space, not only near it; the Krylov solver then keeps them out of the Newton steps.
   long held = std::count(constrained.begin(), constrained.end(), std::uint8_t{1}), all_held = 0;
@@ -437,6 +440,11 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   stats.tangent_assemblies = tangent_assemblies_;
   stats.near_null_modes = near_null_modes_;
   stats.unknowns = unknowns_;
+  double moved = 0;
+  for (std::size_t k = 0; k < n; ++k)
+    if (constrained[k]) moved += increment[k] * increment[k];
+  MPI_Allreduce(MPI_IN_PLACE, &moved, 1, MPI_DOUBLE, MPI_SUM, comm_);
+  stats.work_scale = stiffness_ * moved;
   model_ = nullptr;
   constrained_ = nullptr;
   return stats;

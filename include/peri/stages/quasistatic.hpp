@@ -93,6 +93,9 @@ struct QuasiStaticStats {
   long tangent_assemblies = 0;  ///< tangents assembled (jacobian: mf_operator reuses them across Newton iterations)
   int near_null_modes = 0;      ///< rigid motions given to the multigrid preconditioner
   long long unknowns = 0;       ///< the Newton system's size (all ranks)
+  /// Energy scale of the prescribed moves: the stiffness scale times the sum of the squared
+  /// prescribed increments (all ranks) [J]; the floor of the work error's denominator.
+  double work_scale = 0;
 };
 
 /// Called after each converged increment (bonds broken and re-equilibrated): the stage's figures
