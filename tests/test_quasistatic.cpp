@@ -33,6 +33,17 @@ RunOptions quiet() {
   return o;
 }
 
+// || (xa - X) - (xb - X) || / || xa - X ||: two runs' displacement fields (natural order) apart.
+double relative_difference(const std::vector<double>& xa, const std::vector<double>& xb, const std::vector<double>& X) {
+  double diff = 0, norm = 0;
+  for (std::size_t k = 0; k < xa.size(); ++k) {
+    const double ua = xa[k] - X[k], ub = xb[k] - X[k];
+    diff += (ua - ub) * (ua - ub);
+    norm += ua * ua;
+  }
+  return std::sqrt(diff / norm);
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -442,14 +453,7 @@ TEST(QuasiStatic, SnesPreloadMatchesDampedDynamics) {
   b.run();
   const double t_dyn = seconds_since(t0);
   const Nodes nodes = discretize(parse_scene(subst(kPreload, {{"@STAGES@", snes}}), "snes"));
-  const std::vector<double> xa = a.natural_positions(), xb = b.natural_positions();
-  double diff = 0, norm = 0;
-  for (std::size_t k = 0; k < xa.size(); ++k) {
-    const double ua = xa[k] - nodes.X[k], ub = xb[k] - nodes.X[k];
-    diff += (ua - ub) * (ua - ub);
-    norm += ua * ua;
-  }
-  const double rel = std::sqrt(diff / norm);
+  const double rel = relative_difference(a.natural_positions(), b.natural_positions(), nodes.X);
   if (world_rank() == 0)
     std::printf("preload: SNES %.3f s (%ld Newton iterations) vs damped dynamics %.3f s (%lld steps): "
                 "relative displacement difference %.2e, wall-time ratio %.1f\n",
@@ -510,13 +514,7 @@ TEST(QuasiStatic, EliminatedPrescribedComponentsGiveTheSameEquilibrium) {
     const bool sheet = std::string(c.name) == "sheet";
     EXPECT_EQ(unknowns[0], 3 * n) << c.name;
     EXPECT_EQ(unknowns[1], (sheet ? 2 : 3) * (n - bottom)) << c.name;
-    double diff = 0, norm = 0;
-    for (std::size_t k = 0; k < x[0].size(); ++k) {
-      const double ua = x[0][k] - nodes.X[k], ub = x[1][k] - nodes.X[k];
-      diff += (ua - ub) * (ua - ub);
-      norm += ua * ua;
-    }
-    const double rel = std::sqrt(diff / norm);
+    const double rel = relative_difference(x[0], x[1], nodes.X);
     if (world_rank() == 0)
       std::printf("%s: %lld nodes, %lld in the held band: %lld unknowns with scaled rows, %lld eliminated; relative "
                   "displacement difference %.2e\n",
