@@ -80,6 +80,9 @@ expect segments_one_segment "long_range.pairs.0.segments: expected segment indic
 expect long_range_no_fiber "long_range: long-range forces act between fiber nodes" -- "$scene" --set 'long_range={length: 1e-9, cutoff: 3e-9, pairs: [{between: other_fibers, alpha: 1, beta: 1}]}'
 sed 's/- {name: coil, duration: 4.0e-9/- {name: settle, kind: quasistatic}\n  - {name: coil, duration: 4.0e-9/' "$fiber" > "$work/fiber_qs.yaml"
 expect long_range_quasistatic "a quasistatic stage in a scene with long_range" -- "$work/fiber_qs.yaml"
+release=$src/drivers/scenes/slit_release.yaml
+expect qs_option "$release:$(line_of "$release" 'name: preload'): quasi-static stage 'preload': PETSc refused the solver's -qs_* options: Unable to find requested PC type nosuchpc" -- "$release" -qs_pc_type nosuchpc
+expect qs_option_value "quasi-static stage 'preload': PETSc refused the solver's -qs_* options: Unsupported viewer" -- "$release" -qs_ksp_view_final_residual 0
 balloon=$src/drivers/scenes/balloon.yaml
 expect sphere_size "bodies.balloon.size: not used by a sphere body" -- "$balloon" --set 'bodies.balloon.size=[1, 1]'
 expect sphere_pressure "bodies.balloon.pressure: expected a non-negative number [Pa], got -1" -- "$balloon" --set bodies.balloon.pressure=-1

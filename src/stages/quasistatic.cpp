@@ -95,11 +95,26 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, DofLayou
       if (!given) PERI_PETSC(PetscOptionsSetValue(nullptr, name, value));
     }
   }
-  PERI_PETSC(SNESSetFromOptions(snes_));
+  // A -qs_* option PETSc refuses (an unknown type, a bad value) is the user's input: one message.
+  PERI_PETSC(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
+  const PetscErrorCode refused = SNESSetFromOptions(snes_);
+  PERI_PETSC(PetscPopErrorHandler());
+  if (refused) {
+    const char* text = nullptr;
+    char* specific = nullptr;
+    PetscErrorMessage(refused, &text, &specific);
+    throw InputError(stage_.where.str() + ": quasi-static stage '" + stage_.name +
+                     "': PETSc refused the solver's -qs_* options: " + (specific && *specific ? specific : text ? text : "") +
+                     " (docs/user/quasistatic.md#solver-options)");
+  }
   PERI_PETSC(KSPGetTolerances(ksp, nullptr, nullptr, nullptr, &max_linear_iterations_));  // -qs_ksp_max_it
 }
 
 QuasiStaticLoader::~QuasiStaticLoader() = default;
+
+void QuasiStaticLoader::check_options(MPI_Comm comm, const Stage& stage) {
+  const QuasiStaticLoader probe(comm, 0, DofLayout{}, 1.0, 1.0, stage);  // (its constructor reads them)
+}
 
 void QuasiStaticLoader::set_near_null_space(const std::vector<double>& x, const std::vector<std::uint8_t>& constrained) {
   if (!J_) return;

@@ -61,6 +61,9 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
         [this](const std::vector<double>* flat) { tips_->restore(flat); });
   }
 
+  for (const Stage& stage : scene_.stages)
+    if (stage.kind == StageKind::QuasiStatic) QuasiStaticLoader::check_options(comm_, stage);
+
   // Output last: nothing is written unless every check above passed.
   stop_point(comm_);
   if (!options_.out_dir.empty()) {

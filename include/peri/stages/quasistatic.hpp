@@ -112,6 +112,9 @@ class QuasiStaticLoader {
                     double length_scale, const Stage& stage);
   ~QuasiStaticLoader();
   QuasiStaticLoader(const QuasiStaticLoader&) = delete;
+  /// Throws InputError, naming the stage, when PETSc refuses the -qs_* options (an unknown
+  /// preconditioner type, a bad value). Collective; before anything is written.
+  static void check_options(MPI_Comm comm, const Stage& stage);
   QuasiStaticLoader& operator=(const QuasiStaticLoader&) = delete;
 
   /// Load from the model's current displacement to it plus `increment` on the constrained
