@@ -45,26 +45,28 @@ class FamilyBond {
   double xi2() const { return slot_ >= 0 ? v_->patterns->xi2[slot_] : v_->xi2(i_, b_); }
   /// w_ij V_j [m^3].
   double measure() const { return slot_ >= 0 ? v_->patterns->measure[slot_] : v_->measure(i_, b_); }
-  double inv_xi() const {
-    if (slot_ >= 0) return v_->patterns->inv_xi[slot_];
-    return free_ ? free_lanes().inv_xi : 1.0 / std::sqrt(xi2());
-  }
-  double measure_per_xi2() const {
-    if (slot_ >= 0) return v_->patterns->measure_per_xi2[slot_];
-    return free_ ? free_lanes().measure_per_xi2 : measure() / xi2();
+  /// The reference slot as the laws read it: |xi|^2, 1/|xi|, w V and w V / |xi|^2, each computed
+  /// once (a pattern's stored slot; a free row's by free_slot, as the vector loop's lanes; else
+  /// from the positions).
+  struct Reference {
+    double xi2, inv_xi, measure, measure_per_xi2;
+  };
+  Reference reference() const {
+    if (slot_ >= 0) {
+      const FamilyPatterns& p = *v_->patterns;
+      return {p.xi2[slot_], p.inv_xi[slot_], p.measure[slot_], p.measure_per_xi2[slot_]};
+    }
+    const double xi2 = v_->xi2(i_, b_), m = v_->measure(i_, b_);
+    if (!free_) return {xi2, 1.0 / std::sqrt(xi2), m, m / xi2};
+    const double* Xi = v_->X + 3 * static_cast<std::int64_t>(i_);
+    const double* Xj = v_->X + 3 * static_cast<std::int64_t>(j());
+    Reference s;
+    free_slot<simd::Scalar>(simd::Root<simd::Scalar>{}, Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2], m, s);
+    s.xi2 = xi2;  // the view's |xi|^2 (free_xi2), as xi2() gives it
+    return s;
   }
 
  private:
-  struct Slot {
-    double xi2, inv_xi, measure, measure_per_xi2;
-  };
-  Slot free_lanes() const {
-    const double* Xi = v_->X + 3 * static_cast<std::int64_t>(i_);
-    const double* Xj = v_->X + 3 * static_cast<std::int64_t>(j());
-    Slot s;
-    free_slot<simd::Scalar>(simd::Root<simd::Scalar>{}, Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2], measure(), s);
-    return s;
-  }
   const BondView* v_;
   std::int32_t i_;
   std::int64_t b_, slot_;
@@ -113,10 +115,11 @@ typename E::Bonds scalar_bond(const E& law, const BondView& v, std::int32_t i, c
   b.d0 = v.x[j] - v.x[i];
   b.d1 = v.x[v.x_stride + j] - v.x[v.x_stride + i];
   b.d2 = v.x[2 * v.x_stride + j] - v.x[2 * v.x_stride + i];
-  b.xi2 = bond.xi2();
-  b.inv_xi = bond.inv_xi();
-  b.measure = bond.measure();
-  b.measure_per_xi2 = bond.measure_per_xi2();
+  const FamilyBond::Reference r = bond.reference();
+  b.xi2 = r.xi2;
+  b.inv_xi = r.inv_xi;
+  b.measure = r.measure;
+  b.measure_per_xi2 = r.measure_per_xi2;
   fill_slots<simd::Scalar>(law, b);
   b.dead = bond.broken() ? 1u : 0u;
   if constexpr (requires { b.history; })  // a law with per-bond history: read only, unless forces() commits
