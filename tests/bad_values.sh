@@ -105,6 +105,8 @@ expect_failure pmb_motion "more than stability.motion_per_step = 0.001 of the gr
   "$tool" --set stability.motion_per_step=1e-3
 expect_failure lattice_energy "the marder lattice law (body 'strip') has its bound from the two- and three-body stiffness" "membrane law" -- \
   "$scenes/supersonic_rubber.yaml" --set stability.energy_error=1e-12
+expect_failure free_tool_light "tools.0.mass: 1e-15 kg is too light for the step" "membrane law" -- \
+  "$tool" "${coarse[@]}" --set tools.rod.mass=1e-15
 expect_failure membrane_energy "the membrane law (body 'sheet') stiffens in compression by 1 + 3/lambda^4" "pmb law" -- \
   "${coarse[@]}" --set stability.energy_error=1e-12
 

@@ -83,6 +83,11 @@ CASES = {
     # A rigid tool with contact and friction cutting a clamped, notched sheet.
     "tool": ("blunt_tool.yaml",
              ["bodies.sheet.spacing=0.0005", "stages.push.duration=4.0e-3", "output.frames=3"]),
+    # The tool as a free rigid body (2.5 times the sheet's mass, 3 m/s): its reaction is summed in
+    # natural order, so its motion and the sheet's are the same bits on any number of ranks.
+    "free_tool": ("blunt_tool.yaml",
+                  ["bodies.sheet.spacing=0.0005", "stages.push.duration=4.0e-3", "output.frames=3",
+                   "tools.rod.mass=0.0005", "tools.rod.velocity=[3, 0]"]),
     # The same with the incremental crack-tip advance (tip_advance: break times, tips and
     # permissions exchanged with the ghosts; break times in the checkpoint).
     "tool_tip_advance": ("blunt_tool.yaml",

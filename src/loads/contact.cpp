@@ -11,7 +11,7 @@ namespace {
 // n_z = 0); false if the point is outside (or on the axis or centre, where no direction is defined).
 bool penetration(const RigidTool& tool, double time, const double* xi, double& p, double n[3]) {
   double d[3];
-  for (int c = 0; c < 3; ++c) d[c] = xi[c] - (tool.center[c] + tool.velocity[c] * time);
+  for (int c = 0; c < 3; ++c) d[c] = xi[c] - (tool.center[c] + tool.velocity[c] * (time - tool.t0));
   if (!tool.sphere) d[2] = 0;
   const double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
   if (!(r2 < tool.radius * tool.radius) || r2 == 0) return false;
@@ -35,6 +35,7 @@ void cylinder_contact(const RigidCylinder& tool, double time, double dt, const d
     const double rho = 1.0 / inv_density[i];
     const double fn = law.normal(rho, p);  // normal force density
     tally.energy += law.energy(rho, p) * volume[i];
+    tally.mass += rho * volume[i];
     double f[3] = {fn * nrm[0], fn * nrm[1], fn * nrm[2]};
     if (given) {
       while (next_given < given->size() && (*given)[next_given].node < i) ++next_given;
@@ -61,6 +62,7 @@ void cylinder_contact(const RigidCylinder& tool, double time, double dt, const d
       force[3 * static_cast<std::size_t>(i) + c] += f[c];
       tally.force[c] += f[c] * volume[i];
     }
+    if (tally.per_node) tally.node_forces.push_back({i, {f[0] * volume[i], f[1] * volume[i], f[2] * volume[i]}});
     ++tally.nodes;
   }
 }

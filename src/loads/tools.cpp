@@ -6,6 +6,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "peri/core/error.hpp"
 #include "peri/core/petsc.hpp"
 
 namespace peri {
@@ -24,10 +25,38 @@ Tools::Tools(const Scene& scene, double dt_bound, const State& state, const Doma
     c.friction = t.friction;
     c.stiffness = t.stiffness * 2.0 / (dt_bound * dt_bound);
     tools_.push_back(c);
+    mass_.push_back(t.mass);
+    where_.push_back(t.where.str());
     names_.push_back(t.name);
     stiffest_ = std::max(stiffest_, t.stiffness);
   }
   contact_.assign(tools_.size(), ContactTally{});
+  accel_.assign(tools_.size(), {0.0, 0.0, 0.0});
+}
+
+bool Tools::free() const {
+  return std::any_of(mass_.begin(), mass_.end(), [](double m) { return m > 0; });
+}
+
+void Tools::reaction(std::size_t k, double out[3]) const {
+  std::vector<double> local;
+  local.reserve(4 * contact_[k].node_forces.size());
+  for (const NodeFriction& nf : contact_[k].node_forces)
+    local.insert(local.end(), {double(domain_.natural[nf.node]), nf.force[0], nf.force[1], nf.force[2]});
+  int ranks = 1;
+  MPI_Comm_size(comm_, &ranks);
+  const int n = static_cast<int>(local.size());
+  std::vector<int> counts(ranks), displs(ranks, 0);
+  MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm_);
+  for (int r = 1; r < ranks; ++r) displs[r] = displs[r - 1] + counts[r - 1];
+  std::vector<double> all(displs.back() + counts.back());
+  MPI_Allgatherv(local.data(), n, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, comm_);
+  std::vector<std::size_t> order(all.size() / 4);
+  for (std::size_t e = 0; e < order.size(); ++e) order[e] = e;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return all[4 * a] < all[4 * b]; });
+  out[0] = out[1] = out[2] = 0.0;
+  for (std::size_t e : order)
+    for (int d = 0; d < 3; ++d) out[d] -= all[4 * e + 1 + d];
 }
 
 bool Tools::friction() const {
@@ -38,18 +67,67 @@ double Tools::stable_step(double dt_bound) const { return dt_bound / std::sqrt(1
 
 void Tools::add_forces(double t, const LoadTarget& target, bool book, EnergyLedger& ledger) {
   const VecArrayRead v(state_.velocity());
+  const double dt = target.dt;
   for (std::size_t k = 0; k < tools_.size(); ++k) {
-    const RigidTool& tool = tools_[k];
+    RigidTool& tool = tools_[k];
+    const bool free = mass_[k] > 0;
+    double kinetic_before = 0;
+    if (free) {
+      // Velocity Verlet: half kick with the last acceleration and drift to t (a step), or just
+      // the position at t (the forces at a stage's start or after a restart).
+      if (book) {
+        for (int d = 0; d < 3; ++d) kinetic_before += 0.5 * mass_[k] * tool.velocity[d] * tool.velocity[d];
+        for (int d = 0; d < 3; ++d) {
+          tool.velocity[d] += 0.5 * dt * accel_[k][d];
+          tool.center[d] += dt * tool.velocity[d];
+        }
+      }
+      tool.t0 = t;
+    }
     ContactTally c;
-    cylinder_contact(tool, t, target.dt, target.x, target.x_stride, v.data(), domain_.volume.data(),
+    c.per_node = free;
+    cylinder_contact(tool, t, dt, target.x, target.x_stride, v.data(), domain_.volume.data(),
                      inv_density_.data(), domain_.owned, target.force, c,
                      resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
     ledger.bonds.strain_energy += c.energy;
-    // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
-    if (book)
-      for (int d = 0; d < 3; ++d)
-        ledger.external_work += 0.5 * target.dt * (contact_[k].force[d] + c.force[d]) * tool.velocity[d];
+    if (!free) {
+      // Work of the tool, whose motion is prescribed: F . V_tool, trapezoidal over the step.
+      if (book)
+        for (int d = 0; d < 3; ++d)
+          ledger.external_work += 0.5 * dt * (contact_[k].force[d] + c.force[d]) * tool.velocity[d];
+      contact_[k] = std::move(c);
+      continue;
+    }
+    // The tool on the nodes' penalty springs: omega^2 = k m_contact / M; velocity Verlet needs
+    // omega dt < 2, the bound the nodes' own step keeps for them.
+    double contact_mass = 0;
+    MPI_Allreduce(&c.mass, &contact_mass, 1, MPI_DOUBLE, MPI_SUM, comm_);
+    if (tool.stiffness * contact_mass / mass_[k] * dt * dt >= 4.0) {
+      std::ostringstream why;
+      why << where_[k] << ": tools." << k << ".mass: " << mass_[k] << " kg is too light for the step: at t = "
+          << t << " s the nodes in contact weigh " << contact_mass << " kg, and the tool on their penalty springs "
+          << "needs a step below " << 2.0 * std::sqrt(mass_[k] / (tool.stiffness * contact_mass)) << " s (dt = " << dt
+          << " s); give it at least " << tool.stiffness * contact_mass * dt * dt / 4.0 << " kg, or a smaller stiffness";
+      throw RuntimeFailure(why.str());
+    }
     contact_[k] = std::move(c);
+    double r[3];
+    reaction(k, r);
+    for (int d = 0; d < 3; ++d) accel_[k][d] = r[d] / mass_[k];
+    if (!tool.sphere) accel_[k][2] = 0;  // a cylinder moves in the plane
+    if (book) {
+      // Second half kick; the kinetic energy the tool lost is the work it did on the bodies (its
+      // share of friction included: friction_work books the relative motion's loss).
+      double kinetic_after = 0;
+      for (int d = 0; d < 3; ++d) {
+        tool.velocity[d] += 0.5 * dt * accel_[k][d];
+        kinetic_after += 0.5 * mass_[k] * tool.velocity[d] * tool.velocity[d];
+      }
+      // Booked on rank 0 only: the ledger is summed over the ranks.
+      int rank = 0;
+      MPI_Comm_rank(comm_, &rank);
+      if (rank == 0) ledger.external_work += kinetic_before - kinetic_after;
+    }
   }
   resumed_friction_.reset();
 }
@@ -71,7 +149,9 @@ void Tools::end_step(double dt, const double* v, EnergyLedger& ledger) {
 std::string Tools::series_columns() const {
   std::string columns;
   for (std::size_t k = 0; k < tools_.size(); ++k)  // a sphere's centre moves in z too
-    for (const char* c : {"_x", "_y", tools_[k].sphere ? "_z" : nullptr, "_force_x", "_force_y", "_force_z"})
+    for (const char* c : {"_x", "_y", tools_[k].sphere ? "_z" : nullptr, mass_[k] > 0 ? "_vx" : nullptr,
+                          mass_[k] > 0 ? "_vy" : nullptr, mass_[k] > 0 && tools_[k].sphere ? "_vz" : nullptr,
+                          "_force_x", "_force_y", "_force_z"})
       if (c) columns += (columns.empty() ? "" : ",") + names_[k] + c;
   return columns;
 }
@@ -85,12 +165,37 @@ std::string Tools::series_values(double time, bool leading_comma) const {
   values << std::setprecision(12);
   for (std::size_t k = 0; k < tools_.size(); ++k) {
     const RigidTool& t = tools_[k];
-    values << (!leading_comma && k == 0 ? "" : ",") << t.center[0] + t.velocity[0] * time << ','
-           << t.center[1] + t.velocity[1] * time << ',';
-    if (t.sphere) values << t.center[2] + t.velocity[2] * time << ',';
+    values << (!leading_comma && k == 0 ? "" : ",") << t.center[0] + t.velocity[0] * (time - t.t0) << ','
+           << t.center[1] + t.velocity[1] * (time - t.t0) << ',';
+    if (t.sphere) values << t.center[2] + t.velocity[2] * (time - t.t0) << ',';
+    if (mass_[k] > 0) {  // a free tool's velocity
+      values << t.velocity[0] << ',' << t.velocity[1] << ',';
+      if (t.sphere) values << t.velocity[2] << ',';
+    }
     values << total[3 * k] << ',' << total[3 * k + 1] << ',' << total[3 * k + 2];
   }
   return values.str();
+}
+
+std::vector<double> Tools::save_free() const {
+  std::vector<double> flat;
+  for (std::size_t k = 0; k < tools_.size(); ++k)
+    if (mass_[k] > 0)
+      for (const double* a : {tools_[k].center, tools_[k].velocity}) flat.insert(flat.end(), a, a + 3);
+  return flat;
+}
+
+void Tools::restore_free(const std::vector<double>* flat) {
+  if (!flat) return;
+  std::size_t e = 0;
+  for (std::size_t k = 0; k < tools_.size(); ++k)
+    if (mass_[k] > 0 && e + 6 <= flat->size()) {
+      for (int d = 0; d < 3; ++d) {
+        tools_[k].center[d] = (*flat)[e + d];
+        tools_[k].velocity[d] = (*flat)[e + 3 + d];
+      }
+      e += 6;
+    }
 }
 
 std::vector<double> Tools::save_friction() const {

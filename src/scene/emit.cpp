@@ -152,6 +152,7 @@ void emit_tool(Writer& w, const Tool& t) {
   w.key(4, "velocity", t.sphere ? flow(t.velocity) : flow({t.velocity[0], t.velocity[1]}));
   w.key(4, "friction", t.friction);
   w.key(4, "stiffness", t.stiffness);
+  if (t.mass > 0) w.key(4, "mass", t.mass);
 }
 
 std::string flow_values(const std::vector<BoundaryValue>& values) {

@@ -257,7 +257,7 @@ Boundary read_boundary(const Value& v, UniqueNames& names, const std::vector<Bod
 }
 
 Tool read_tool(const Value& v, UniqueNames& names) {
-  const Map m(v, &kToolKeys, "a map {name, kind, radius, center, velocity, friction, stiffness}");
+  const Map m(v, &kToolKeys, "a map {name, kind, radius, center, velocity, friction, stiffness, mass}");
   Tool t;
   t.name = entry_name(m, "", 0, names);
   t.where = m.where();
@@ -278,6 +278,7 @@ Tool read_tool(const Value& v, UniqueNames& names) {
   // The stable step shrinks by sqrt(1 + stiffness): 1e6 already makes it a thousandth.
   if (auto x = m.get("stiffness"))
     t.stiffness = x->number_if("a number in (0, 1e6]", [](double k) { return k > 0 && k <= 1e6; });
+  if (auto x = m.get("mass")) t.mass = x->positive("kg");
   return t;
 }
 

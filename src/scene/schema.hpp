@@ -186,13 +186,17 @@ inline const Keys kToolKeys = {
     {.name = "center", .required = true, .what = "axis position [x, y] at t = 0, m", .unit = "m",
      .doc = "cylinder: axis position [x, y] at t = 0; sphere: centre [x, y, z] at t = 0"},
     {.name = "velocity", .unit = "m/s", .fallback = "at rest",
-     .doc = "constant velocity: cylinder [vx, vy], sphere [vx, vy, vz]"},
+     .doc = "constant velocity (with `mass`: the velocity at t = 0): cylinder [vx, vy], sphere [vx, vy, vz]"},
     {.name = "friction", .fallback = "0",
      .doc = "Coulomb coefficient mu >= 0; friction opposes sliding over the tool's surface, along a cylinder's "
             "axis too"},
     {.name = "stiffness", .fallback = "0.5",
      .doc = "penalty stiffness relative to the stiffest node's bond stiffness, in (0, 1e6]; the stable step of a "
             "scene with tools is divided by sqrt(1 + largest stiffness)"},
+    {.name = "mass", .unit = "kg", .fallback = "none: prescribed motion",
+     .doc = "> 0: a free rigid body of this mass, started at `velocity` and moved by the reaction of its contact "
+            "forces (translation only: friction's torque does not spin it); its velocity is in series.csv and the "
+            "kinetic energy it gives the bodies is booked as external work"},
 };
 
 inline const Keys kRegionKeys = {

@@ -42,6 +42,10 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     add_checkpoint_extra(
         "tool_friction", [this] { return p_->tools->save_friction(); },
         [this](const std::vector<double>* flat) { p_->tools->restore_friction(flat); });
+  if (p_->tools && p_->tools->free())  // free tools' positions and velocities (every rank holds them)
+    add_checkpoint_extra(
+        "free_tools", [this] { return p_->tools->save_free(); },
+        [this](const std::vector<double>* flat) { p_->tools->restore_free(flat); });
   if (TipAdvance* rule = forces_.tip_advance())  // break times of the damaged nodes, gathered to rank 0
     add_checkpoint_extra(
         "tip_advance_break_times", [this, rule] { return rule->save(time_, comm_); },

@@ -7,13 +7,14 @@
 
 namespace peri {
 
-/// A rigid cylinder of infinite length, axis along z through (cx + vx t, cy + vy t); or, with
-/// `sphere`, a rigid sphere about (cx, cy, cz) + (vx, vy, vz) t (a fragment, example 7.2).
+/// A rigid cylinder of infinite length, axis along z through (cx, cy) + (vx, vy) (t - t0); or, with
+/// `sphere`, a rigid sphere about (cx, cy, cz) + (vx, vy, vz) (t - t0) (a fragment, example 7.2).
 struct RigidTool {
   bool sphere = false;
   double radius = 0;
-  double center[3] = {0, 0, 0};    ///< axis (cylinder: x, y) or centre at t = 0 [m]
+  double center[3] = {0, 0, 0};    ///< axis (cylinder: x, y) or centre at t = t0 [m]
   double velocity[3] = {0, 0, 0};  ///< [m/s] (cylinder: z component 0)
+  double t0 = 0;                   ///< the time `center` is at [s] (a free tool's last move)
   double friction = 0;          ///< Coulomb coefficient mu
   /// Penalty stiffness per unit mass [1/s^2]: a node of density rho inside the cylinder by a
   /// depth p feels the normal force density rho * stiffness * p [N/m^3].
@@ -33,7 +34,12 @@ struct ContactTally {
   double force[3] = {0, 0, 0};  ///< total force of the tool on the nodes [N]
   std::int64_t nodes = 0;       ///< nodes in contact
   double energy = 0;            ///< penalty energy: sum of volume * rho k p^2 / 2 [J]
+  double mass = 0;              ///< mass of the nodes in contact: sum of rho volume [kg]
   std::vector<NodeFriction> friction;  ///< nodes with a friction force, and that force
+  /// With `per_node` set before the call: each node in contact and its total contact force
+  /// times its volume [N] (a free tool sums them in an order independent of the ranks).
+  bool per_node = false;
+  std::vector<NodeFriction> node_forces;
 };
 
 /// Adds the tool's contact force densities to `force` (stride 3) for nodes [0, n) at time t.

@@ -259,6 +259,9 @@ struct Tool {
   /// Penalty stiffness relative to the stiffest node's bond stiffness (> 0); the stable step is
   /// divided by sqrt(1 + stiffness) when a scene has tools.
   double stiffness = 0.5;
+  /// > 0: a free rigid body of this mass [kg], moved by the reaction of its contact forces from
+  /// `velocity` at t = 0 (translation only); 0: the motion is prescribed (constant velocity).
+  double mass = 0.0;
 };
 
 /// Initial conditions, applied before the first stage.

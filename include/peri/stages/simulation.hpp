@@ -88,6 +88,8 @@ class Simulation : public EquilibriumModel {
   std::unique_ptr<QuasiStaticLoader> make_loader(const Stage& stage);
   /// Total linear and angular momentum about the origin (collective).
   std::array<double, 6> momentum();
+  /// The scene's rigid tools; nullptr when it has none.
+  const Tools* tools() const { return p_->tools; }
   /// Crack tip histories (identical on every rank); nullptr when no material breaks.
   const CrackTipTracker* crack_tips() const { return tips_ ? &tips_->tracker() : nullptr; }
 
