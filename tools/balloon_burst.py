@@ -30,6 +30,9 @@ import sys
 import h5py
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import peri_view  # noqa: E402
+
 
 def resolved(out):
     with open(os.path.join(out, "scene.resolved.yaml")) as f:
@@ -49,37 +52,11 @@ def resolved(out):
                 rayleigh=values.get("rayleigh_wave_speed"))
 
 
-def pieces(ref, cur, damage, critical_stretch, min_piece):
-    """Sizes (triangles) of the connected pieces of whole triangles, largest first."""
+def pieces(ref, cur, damage, critical_stretch):
+    """Sizes (triangles) of the pieces of whole triangles of the geodesic sphere, largest first."""
     from scipy.spatial import ConvexHull
-    tris = ConvexHull(ref).simplices
-    i, j = tris, np.roll(tris, -1, axis=1)
-    whole = ~(damage[tris] >= 0.5).any(axis=1)
-    if critical_stretch:
-        lref = np.linalg.norm(ref[i] - ref[j], axis=2)
-        lcur = np.linalg.norm(cur[i] - cur[j], axis=2)
-        whole &= ~(lcur > critical_stretch * lref).any(axis=1)
-    kept = np.nonzero(whole)[0]
-    # Union-find over kept triangles sharing an edge.
-    parent = np.arange(len(tris))
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-    edge_owner = {}
-    for t in kept:
-        for a, b in zip(tris[t], np.roll(tris[t], -1)):
-            key = (min(a, b), max(a, b))
-            if key in edge_owner:
-                ra, rb = find(edge_owner[key]), find(t)
-                if ra != rb:
-                    parent[ra] = rb
-            else:
-                edge_owner[key] = t
-    roots = np.array([find(t) for t in kept])
-    sizes = np.sort(np.unique(roots, return_counts=True)[1])[::-1] if kept.size else np.zeros(0, int)
-    return sizes
+    labels = peri_view.whole_pieces(ConvexHull(ref).simplices, ref, cur, damage, critical_stretch)
+    return np.bincount(labels[labels >= 0]) if (labels >= 0).any() else np.zeros(0, int)
 
 
 def main():
@@ -114,7 +91,7 @@ def main():
     arc = np.radians(angle) * s["radius"]
     use = (angle >= 15) & (angle <= 120)
     speed = float(np.polyfit(t[use], arc[use], 1)[0]) if use.sum() >= 3 else None
-    sizes = pieces(ref, cur, dlast, s["critical_stretch"], args.min_piece) if cur is not None else np.zeros(0, int)
+    sizes = pieces(ref, cur, dlast, s["critical_stretch"]) if cur is not None else np.zeros(0, int)
     fragments = int((sizes[1:] >= args.min_piece).sum()) if sizes.size else 0
     result = {"impact_direction": impact.tolist(), "front_angle_deg": float(angle[-1]),
               "front_arc": float(arc[-1]), "front_arc_over_fragment_radius": float(arc[-1] / s["tool_radius"]),

@@ -163,3 +163,44 @@ def note(outdir, figure, tool, view, fig, mappable=None, unit=None):
     notes[figure] = entry
     with open(path, "w") as f:
         json.dump(notes, f, indent=1, sort_keys=True)
+
+
+def whole_pieces(tris, ref, cur, damage, critical_stretch=None, gap_damage=0.5):
+    """The pieces a torn surface holds: triangles (index triples) left whole -- no corner with
+    damage >= gap_damage, no edge stretched beyond critical_stretch (current / reference length;
+    None: no such test), the rule tools/render3d.py draws by -- joined across shared edges. Returns
+    one label per triangle: the piece (0, 1, ..., largest first), -1 where it is not whole."""
+    tris = np.asarray(tris)
+    whole = ~(damage[tris] >= gap_damage).any(axis=1)
+    if critical_stretch:
+        i, j = tris, np.roll(tris, -1, axis=1)
+        lref = np.linalg.norm(ref[i] - ref[j], axis=2)
+        lcur = np.linalg.norm(cur[i] - cur[j], axis=2)
+        whole &= ~(lcur > critical_stretch * lref).any(axis=1)
+    parent = np.arange(len(tris))
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    owner = {}
+    for t in np.nonzero(whole)[0]:
+        for a, b in zip(tris[t], np.roll(tris[t], -1)):
+            key = (min(a, b), max(a, b))
+            if key in owner:
+                ra, rb = find(owner[key]), find(t)
+                if ra != rb:
+                    parent[ra] = rb
+            else:
+                owner[key] = t
+    labels = np.full(len(tris), -1)
+    kept = np.nonzero(whole)[0]
+    if kept.size:
+        roots = np.array([find(t) for t in kept])
+        uniq, inverse, counts = np.unique(roots, return_inverse=True, return_counts=True)
+        rank = np.empty(len(uniq), dtype=int)
+        rank[np.argsort(-counts, kind="stable")] = np.arange(len(uniq))
+        labels[kept] = rank[inverse]
+    return labels
