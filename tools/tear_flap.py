@@ -14,7 +14,8 @@ above, which had come within six horizons and half their first distance of each 
 convergence angle is the angle between the least-squares lines of the two paths above it. The flap separates when the grip's nodes and the clamped edges' nodes lie
 on different pieces of whole triangles (no corner with damage >= 0.5, no edge stretched beyond the
 material's critical stretch: peri_view.whole_pieces, the rule tools/render3d.py draws by) in the
-frame (default: the last); the flap's area is that piece's.
+frame (default: the last); the flap's area is that piece's (reference configuration, m^2).
+tears_at_top: the two tears' x in the band next to the grip.
 Outcome: "flap cut out" (the tears met and the flap came off), "grip torn off" (off without a
 meeting, the piece at most twice the grip's own area), "flap torn off" (a larger piece off without
 a clean meeting), "two tears",
@@ -142,7 +143,6 @@ def main():
     result = {"time": time, "outcome": outcome, "grip_width": grip_width, "merge_y": merge_y,
               "merge_depth": (float(top - merge_y) if merge_y is not None else None),
               "convergence_angle_deg": angle, "flap_separated": separated, "flap_area": flap_area,
-              "triangle_area": (0.5 * grip_width * (top - merge_y) if merge_y is not None else None),
               "tears_at_top": [float(left[0]) if left.size else None, float(right[0]) if right.size else None]}
     with open(os.path.join(args.out, "tear_flap.json"), "w") as o:
         json.dump(result, o, indent=2)
