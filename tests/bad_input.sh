@@ -57,7 +57,8 @@ expect missing_checkpoint "checkpoint '$work/none': no such file" -- --resume "$
 
 tool=$src/drivers/scenes/blunt_tool.yaml
 expect tool_radius "tools.0.radius: expected a positive number [m], got -0.001" -- "$tool" --set tools.rod.radius=-0.001
-expect tool_mass "tools.0.mass: expected a positive number [kg], got 0" -- "$tool" --set tools.rod.mass=0
+expect tool_mass "tools.0.mass: expected a mass in (0, 1e30] kg, got 0" -- "$tool" --set tools.rod.mass=0
+expect tool_mass_huge "tools.0.mass: expected a mass in (0, 1e30] kg, got 1e300" -- "$tool" --set tools.rod.mass=1e300
 expect tool_kind "tools.0.kind: expected one of: cylinder, sphere; got cube" -- "$tool" --set tools.rod.kind=cube
 expect tool_center "tools.0.center: expected a list of 2 numbers [x, y] [m]" -- "$tool" --set tools.rod.center=[0,0,0]
 

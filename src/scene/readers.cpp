@@ -278,7 +278,9 @@ Tool read_tool(const Value& v, UniqueNames& names) {
   // The stable step shrinks by sqrt(1 + stiffness): 1e6 already makes it a thousandth.
   if (auto x = m.get("stiffness"))
     t.stiffness = x->number_if("a number in (0, 1e6]", [](double k) { return k > 0 && k <= 1e6; });
-  if (auto x = m.get("mass")) t.mass = x->positive("kg");
+  // Its kinetic energy is booked each step: beyond 1e30 kg (Earth: 6e24) it overflows the energy sums.
+  if (auto x = m.get("mass"))
+    t.mass = x->number_if("a mass in (0, 1e30] kg", [](double mass) { return mass > 0 && mass <= 1e30; });
   return t;
 }
 

@@ -194,7 +194,7 @@ inline const Keys kToolKeys = {
      .doc = "penalty stiffness relative to the stiffest node's bond stiffness, in (0, 1e6]; the stable step of a "
             "scene with tools is divided by sqrt(1 + largest stiffness)"},
     {.name = "mass", .unit = "kg", .fallback = "none: prescribed motion",
-     .doc = "> 0: a free rigid body of this mass, started at `velocity` and moved by the reaction of its contact "
+     .doc = "in (0, 1e30]: a free rigid body of this mass, started at `velocity` and moved by the reaction of its contact "
             "forces (translation only: friction's torque does not spin it); its velocity is in series.csv and the "
             "kinetic energy it gives the bodies is booked as external work"},
 };
