@@ -165,6 +165,14 @@ def note(outdir, figure, tool, view, fig, mappable=None, unit=None):
         json.dump(notes, f, indent=1, sort_keys=True)
 
 
+def sheet_triangles(ref):
+    """Delaunay triangles of the reference (x, y) positions, as index triples into `ref`."""
+    import matplotlib.tri as mtri
+    if len(ref) < 3:
+        return np.zeros((0, 3), dtype=int)
+    return mtri.Triangulation(ref[:, 0], ref[:, 1]).triangles.astype(int)
+
+
 def whole_pieces(tris, ref, cur, damage, critical_stretch=None, gap_damage=0.5):
     """The pieces a torn surface holds: triangles (index triples) left whole -- no corner with
     damage >= gap_damage, no edge stretched beyond critical_stretch (current / reference length;

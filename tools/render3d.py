@@ -88,13 +88,6 @@ def refuse(message):
 
 # ---------------------------------------------------------------- triangulations
 
-def sheet_triangles(ref):
-    """Delaunay triangles of the reference (x, y) positions, as index triples into `ref`."""
-    if len(ref) < 3:
-        return np.zeros((0, 3), dtype=int)
-    return mtri.Triangulation(ref[:, 0], ref[:, 1]).triangles.astype(int)
-
-
 def sphere_triangles(ref, use_scipy=True):
     """The convex hull of points on a sphere, as index triples: scipy's ConvexHull where it is
     installed, else the Delaunay triangulation of the stereographic projection from one node (the
@@ -461,7 +454,7 @@ def main(argv=None):
             if mesh_tris is not None and len(mesh_tris):
                 tris = mesh_tris
             else:
-                local = sheet_triangles(ref) if kind != "sphere" else sphere_triangles(ref, not args.no_scipy)
+                local = peri_view.sheet_triangles(ref) if kind != "sphere" else sphere_triangles(ref, not args.no_scipy)
                 tris = idx[local]
             i, j = triangle_edges(tris)
         elif kind == "fiber":

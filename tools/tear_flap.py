@@ -114,7 +114,7 @@ def main():
             kl = np.polyfit(ys[above], left[above], 1)[0]   # dx/dy of each path
             kr = np.polyfit(ys[above], right[above], 1)[0]
             angle = float(np.degrees(abs(np.arctan(kl) - np.arctan(kr))))
-    tris = peri_view_sheet_triangles(X)
+    tris = peri_view.sheet_triangles(X)
     labels = peri_view.whole_pieces(tris, X, cur, damage, critical)
     node_piece = np.full(len(X), -1)
     for c in range(3):
@@ -169,11 +169,6 @@ def main():
     fig.colorbar(sc, ax=ax, label="damage")
     fig.tight_layout()
     fig.savefig(os.path.join(args.out, "tear_flap.png"), dpi=110)
-
-
-def peri_view_sheet_triangles(X):
-    import matplotlib.tri as mtri
-    return mtri.Triangulation(X[:, 0], X[:, 1]).triangles.astype(int)
 
 
 if __name__ == "__main__":
