@@ -63,7 +63,7 @@ struct Root {
     return P::sqrt(y2);
 #endif
   }
-  void finish(V y2, V front, V& y, V& inv_y) const {
+  void finish([[maybe_unused]] V y2, V front, V& y, V& inv_y) const {
 #if defined(PERI_AVX512VL)
     const V e = P::fnmadd(y2, P::mul(front, front), one);
     const V series = P::fmadd(e, P::fmadd(e, c3, c2), half);

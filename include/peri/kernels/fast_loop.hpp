@@ -174,7 +174,7 @@ void block_avx2(const Law& law_of, const C& L, const BondView& v, const RunSlots
                                      v.broken + v.offsets[rows[2]], v.broken + v.offsets[rows[3]]};
   const std::uint8_t *fl0 = flag_row[0], *fl1 = flag_row[1], *fl2 = flag_row[2], *fl3 = flag_row[3];
   const S::V xi0 = lanes(v.x, i, s), xi1 = lanes(v.x + v.x_stride, i, s), xi2 = lanes(v.x + 2 * v.x_stride, i, s);
-  S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  typename S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
   int newly[4] = {0, 0, 0, 0};
   double diss[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < n; ++k) {
@@ -556,7 +556,7 @@ void group_avx2(const Law& law_of, const C& L, const BondView& v, const std::int
   using S = simd::Simd4;
   static_assert(Law::W == 4, "group_avx2: four lanes");
   const S::V xi0 = S::gather(px, rows), xi1 = S::gather(py, rows), xi2 = S::gather(pz, rows);
-  S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  typename S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
   int newly[4] = {0, 0, 0, 0};
   double diss[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < nmax; ++k) {
@@ -614,99 +614,6 @@ __attribute__((always_inline)) inline void add_free_bond(const Law& law, const C
   }
 }
 
-#if !defined(PERI_AVX512VL)
-// The free rows of AVX2 builds (free_records below serves AVX-512).
-// The gathers of the free rows' loop on pack S: W doubles at W 32-bit indices (Idx), and the W
-// 32-bit neighbour indices at W 64-bit CSR positions (Pos).
-template <class S>
-struct Gathers;
-template <>
-struct Gathers<simd::Simd4> {
-  using Idx = __m128i;
-  using Pos = __m256i;
-  static Pos load(const std::int64_t* a) { return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a)); }
-  static Pos plus(Pos a, std::int64_t k) { return _mm256_add_epi64(a, _mm256_set1_epi64x(k)); }
-  static Pos min(Pos a, Pos b) { return _mm256_blendv_epi8(a, b, _mm256_cmpgt_epi64(a, b)); }
-  static unsigned past(Pos at, Pos last) { return static_cast<unsigned>(_mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpgt_epi64(at, last)))); }
-  static Idx neighbours(const std::int32_t* nbr, Pos at) { return _mm256_i64gather_epi32(nbr, at, 4); }
-  static Idx triple(Idx j) { return _mm_add_epi32(_mm_add_epi32(j, j), j); }
-  static __m256d at(const double* a, Idx j) { return _mm256_i32gather_pd(a, j, 8); }
-};
-
-// Up to W free rows (FamilyPatterns: no family pattern), one per lane of the law's pack (`count`
-// rows; idle lanes repeat the last row, flagged dead). Per slot k the lanes gather their k-th
-// neighbour's index, current and reference position and measure, and compute the reference slot
-// from them (free_slot), then evaluate the law as a block does; a lane past its row's end repeats
-// its last bond, flagged dead. `Intact`: the rows have no broken bond (no flag bytes read).
-template <bool Intact, class Law, class C>
-void free_group(const Law& law_of, const C& L, const BondView& v, const std::int32_t* group, int count,
-                double* force, BondTally& tally) {
-  using S = typename Law::Pack;
-  using G = Gathers<S>;
-  using V = typename S::V;
-  constexpr int W = S::W;
-  const Law law = law_of;  // a local copy, as in damaged_block
-  const simd::Root<S> root;
-  const float* weight = v.patterns->free_weight.empty() ? nullptr : v.patterns->free_weight.data();
-  std::int32_t rows[W];
-  // Per lane: the row's first CSR position, its last (-1 for a row without bonds), and the last
-  // it may read (0 for a row without bonds: its lane is dead throughout).
-  alignas(64) std::int64_t first[W], last[W], last_read[W];
-  std::uint8_t* flag_row[W];
-  std::int64_t nmax = 0;
-  for (int l = 0; l < W; ++l) {
-    rows[l] = group[std::min(l, count - 1)];
-    const std::int64_t b0 = v.offsets[rows[l]], n = v.offsets[rows[l] + 1] - b0;
-    first[l] = n > 0 ? b0 : 0;
-    last[l] = n > 0 ? b0 + n - 1 : -1;
-    last_read[l] = n > 0 ? b0 + n - 1 : 0;
-    flag_row[l] = v.broken + b0;
-    if (l < count) nmax = std::max(nmax, n);
-  }
-  const unsigned idle = ((1u << W) - 1u) & ~((1u << count) - 1u);
-  const typename G::Pos first_at = G::load(first), last_at = G::load(last), read_at = G::load(last_read);
-  const double* px = v.x;
-  const double* py = v.x + v.x_stride;
-  const double* pz = v.x + 2 * v.x_stride;
-  std::int32_t own3[W];
-  for (int l = 0; l < W; ++l) own3[l] = 3 * rows[l];
-  typename G::Idx own, own_3;
-  std::memcpy(&own, rows, sizeof own);
-  std::memcpy(&own_3, own3, sizeof own_3);
-  const V xi0 = G::at(px, own), xi1 = G::at(py, own), xi2 = G::at(pz, own);
-  const V Xi0 = G::at(v.X, own_3), Xi1 = G::at(v.X + 1, own_3), Xi2 = G::at(v.X + 2, own_3);
-  V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
-  int newly[W] = {};
-  double diss[W] = {};
-  // The neighbour indices one slot ahead (their gather's latency off the slot's chain).
-  typename G::Idx j_next = G::neighbours(v.neighbor, G::min(first_at, read_at));
-  for (std::int64_t k = 0; k < nmax; ++k) {
-    const typename G::Pos at = G::plus(first_at, k);
-    unsigned dead = idle | G::past(at, last_at);
-    const typename G::Pos b = G::min(at, read_at);
-    const typename G::Idx j = j_next;
-    j_next = G::neighbours(v.neighbor, G::min(G::plus(at, 1), read_at));
-    if constexpr (!Intact) {
-      alignas(64) std::int64_t bl[W];
-      std::memcpy(bl, &b, sizeof bl);
-      for (int l = 0; l < W; ++l) dead |= static_cast<unsigned>(v.broken[bl[l]] & kBrokenFlag) << l;
-    }
-    const typename G::Idx j3 = G::triple(j);
-    typename Law::Bonds bonds;
-    bonds.d0 = S::sub(G::at(px, j), xi0);
-    bonds.d1 = S::sub(G::at(py, j), xi1);
-    bonds.d2 = S::sub(G::at(pz, j), xi2);
-    V measure = G::at(v.volume, j);
-    if (weight) measure = S::mul(_mm256_cvtps_pd(_mm256_i64gather_ps(weight, b, 4)), measure);
-    free_slot<S>(root, S::sub(G::at(v.X, j3), Xi0), S::sub(G::at(v.X + 1, j3), Xi1), S::sub(G::at(v.X + 2, j3), Xi2),
-                 measure, bonds);
-    add_free_bond(law, L, bonds, dead, k, f0, f1, f2, w, flag_row, newly, diss);
-  }
-  finish_rows(law, v, rows, count, f0, f1, f2, w, newly, diss, force, tally);
-}
-#endif
-
-#if defined(PERI_AVX512VL)
 // The free rows' node records (RowBlocks::Scratch::records): the current positions of nodes
 // 0 .. free_nodes-1 copied in, and where the view's reference positions or measures are not
 // those the records hold, those too.
@@ -736,13 +643,16 @@ inline void refresh_records(const BondView& v, const RowBlocks& plan) {
   }
 }
 
-// Eight node records (lane l's at rec[l], [x, y, z, V, X, Y, Z, 0]) as seven vectors of the
-// lanes' x, y, z, V, X, Y, Z: each half of a record loaded into a half of a vector (lanes l and
-// l + 4 in one: the insert may run on either vector port), then two stages of shuffles (15).
-struct Records8 {
-  __m512d x, y, z, V, X, Y, Z;
+// A block's node records (lane l's at rec[l], [x, y, z, V, X, Y, Z, 0]) as seven vectors of the
+// lanes' x, y, z, V, X, Y, Z.
+template <class S>
+struct Records {
+  typename S::V x, y, z, V, X, Y, Z;
 };
-__attribute__((always_inline)) inline Records8 transpose_records(const double* const rec[8]) {
+#if defined(PERI_AVX512VL)
+// Eight records: each half of a record loaded into a half of a vector (lanes l and l + 4 in one:
+// the insert may run on either vector port), then two stages of shuffles (15).
+__attribute__((always_inline)) inline Records<simd::Simd8> transpose_records(const double* const rec[8]) {
   __m512d a[4], b[4];
   for (int l = 0; l < 4; ++l) {
     a[l] = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(rec[l])), _mm256_load_pd(rec[l + 4]), 1);
@@ -754,7 +664,7 @@ __attribute__((always_inline)) inline Records8 transpose_records(const double* c
   const __m512d u0 = _mm512_unpacklo_pd(b[0], b[1]), u1 = _mm512_unpackhi_pd(b[0], b[1]);
   const __m512d u2 = _mm512_unpacklo_pd(b[2], b[3]), u3 = _mm512_unpackhi_pd(b[2], b[3]);
   const __m512i even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
-  Records8 o;
+  Records<simd::Simd8> o;
   o.x = _mm512_permutex2var_pd(t0, even, t2);
   o.z = _mm512_permutex2var_pd(t0, odd, t2);
   o.y = _mm512_permutex2var_pd(t1, even, t3);
@@ -764,22 +674,44 @@ __attribute__((always_inline)) inline Records8 transpose_records(const double* c
   o.Y = _mm512_permutex2var_pd(u1, even, u3);
   return o;
 }
+#else
+// Four records: per pair of fields, lanes 0 and 2 (1 and 3) in the halves of one vector (an
+// insert from memory), then one unpack per field (8 inserts, 7 unpacks: no gathers, which took
+// most of the loop's time on the AVX2 cores measured).
+__attribute__((always_inline)) inline Records<simd::Simd4> transpose_records(const double* const rec[4]) {
+  auto pair = [&](int l, int c) {
+    return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(rec[l] + c)), _mm_load_pd(rec[l + 2] + c), 1);
+  };
+  Records<simd::Simd4> o;
+  __m256d p = pair(0, 0), q = pair(1, 0);  // [x0 y0 | x2 y2], [x1 y1 | x3 y3]
+  o.x = _mm256_unpacklo_pd(p, q);
+  o.y = _mm256_unpackhi_pd(p, q);
+  p = pair(0, 2), q = pair(1, 2);
+  o.z = _mm256_unpacklo_pd(p, q);
+  o.V = _mm256_unpackhi_pd(p, q);
+  p = pair(0, 4), q = pair(1, 4);
+  o.X = _mm256_unpacklo_pd(p, q);
+  o.Y = _mm256_unpackhi_pd(p, q);
+  o.Z = _mm256_unpacklo_pd(pair(0, 6), pair(1, 6));
+  return o;
+}
+#endif
 
-// Up to eight free rows (FamilyPatterns: no family pattern), one per lane (`count` rows; idle
-// lanes repeat the last row, flagged dead): per slot k each lane loads its k-th neighbour's node
-// record, the eight are transposed into vectors, the reference slot computed from them
-// (free_slot) and the law evaluated as in a block. A lane past its row's end repeats its last
+// Up to W free rows (FamilyPatterns: no family pattern), one per lane of the law's pack (`count`
+// rows; idle lanes repeat the last row, flagged dead): per slot k each lane loads its k-th
+// neighbour's node record, the W are transposed into vectors, the reference slot computed from
+// them (free_slot) and the law evaluated as in a block. A lane past its row's end repeats its last
 // bond, flagged dead. `Intact`: the rows have no broken bond (no flag bytes read); `Weighted`:
 // the measures carry the bonds' weights (FamilyPatterns::free_weight). The same bits as the
 // portable walk's rows (the same operations in CSR order). The vector ports bound this
-// loop: per slot the transpose (15 shuffles, 8 inserts) and the reference slot (15 operations)
-// come on top of the law's own work, about three times a grid block's operations per bond.
+// loop: per slot the transpose (on AVX-512 15 shuffles and 8 inserts) and the reference slot (15
+// operations) come on top of the law's own work, about three times a grid block's operations per
+// bond.
 template <bool Intact, bool Weighted, class Law, class C>
 void free_records(const Law& law_of, const C& L, const BondView& v, const double* rec, const std::int32_t* group,
                   int count, double* force, BondTally& tally) {
-  using S = simd::Simd8;
-  static_assert(std::is_same_v<typename Law::Pack, S>, "free_records: eight lanes");
-  constexpr int W = 8;
+  using S = typename Law::Pack;
+  constexpr int W = S::W;
   const Law law = law_of;  // a local copy, as in damaged_block
   const simd::Root<S> root;
   std::int32_t rows[W];
@@ -800,9 +732,9 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
     nmax = std::max(nmax, n[l]);
     own_rec[l] = rec + 8 * static_cast<std::int64_t>(rows[l]);
   }
-  const unsigned idle = 0xFFu & ~((1u << count) - 1u);
-  const Records8 own = transpose_records(own_rec);
-  S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  const unsigned idle = ((1u << W) - 1u) & ~((1u << count) - 1u);
+  const Records<S> own = transpose_records(own_rec);
+  typename S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
   int newly[W] = {};
   double diss[W] = {};
   for (std::int64_t k = 0; k < nmax; ++k) {
@@ -826,9 +758,15 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
         if constexpr (Weighted) wk[l] = n[l] > 0 ? weight[l][kk] : 0.0f;
       }
     }
-    const Records8 o = transpose_records(r);
-    S::V measure = o.V;
-    if constexpr (Weighted) measure = S::mul(_mm512_cvtps_pd(_mm256_loadu_ps(wk)), measure);
+    const Records<S> o = transpose_records(r);
+    typename S::V measure = o.V;
+    if constexpr (Weighted) {
+#if defined(PERI_AVX512VL)
+      measure = S::mul(_mm512_cvtps_pd(_mm256_loadu_ps(wk)), measure);
+#else
+      measure = S::mul(_mm256_cvtps_pd(_mm_loadu_ps(wk)), measure);
+#endif
+    }
     if constexpr (!Intact)
       for (int l = 0; l < W; ++l) dead |= static_cast<unsigned>(k < n[l] ? flag_row[l][k] & kBrokenFlag : 0) << l;
     typename Law::Bonds bonds;
@@ -840,7 +778,6 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
   }
   finish_rows(law, v, rows, count, f0, f1, f2, w, newly, diss, force, tally);
 }
-#endif
 
 // Whether rows first + l s (l < count) have no broken bond: from the rows' summary bytes
 // (BondFamilies::row_broken) where the view has them, else from the flags; for s = 1 either is
@@ -1127,17 +1064,14 @@ void forces(const C& L, const BondView& v, const RowBlocks& rows, double* force,
   }
   constexpr int W = SimdWide::W;
   const std::size_t nfree = rows.free.size();
-#if defined(PERI_AVX512VL)
   refresh_records(v, rows);
   const double* rec = rows.scratch.records.data();
-#endif
   for (std::size_t r = 0; r < nfree; r += W) {
     const std::int32_t* group = rows.free.data() + r;
     const int count = static_cast<int>(std::min<std::size_t>(W, nfree - r));
     bool intact = true;
     for (int l = 0; l < count && intact; ++l)
       intact = v.row_broken ? !v.row_broken[group[l]] : !any_flag(v.broken + v.offsets[group[l]], v.broken + v.offsets[group[l] + 1]);
-#if defined(PERI_AVX512VL)
     if (P.free_weight.empty()) {
       if (intact) free_records<true, false>(laws.wide, L, v, rec, group, count, force, tally);
       else free_records<false, false>(laws.wide, L, v, rec, group, count, force, tally);
@@ -1145,10 +1079,6 @@ void forces(const C& L, const BondView& v, const RowBlocks& rows, double* force,
       if (intact) free_records<true, true>(laws.wide, L, v, rec, group, count, force, tally);
       else free_records<false, true>(laws.wide, L, v, rec, group, count, force, tally);
     }
-#else
-    if (intact) free_group<true>(laws.wide, L, v, group, count, force, tally);
-    else free_group<false>(laws.wide, L, v, group, count, force, tally);
-#endif
   }
 }
 

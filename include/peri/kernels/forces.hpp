@@ -203,7 +203,7 @@ struct RowBlocks {
     };
     LimitsKey limits_of;
     simd::AlignedVector<double> mirror;
-    /// The free rows' node records (AVX-512): per local node 0 .. free_nodes-1, one cache line
+    /// The free rows' node records: per local node 0 .. free_nodes-1, one cache line
     /// [x, y, z, V, X, Y, Z, 0] (current position, measure, reference position); the current
     /// positions copied by each call, the rest where the view's X or volume differ from
     /// `records_of`.
