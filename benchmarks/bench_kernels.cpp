@@ -18,6 +18,7 @@
 
 #include "peri/models/model.hpp"
 #include "peri/stages/simulation.hpp"
+#include "jittered_nodes.hpp"
 
 namespace peri {
 namespace {
@@ -60,43 +61,11 @@ output: {frames: 1, series_every: 1000000}
 // `jittered_cloud(n)`, an n^3 cube of points moved likewise in 3D, each with the volume of its cell
 // (a point-cloud CSV). The same density and family sizes as membrane_full and pmb_block_full.
 std::string jittered_membrane_mesh(int n, double jitter) {
-  const std::string path = (std::filesystem::temp_directory_path() / ("peri_bench_jittered_" + std::to_string(n) + ".msh")).string();
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> U(-jitter, jitter);
-  std::ofstream out(path);
-  out << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" << n * n << "\n";
-  char line[128];
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      std::snprintf(line, sizeof line, "%d %.17g %.17g 0\n", j * n + i + 1, 1e-3 * (i + U(rng)), 1e-3 * (j + U(rng)));
-      out << line;
-    }
-  out << "$EndNodes\n$Elements\n" << 2 * (n - 1) * (n - 1) << "\n";
-  int e = 0;
-  for (int j = 0; j + 1 < n; ++j)
-    for (int i = 0; i + 1 < n; ++i) {
-      const int a = j * n + i + 1, b = a + 1, c = a + n + 1, d = a + n;
-      out << ++e << " 2 0 " << a << ' ' << b << ' ' << c << "\n" << ++e << " 2 0 " << a << ' ' << c << ' ' << d << "\n";
-    }
-  out << "$EndElements\n";
-  return path;
+  return fixtures::write_jittered_sheet("peri_bench_jittered_" + std::to_string(n) + ".msh", n, n, jitter, 7);
 }
 
 std::string jittered_cloud(int n, double jitter) {
-  const std::string path = (std::filesystem::temp_directory_path() / ("peri_bench_cloud_" + std::to_string(n) + ".csv")).string();
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> U(-jitter, jitter);
-  std::ofstream out(path);
-  out << "x,y,z,volume\n";
-  char line[160];
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) {
-        const double x = 1e-3 * (i + U(rng)), y = 1e-3 * (j + U(rng)), z = 1e-3 * (k + U(rng));
-        std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,1e-09\n", x, y, z);
-        out << line;
-      }
-  return path;
+  return fixtures::write_jittered_cloud("peri_bench_cloud_" + std::to_string(n) + ".csv", n, n, n, jitter, 7);
 }
 
 std::string mesh_membrane_scene(const std::string& mesh) {

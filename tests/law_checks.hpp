@@ -32,6 +32,7 @@
 #include "peri/partition/domain.hpp"
 #include "peri/partition/partition.hpp"
 #include "peri/scene/scene.hpp"
+#include "jittered_nodes.hpp"
 
 namespace peri::law_checks {
 
@@ -42,44 +43,12 @@ struct Sample {
   std::string linear;    ///< critical_stretch_at_horizon for eq. (29)'s linear lambda_0 ("": none)
 };
 
-/// Irregular node sets of the grids' sizes (spacing 1 mm), written once into the temporary
-/// directory: a 20 x 15 sheet of nodes each moved by up to 0.3 spacings, two triangles per square
-/// (a Gmsh .msh 2.2 file), and a 16 x 17 x 6 block of points moved likewise (a point-cloud CSV).
-/// Their rows have no family pattern (FamilyPatterns' free rows).
+/// Irregular node sets of the grids' sizes (spacing 1 mm): a 20 x 15 sheet of nodes each moved by
+/// up to 0.3 spacings, two triangles per square, and a 16 x 17 x 6 block of points moved likewise
+/// (jittered_nodes.hpp). Their rows have no family pattern (FamilyPatterns' free rows).
 inline std::string jittered_file(bool solid) {
-  const std::string path =
-      (std::filesystem::temp_directory_path() / (solid ? "peri_law_checks_cloud.csv" : "peri_law_checks_sheet.msh")).string();
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> U(-0.3e-3, 0.3e-3);
-  std::ofstream out(path);
-  char line[160];
-  if (solid) {
-    out << "x,y,z,volume\n";
-    for (int k = 0; k < 6; ++k)
-      for (int j = 0; j < 17; ++j)
-        for (int i = 0; i < 16; ++i) {
-          std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,1e-09\n", 1e-3 * i + U(rng), 1e-3 * j + U(rng),
-                        1e-3 * k + U(rng));
-          out << line;
-        }
-    return path;
-  }
-  const int nx = 20, ny = 15;
-  out << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n" << nx * ny << "\n";
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      std::snprintf(line, sizeof line, "%d %.17g %.17g 0\n", j * nx + i + 1, 1e-3 * i + U(rng), 1e-3 * j + U(rng));
-      out << line;
-    }
-  out << "$EndNodes\n$Elements\n" << 2 * (nx - 1) * (ny - 1) << "\n";
-  int e = 0;
-  for (int j = 0; j + 1 < ny; ++j)
-    for (int i = 0; i + 1 < nx; ++i) {
-      const int a = j * nx + i + 1, b = a + 1, c = a + nx + 1, d = a + nx;
-      out << ++e << " 2 0 " << a << ' ' << b << ' ' << c << "\n" << ++e << " 2 0 " << a << ' ' << c << ' ' << d << "\n";
-    }
-  out << "$EndElements\n";
-  return path;
+  return solid ? fixtures::write_jittered_cloud("peri_law_checks_cloud.csv", 16, 17, 6, 0.3, 3)
+               : fixtures::write_jittered_sheet("peri_law_checks_sheet.msh", 20, 15, 0.3, 3);
 }
 
 /// The sample's scene: a membrane grid sheet or a solid grid block, or (`irregular`) the jittered
