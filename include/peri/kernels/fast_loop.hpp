@@ -174,7 +174,7 @@ void block_avx2(const Law& law_of, const C& L, const BondView& v, const RunSlots
                                      v.broken + v.offsets[rows[2]], v.broken + v.offsets[rows[3]]};
   const std::uint8_t *fl0 = flag_row[0], *fl1 = flag_row[1], *fl2 = flag_row[2], *fl3 = flag_row[3];
   const S::V xi0 = lanes(v.x, i, s), xi1 = lanes(v.x + v.x_stride, i, s), xi2 = lanes(v.x + 2 * v.x_stride, i, s);
-  typename S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
   int newly[4] = {0, 0, 0, 0};
   double diss[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < n; ++k) {
@@ -556,7 +556,7 @@ void group_avx2(const Law& law_of, const C& L, const BondView& v, const std::int
   using S = simd::Simd4;
   static_assert(Law::W == 4, "group_avx2: four lanes");
   const S::V xi0 = S::gather(px, rows), xi1 = S::gather(py, rows), xi2 = S::gather(pz, rows);
-  typename S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
+  S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero(), w = S::zero();
   int newly[4] = {0, 0, 0, 0};
   double diss[4] = {0, 0, 0, 0};
   for (std::int64_t k = 0; k < nmax; ++k) {

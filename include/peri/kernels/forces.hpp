@@ -140,8 +140,8 @@ struct RowBlocks {
   std::vector<std::int32_t> rest;
   /// FamilyPatterns' free rows (irregular node sets), along a Morton curve through their
   /// reference positions, then by family size within windows of 256: the loop evaluates them a
-  /// vector width at a time, gathering the neighbours' current and reference positions and
-  /// measures and computing each bond's reference slot from them.
+  /// vector width at a time, loading the neighbours' node lines (Scratch::records: current and
+  /// reference positions, measure) and computing each bond's reference slot from them.
   std::vector<std::int32_t> free;
   std::int64_t free_nodes = 0;  ///< local nodes the free rows read: 0 .. free_nodes-1
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
