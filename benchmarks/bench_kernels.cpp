@@ -12,8 +12,6 @@
 #if defined(__AVX2__)
 #include <immintrin.h>
 #endif
-#include <filesystem>
-#include <fstream>
 #include <random>
 
 #include "peri/models/model.hpp"
