@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
     const Scene scene = parse_scene(text, "ab_forces");
     const Nodes nodes = discretize(scene);
     const CellList cells(nodes, reach(nodes.bodies[0]));
-    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+    const Partition part = partition_from_parts(nodes, std::vector<int>(nodes.size(), 0), 1);
     Domain d = build_domain(scene, nodes, cells, part, 0);
     const BondLaw law = calibrate(scene.materials[0], nodes.bodies[0], "ab_forces");
     const std::int64_t stride = position_plane_stride(d.local());

@@ -101,7 +101,7 @@ void kernel_of(benchmark::State& st, const std::string& text, double noise, doub
   const Scene scene = parse_scene(text, "bench");
   const Nodes nodes = discretize(scene);
   CellList cells(nodes, reach(nodes.bodies[0]));
-  const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+  const Partition part = partition_from_parts(nodes, std::vector<int>(nodes.size(), 0), 1);
   Domain d = build_domain(scene, nodes, cells, part, 0);
   const BondLaw law = calibrate(scene.materials[0], nodes.bodies[0], "bench");
   std::vector<double> u(3 * static_cast<std::size_t>(d.local()));

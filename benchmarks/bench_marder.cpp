@@ -44,7 +44,7 @@ void kernel(benchmark::State& st) {
   const Scene scene = parse_scene(lattice_scene(n), "bench");
   const Nodes nodes = discretize(scene);
   CellList cells(nodes, reach(nodes.bodies[0]));
-  const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+  const Partition part = partition_from_parts(nodes, std::vector<int>(nodes.size(), 0), 1);
   Domain d = build_domain(scene, nodes, cells, part, 0);
   const MarderParams& p = *scene.materials[0].marder;
   const BodyGeometry& g = nodes.bodies[0];

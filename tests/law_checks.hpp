@@ -83,7 +83,7 @@ struct Body {
     nodes = discretize(scene);
     law = calibrate(scene.materials[0], nodes.bodies[0], "law-test");
     const CellList cells(nodes, reach(nodes.bodies[0]));
-    d = build_domain(scene, nodes, cells, partition_from_parts(std::vector<int>(nodes.size(), 0), 1), 0);
+    d = build_domain(scene, nodes, cells, partition_from_parts(nodes, std::vector<int>(nodes.size(), 0), 1), 0);
     for (std::int32_t i = 0; i < d.owned; ++i) rows.push_back(i);
   }
   BondView view(const double* x, std::uint8_t* broken) const {

@@ -98,7 +98,7 @@ stages:
   }
   const Nodes nodes = discretize(scene);
   const CellList cells(nodes, reach(nodes.bodies[0]));
-  const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+  const Partition part = partition_from_parts(nodes, std::vector<int>(nodes.size(), 0), 1);
   const auto t0 = std::chrono::steady_clock::now();
   const Domain d = build_domain(scene, nodes, cells, part, 0);
   const double indexed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -307,7 +307,7 @@ struct Sheet {
     Scene s = scene;
     s.cracks = cracks;
     const CellList cells(nodes, reach(nodes.bodies[0]));
-    const Partition part = partition_from_parts(std::vector<int>(nodes.size(), 0), 1);
+    const Partition part = partition_from_parts(nodes, std::vector<int>(nodes.size(), 0), 1);
     const Domain d = build_domain(s, nodes, cells, part, 0);
     std::set<std::pair<std::int64_t, std::int64_t>> flagged, seen;
     broken = expected = wrong = asymmetric = 0;

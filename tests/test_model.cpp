@@ -441,7 +441,7 @@ struct OneRankBody {
     std::vector<int> parts(nodes.size(), 0);
     if (split_x > 0)
       for (std::int64_t i = 0; i < nodes.size(); ++i) parts[i] = nodes.X[3 * i] < split_x ? 0 : 1;
-    const Partition part = partition_from_parts(parts, split_x > 0 ? 2 : 1);
+    const Partition part = partition_from_parts(nodes, parts, split_x > 0 ? 2 : 1);
     d = build_domain(scene, nodes, cells, part, 0);
     law = calibrate(scene.materials[0], nodes.bodies[0], "t");
   }

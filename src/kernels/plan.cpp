@@ -171,45 +171,14 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
     for (std::size_t r = 0; r < nrows; ++r) (P.is_free(rows[r]) ? plan.free : patterned).push_back(rows[r]);
     rows = patterned.data();
     nrows = patterned.size();
-    // In the order of a space-filling (Morton) curve through their reference positions: the node
-    // numbers of a mesh or a point cloud need not follow space (a CSV's rows may come in any
-    // order), and consecutive rows then share most neighbours in cache (each neighbour's node
-    // line is one cache line, wherever it lies).
-    {
-      double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-      for (const std::int32_t i : plan.free)
-        for (int c = 0; c < 3; ++c) {
-          lo[c] = std::min(lo[c], v.X[3 * static_cast<std::size_t>(i) + c]);
-          hi[c] = std::max(hi[c], v.X[3 * static_cast<std::size_t>(i) + c]);
-        }
-      auto spread = [](std::uint64_t a) {  // the 21 bits of a at every third bit
-        a &= 0x1fffff;
-        a = (a | a << 32) & 0x1f00000000ffffull;
-        a = (a | a << 16) & 0x1f0000ff0000ffull;
-        a = (a | a << 8) & 0x100f00f00f00f00full;
-        a = (a | a << 4) & 0x10c30c30c30c30c3ull;
-        a = (a | a << 2) & 0x1249249249249249ull;
-        return a;
-      };
-      std::vector<std::pair<std::uint64_t, std::int32_t>> keyed;
-      keyed.reserve(plan.free.size());
-      for (const std::int32_t i : plan.free) {
-        std::uint64_t key = 0;
-        for (int c = 0; c < 3; ++c) {
-          const double extent = hi[c] - lo[c];
-          const double t = extent > 0 ? (v.X[3 * static_cast<std::size_t>(i) + c] - lo[c]) / extent : 0.0;
-          key |= spread(static_cast<std::uint64_t>(t * 2097151.0)) << c;
-        }
-        keyed.emplace_back(key, i);
-      }
-      std::sort(keyed.begin(), keyed.end());
-      for (std::size_t r = 0; r < keyed.size(); ++r) plan.free[r] = keyed[r].second;
-    }
-    // Then by family size within windows of 256 rows (whose neighbours stay in cache): the eight
-    // rows of a vector group end at nearly the same slot (lane slots per bond: the jittered
-    // 400 x 400 membrane mesh 1.006 instead of 1.080, the jittered 64^3 cloud 1.007 instead of
-    // 1.065).
-    constexpr std::size_t kFreeWindow = 256;
+    // In the order given (a domain's rows: storage order, a Morton curve through an irregular
+    // body: partition.hpp), so that consecutive rows share most neighbours in cache and a vector
+    // group's rows read their neighbour lists and flags nearly as one stream; by family size
+    // only within windows of 16 rows, so that the rows of a group end at nearly the same slot.
+    // (Sorting the rows along the curve here, over node numbers in file order, and by size within
+    // windows of 256 scattered those reads: 0.83-0.87 times as fast on the jittered
+    // cloud, 0.68 on the jittered mesh: bench_kernels, 3 rounds alternating.)
+    constexpr std::size_t kFreeWindow = 16;
     auto size_of = [&](std::int32_t i) { return v.offsets[i + 1] - v.offsets[i]; };
     for (std::size_t w = 0; w < plan.free.size(); w += kFreeWindow)
       std::stable_sort(plan.free.begin() + static_cast<std::ptrdiff_t>(w),

@@ -278,18 +278,57 @@ PartitionQuality quality(const BondGraph& graph, const std::vector<int>& part, i
   return q;
 }
 
-Partition partition_from_parts(std::vector<int> part, int parts) {
+std::vector<std::int64_t> storage_order(const Nodes& nodes) {
+  std::vector<std::int64_t> order(static_cast<std::size_t>(nodes.size()));
+  std::iota(order.begin(), order.end(), std::int64_t{0});
+  auto spread = [](std::uint64_t a) {  // the 21 bits of a at every third bit
+    a &= 0x1fffff;
+    a = (a | a << 32) & 0x1f00000000ffffull;
+    a = (a | a << 16) & 0x1f0000ff0000ffull;
+    a = (a | a << 8) & 0x100f00f00f00f00full;
+    a = (a | a << 4) & 0x10c30c30c30c30c3ull;
+    a = (a | a << 2) & 0x1249249249249249ull;
+    return a;
+  };
+  std::vector<std::pair<std::uint64_t, std::int64_t>> keyed;
+  for (const BodyGeometry& g : nodes.bodies) {
+    if (!g.irregular || g.count < 2) continue;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (std::int64_t i = g.first; i < g.first + g.count; ++i)
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min(lo[c], nodes.X[3 * i + c]);
+        hi[c] = std::max(hi[c], nodes.X[3 * i + c]);
+      }
+    keyed.clear();
+    keyed.reserve(static_cast<std::size_t>(g.count));
+    for (std::int64_t i = g.first; i < g.first + g.count; ++i) {
+      std::uint64_t key = 0;
+      for (int c = 0; c < 3; ++c) {
+        const double extent = hi[c] - lo[c];
+        const double t = extent > 0 ? (nodes.X[3 * i + c] - lo[c]) / extent : 0.0;
+        key |= spread(static_cast<std::uint64_t>(t * 2097151.0)) << c;
+      }
+      keyed.emplace_back(key, i);
+    }
+    std::sort(keyed.begin(), keyed.end());  // ties by natural id: the same order on every rank
+    for (std::size_t k = 0; k < keyed.size(); ++k) order[g.first + static_cast<std::int64_t>(k)] = keyed[k].second;
+  }
+  return order;
+}
+
+Partition partition_from_parts(const Nodes& nodes, std::vector<int> part, int parts) {
   Partition p;
   p.parts = parts;
   p.part = std::move(part);
   const std::int64_t n = static_cast<std::int64_t>(p.part.size());
+  if (n != nodes.size()) throw Error("partition_from_parts: a part for each of the " + std::to_string(nodes.size()) + " nodes");
   p.part_begin.assign(parts + 1, 0);
   for (std::int64_t i = 0; i < n; ++i) ++p.part_begin[p.part[i] + 1];
   std::partial_sum(p.part_begin.begin(), p.part_begin.end(), p.part_begin.begin());
   std::vector<std::int64_t> fill(p.part_begin.begin(), p.part_begin.end() - 1);
   p.natural_to_global.resize(n);
   p.global_to_natural.resize(n);
-  for (std::int64_t i = 0; i < n; ++i) {  // stable: natural order inside a part
+  for (const std::int64_t i : storage_order(nodes)) {  // stable: storage order inside a part
     const std::int64_t g = fill[p.part[i]]++;
     p.natural_to_global[i] = g;
     p.global_to_natural[g] = i;
@@ -440,7 +479,7 @@ Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, 
                           PartitionSettings settings) {
   const std::int64_t n = nodes.size();
   std::vector<int> part(n, 0);
-  if (parts <= 1) return partition_from_parts(std::move(part), 1);
+  if (parts <= 1) return partition_from_parts(nodes, std::move(part), 1);
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   if (n < parts) throw InputError("the scene has " + std::to_string(n) + " nodes, fewer than the " +
@@ -448,7 +487,7 @@ Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, 
   const auto t0 = std::chrono::steady_clock::now();
   settings.method = resolve_partition_method(settings.method, nodes);
   if (settings.method == PartitionMethod::Rcb) {
-    Partition p = partition_from_parts(rcb_parts(nodes, parts, settings.line_weight), parts);
+    Partition p = partition_from_parts(nodes, rcb_parts(nodes, parts, settings.line_weight), parts);
     p.edge_cut = -1;  // not known here: the domains count it (bonds to ghost nodes)
     p.graph_vertices = n;
     p.method = "rcb-node-coordinates";
@@ -516,7 +555,7 @@ Partition partition_nodes(const Nodes& nodes, const CellList& cells, int parts, 
     MPI_Bcast(&balance, 1, MPI_DOUBLE, 0, comm);
     method = settings.method == PartitionMethod::Cells ? "metis-kway-cell-graph" : "metis-kway-bond-graph";
   }
-  Partition p = partition_from_parts(std::move(part), parts);
+  Partition p = partition_from_parts(nodes, std::move(part), parts);
   p.edge_cut = figures[0];
   p.graph_vertices = figures[1];
   p.balance = balance;

@@ -138,10 +138,11 @@ struct RowBox {
 struct RowBlocks {
   std::vector<RowRun> runs;
   std::vector<std::int32_t> rest;
-  /// FamilyPatterns' free rows (irregular node sets), along a Morton curve through their
-  /// reference positions, then by family size within windows of 256: the loop evaluates them a
-  /// vector width at a time, loading the neighbours' node lines (Scratch::records: current and
-  /// reference positions, measure) and computing each bond's reference slot from them.
+  /// FamilyPatterns' free rows (irregular node sets), in the order given (a domain's: storage
+  /// order, along a Morton curve: partition.hpp), by family size within windows of 16 rows:
+  /// the loop evaluates them a vector width at a time, loading the neighbours' node lines
+  /// (Scratch::records: current and reference positions, measure) and computing each bond's
+  /// reference slot from them.
   std::vector<std::int32_t> free;
   std::int64_t free_nodes = 0;  ///< local nodes the free rows read: 0 .. free_nodes-1
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)

@@ -1,5 +1,5 @@
 // Partition: which rank owns which node; nodes are renumbered so each rank's owned nodes are
-// contiguous (natural order kept inside a part). Four partitioners fill the same `part` array
+// contiguous (inside a part in storage_order: natural order, irregular bodies along a Morton curve). Four partitioners fill the same `part` array
 // (option -partition_method; the default, auto, takes rcb for a scene of one square-grid body that
 // fills its box, e.g. a block or a rectangular sheet, and cells for any other):
 //   rcb    recursive coordinate bisection of the nodes: each range of parts is halved by a plane
@@ -66,8 +66,17 @@ struct PartitionSettings {
 /// -partition_cells_per_part N, -partition_line_weight W (1 ... 64). InputError (identical on every rank) for bad values.
 PartitionSettings partition_settings_from_options();
 
-/// Assign parts from a given natural-id -> part array (any partitioner), renumbering nodes.
-Partition partition_from_parts(std::vector<int> part, int parts);
+/// The order nodes are stored in on their rank (natural ids): natural order, except that the nodes
+/// of an irregular body (a mesh or a point cloud: BodyGeometry::irregular, whose file order need
+/// not follow space) follow a Morton curve through their reference positions, in the body's place.
+/// The bond loop walks rows in storage order, so consecutive rows share most neighbours in cache
+/// and their neighbour lists and flags are read as one stream. A permutation of 0 .. N-1.
+std::vector<std::int64_t> storage_order(const Nodes& nodes);
+
+/// Assign parts from a given natural-id -> part array (any partitioner), renumbering nodes: each
+/// part's nodes contiguous, in storage_order inside it. Rank-independent, as the natural order:
+/// rows, bonds and output keep natural ids (Domain::natural).
+Partition partition_from_parts(const Nodes& nodes, std::vector<int> part, int parts);
 
 /// The bond graph of all nodes (natural ids, CSR), as the partitioner sees it.
 struct BondGraph {
