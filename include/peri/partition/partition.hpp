@@ -1,7 +1,8 @@
 // Partition: which rank owns which node; nodes are renumbered so each rank's owned nodes are
-// contiguous (inside a part in storage_order: natural order, irregular bodies along a Morton curve). Four partitioners fill the same `part` array
-// (option -partition_method; the default, auto, takes rcb for a scene of one square-grid body that
-// fills its box, e.g. a block or a rectangular sheet, and cells for any other):
+// contiguous, in storage_order inside a part (natural order; irregular bodies along a Morton
+// curve). Four partitioners fill the same `part` array (option -partition_method; the default,
+// auto, takes rcb for a scene of one square-grid body that fills its box, e.g. a block or a
+// rectangular sheet, and cells for any other):
 //   rcb    recursive coordinate bisection of the nodes: each range of parts is halved by a plane
 //          across its longest extent (x's extent divided by the line weight, so that cuts keep x
 //          lines whole), at the node where the nodes' weight (their bond counts on a grid that
