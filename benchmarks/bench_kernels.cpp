@@ -133,6 +133,26 @@ void kernel_of(benchmark::State& st, const std::string& text, double noise, doub
   st.counters["bytes_per_bond"] = d.bonds.bytes_per_bond();
   st.counters["block_rows"] = static_cast<double>(plan.run_rows()) / static_cast<double>(plan.rows());
   st.counters["rows_per_run"] = static_cast<double>(plan.run_rows()) / static_cast<double>(std::max<std::size_t>(1, plan.runs.size()));
+  if (!plan.free.empty()) {
+    // The free rows' lane use: their bonds over the slots their vector groups walk (each group of
+    // W consecutive rows runs as long as its longest family).
+#if defined(PERI_AVX2)
+    constexpr std::size_t W = simd::Wide::W;
+#else
+    constexpr std::size_t W = 1;  // the portable walk: one row at a time
+#endif
+    std::int64_t bonds = 0, walked = 0;
+    for (std::size_t r = 0; r < plan.free.size(); r += W) {
+      std::int64_t longest = 0;
+      for (std::size_t l = r; l < std::min(r + W, plan.free.size()); ++l) {
+        const std::int64_t n = d.bonds.offsets[plan.free[l] + 1] - d.bonds.offsets[plan.free[l]];
+        bonds += n;
+        longest = std::max(longest, n);
+      }
+      walked += static_cast<std::int64_t>(W) * longest;
+    }
+    st.counters["free_lane_use"] = static_cast<double>(bonds) / static_cast<double>(std::max<std::int64_t>(1, walked));
+  }
 }
 
 void kernel(benchmark::State& st, const char* model, const char* quadrature, double critical_stretch, double noise) {

@@ -16,18 +16,33 @@
 
 namespace peri {
 
+/// Whether law lanes E read 1/|xi| (a member `kReadsInverseLength`; a law without one is taken to).
+template <class E>
+constexpr bool reads_inverse_length() {
+  if constexpr (requires { E::kReadsInverseLength; }) return E::kReadsInverseLength;
+  else return true;
+}
+
 /// The reference slot of a free row's bond (FamilyPatterns) on the lanes of pack P, from its
 /// reference vector e = X_j - X_i and its measure w_ij V_j (FamilyPatterns::free_measure):
 /// |xi|^2 = free_length2(e), 1/|xi| by simd::Root (as the laws' 1/y: on AVX-512 the estimate
-/// and its correction, no division), and w V / |xi|^2 = (w V / |xi|) / |xi|. The vector loop's
-/// lanes and the portable walk compute the same bits.
-template <class P, class B>
+/// and its correction, no division), and w V / |xi|^2 = (w V / |xi|) / |xi|; without AVX-512,
+/// for laws that do not read 1/|xi| (`InverseLength` false), w V / |xi|^2 by one division
+/// instead, so that their loop takes no square root of |xi|^2. The vector loop's lanes and the
+/// portable walk compute the same bits.
+template <class P, bool InverseLength = true, class B>
 __attribute__((always_inline)) inline void free_slot(const simd::Root<P>& root, typename P::V e0, typename P::V e1,
                                                      typename P::V e2, typename P::V measure, B& b) {
   b.xi2 = free_length2<P>(e0, e1, e2);
   typename P::V xi;
   root.finish(b.xi2, root.front(b.xi2), xi, b.inv_xi);
   b.measure = measure;
+#if !defined(PERI_AVX512VL)
+  if constexpr (!InverseLength) {
+    b.measure_per_xi2 = P::div(measure, b.xi2);
+    return;
+  }
+#endif
   b.measure_per_xi2 = P::mul(P::mul(measure, b.inv_xi), b.inv_xi);
 }
 
@@ -51,6 +66,8 @@ class FamilyBond {
   struct Reference {
     double xi2, inv_xi, measure, measure_per_xi2;
   };
+  /// `InverseLength`: whether the law reads 1/|xi| (free_slot).
+  template <bool InverseLength = true>
   Reference reference() const {
     if (slot_ >= 0) {
       const FamilyPatterns& p = *v_->patterns;
@@ -61,7 +78,7 @@ class FamilyBond {
     const double* Xi = v_->X + 3 * static_cast<std::int64_t>(i_);
     const double* Xj = v_->X + 3 * static_cast<std::int64_t>(j());
     Reference s;
-    free_slot<simd::Scalar>(simd::Root<simd::Scalar>{}, Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2], m, s);
+    free_slot<simd::Scalar, InverseLength>(simd::Root<simd::Scalar>{}, Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2], m, s);
     s.xi2 = xi2;  // the view's |xi|^2 (free_xi2), as xi2() gives it
     return s;
   }
@@ -115,7 +132,7 @@ typename E::Bonds scalar_bond(const E& law, const BondView& v, std::int32_t i, c
   b.d0 = v.x[j] - v.x[i];
   b.d1 = v.x[v.x_stride + j] - v.x[v.x_stride + i];
   b.d2 = v.x[2 * v.x_stride + j] - v.x[2 * v.x_stride + i];
-  const FamilyBond::Reference r = bond.reference();
+  const FamilyBond::Reference r = bond.reference<reads_inverse_length<E>()>();
   b.xi2 = r.xi2;
   b.inv_xi = r.inv_xi;
   b.measure = r.measure;

@@ -773,7 +773,7 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
     bonds.d0 = S::sub(o.x, own.x);
     bonds.d1 = S::sub(o.y, own.y);
     bonds.d2 = S::sub(o.z, own.z);
-    free_slot<S>(root, S::sub(o.X, own.X), S::sub(o.Y, own.Y), S::sub(o.Z, own.Z), measure, bonds);
+    free_slot<S, reads_inverse_length<Law>()>(root, S::sub(o.X, own.X), S::sub(o.Y, own.Y), S::sub(o.Z, own.Z), measure, bonds);
     add_free_bond(law, L, bonds, dead, k, f0, f1, f2, w, flag_row, newly, diss);
   }
   finish_rows(law, v, rows, count, f0, f1, f2, w, newly, diss, force, tally);

@@ -13,6 +13,8 @@
 //   static constexpr int kHistory (optional)                    values kept per ordered bond; its
 //                                                               Lanes' Bonds are HistoryBondLanes and
 //                                                               it runs in the portable walk
+//   Lanes::kReadsInverseLength (optional, default true)         whether its lanes read 1/|xi| (free
+//                                                               rows: bond_loop.hpp free_slot)
 #pragma once
 #include <string>
 #include <type_traits>

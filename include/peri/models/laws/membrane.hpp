@@ -51,6 +51,9 @@ struct MembraneLaw {
     using Bonds = BondLanes<P, Energy ? kSlots : Linear ? 1 : 0>;  // (a constant lambda_0 reads none)
     /// With a constant lambda_0 the failure test needs no per-slot constant (r <= lambda_0^-2).
     static constexpr bool kSlotValues = Linear || Energy;
+    /// 1/|xi| is read by a conical g and a linear lambda_0 only (free_slot: w V / |xi|^2 by one
+    /// division where it is not, whether or not the call sums the energy).
+    static constexpr bool kReadsInverseLength = Conical || Linear;
     double c_row, crit0_s, crit_slope_s, c_energy_s, inv_horizon_s;
     V zero, one, r_max, inv_crit0_sq, inv_horizon;
     explicit Lanes(const MembraneLaw& L)
