@@ -35,6 +35,13 @@ f=$(variant stiffness_key 's/density: 1000/density: 1000\n    wave_speed: 30/')
 expect stiffness_key "$f:$(line_of "$f" 'wave_speed'): materials.rubber.wave_speed: not used by the marder model" -- "$f"
 f=$(variant kelvin_negative 's/kelvin_viscosity: .*/kelvin_viscosity: -0.01/')
 expect kelvin_negative "$f:$(line_of "$f" 'kelvin_viscosity'): materials.rubber.kelvin_viscosity: expected a non-negative number [m^2/s], got -0.01" -- "$f"
+f=$(variant onset_alone 's/kelvin_viscosity: .*/kelvin_viscosity: 0.005\n    stiffening_onset: 0.0013/')
+expect onset_alone "materials.rubber: missing required key 'stiffening_width' (given with stiffening_onset)" -- "$f"
+f=$(variant onset_beyond_uc 's/kelvin_viscosity: .*/kelvin_viscosity: 0.005\n    stiffening_onset: 0.0016\n    stiffening_width: 0.0001/')
+expect onset_beyond_uc "$f:$(line_of "$f" 'spacing:'): bodies.strip.spacing: lattice spacing 0.0005 m" -- "$f"
+expect onset_beyond_uc_why "the stiffening onset u_g = 0.0016 m must lie on the Mooney-Rivlin branch" -- "$f"
+f=$(variant width_zero 's/kelvin_viscosity: .*/kelvin_viscosity: 0.005\n    stiffening_onset: 0.0013\n    stiffening_width: 0/')
+expect width_zero "$f:$(line_of "$f" 'stiffening_width'): materials.rubber.stiffening_width: expected a positive number [m], got 0" -- "$f"
 f=$(variant bad_breaking 's/breaking: irreversible/breaking: sometimes/')
 expect bad_breaking "materials.rubber.breaking: expected one of: irreversible, reversible; got sometimes" -- "$f"
 f=$(variant lattice_grid 's/spacing: 0.0005/spacing: 0.0005\n    grid: square/')

@@ -55,30 +55,42 @@ void expect_close(double a, double b, double rel, double scale, const char* what
 // u_c = 3 Delta, a = 1000 J/kg, b = 0.4.
 const peri::MarderLaw kLattice = peri::marder_law(1000, 0.4, 5e-4, 1.25e-4, 1.5e-3, 1e-6, false);
 
+// With the stiffening pair term beyond u_g = 2 Delta (w = 0.25 Delta).
+const peri::MarderLaw kStiffLattice =
+    peri::marder_law(1000, 0.4, 5e-4, 1.25e-4, 1.5e-3, 1e-6, false, 0, 1e-3, 1.25e-4);
+
 TEST(LawDerivatives, MarderFunctionsAreTheirDerivatives) {
-  const peri::MarderLaw& L = kLattice;
-  const double f_scale = L.A * L.delta * L.delta, df_scale = L.A * L.delta;
-  int points = 0;
-  for (double u = 0.5 * L.delta; u < 1.3 * L.uc; u += 0.0137 * L.delta, ++points) {
-    const Dual f = L.f(variable(u)), h = L.h(variable(u));
-    expect_close(f.v, L.f(u), 1e-14, f_scale, "f(dual) value", u);  // the same arithmetic
-    expect_close(f.d, L.df(u), 1e-12, df_scale, "df", u);
-    expect_close(h.d, L.dh(u), 1e-12, 1.0 / L.us, "dh", u);
-    const double X = (u - L.delta) * L.delta;  // u_ij . u_ik over the range a pair of bonds sees
-    expect_close(L.g(variable(X)).d, L.dg(X), 1e-12, L.B * L.delta * L.delta, "dg", X);
+  for (const peri::MarderLaw& L : {kLattice, kStiffLattice}) {
+    const double f_scale = L.A * L.delta * L.delta, df_scale = L.A * L.delta;
+    int points = 0;
+    for (double u = 0.5 * L.delta; u < 1.3 * L.uc; u += 0.0137 * L.delta, ++points) {
+      const Dual f = L.f(variable(u)), h = L.h(variable(u));
+      expect_close(f.v, L.f(u), 1e-14, f_scale, "f(dual) value", u);  // the same arithmetic
+      expect_close(f.d, L.df(u), 1e-12, df_scale, "df", u);
+      expect_close(h.d, L.dh(u), 1e-12, 1.0 / L.us, "dh", u);
+      const double X = (u - L.delta) * L.delta;  // u_ij . u_ik over the range a pair of bonds sees
+      expect_close(L.g(variable(X)).d, L.dg(X), 1e-12, L.B * L.delta * L.delta, "dg", X);
+    }
+    EXPECT_GT(points, 100);
+    // f is continuous where its cutoff branch meets the Mooney-Rivlin one (u = Delta + u_s), constant
+    // beyond u_c, and zero (with its reference constant) for the unstretched bond's share: f(Delta)
+    // is the f_constant that makes the reference lattice's energy zero.
+    const double join = L.delta + L.us;
+    expect_close(L.f(std::nextafter(join, 0.0)), L.f(join), 1e-9, f_scale, "f continuous at Delta + u_s",
+                 join);
+    EXPECT_EQ(L.f(1.1 * L.uc), L.f(L.uc));
+    EXPECT_EQ(L.df(1.1 * L.uc), 0.0);
+    expect_close(L.f(L.delta), L.f_constant(), 1e-13, f_scale, "f(Delta)", L.delta);
+    // The switch: h(u_c) = 1/2, and -h (1 - h) / u_s at u_c: -1 / (4 u_s).
+    EXPECT_DOUBLE_EQ(L.h(L.uc), 0.5);
+    expect_close(L.dh(L.uc), -0.25 / L.us, 1e-14, 0, "dh(u_c)", L.uc);
   }
-  EXPECT_GT(points, 100);
-  // f is continuous where its cutoff branch meets the Mooney-Rivlin one (u = Delta + u_s), constant
-  // beyond u_c, and zero (with its reference constant) for the unstretched bond's share: f(Delta)
-  // is the f_constant that makes the reference lattice's energy zero.
-  const double join = L.delta + L.us;
-  expect_close(L.f(std::nextafter(join, 0.0)), L.f(join), 1e-9, f_scale, "f continuous at Delta + u_s", join);
-  EXPECT_EQ(L.f(1.1 * L.uc), L.f(L.uc));
-  EXPECT_EQ(L.df(1.1 * L.uc), 0.0);
-  expect_close(L.f(L.delta), L.f_constant(), 1e-13, f_scale, "f(Delta)", L.delta);
-  // The switch: h(u_c) = 1/2, and -h (1 - h) / u_s at u_c: -1 / (4 u_s).
-  EXPECT_DOUBLE_EQ(L.h(L.uc), 0.5);
-  expect_close(L.dh(L.uc), -0.25 / L.us, 1e-14, 0, "dh(u_c)", L.uc);
+  // The stiffening adds nothing up to u_g and (A/36) (u - u_g)^4 / w^2 beyond.
+  const peri::MarderLaw &L = kStiffLattice, &M = kLattice;
+  for (double u : {1.2 * L.delta, 1.9 * L.delta, L.stiffening_onset}) EXPECT_EQ(L.f(u), M.f(u)) << u;
+  const double u = 2.5 * L.delta, x = u - L.stiffening_onset;
+  expect_close(L.f(u) - M.f(u), L.A / 36 * std::pow(x, 4) / std::pow(L.stiffening_width, 2), 1e-12,
+               L.A * L.delta * L.delta, "stiffening energy", u);
 }
 
 // The fibers' pairs of example 7.5: a = 1 nm, alpha and beta of the scene's adjacent segments.

@@ -106,23 +106,27 @@ void check_gradient(const MarderLaw& law, int n, std::vector<double> d, const st
 
 TEST(MarderForces, GradientOfNodeEnergyInEveryBranch) {
   // u_s large enough that h varies over the bonds near u_c: every term of the gradient matters.
-  const MarderLaw law = marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false);
-  std::mt19937 rng(7);
-  // Bond lengths: inside the cutoff branch, in the Mooney-Rivlin range, near and beyond u_c.
-  const double lengths[6] = {1.02, 1.3, 1.55, 1.62, 0.97, 1.8};
-  std::uniform_real_distribution<double> jitter(-0.15, 0.15), z(-0.05, 0.05);
-  for (int trial = 0; trial < 5; ++trial) {
-    std::vector<double> d(18);
-    for (int k = 0; k < 6; ++k) {
-      const double t = k * kPi / 3 + jitter(rng), r = lengths[(k + trial) % 6] * kDelta;
-      d[3 * k] = r * std::cos(t);
-      d[3 * k + 1] = r * std::sin(t);
-      d[3 * k + 2] = z(rng) * kDelta;  // out of plane too: the law is rotationally invariant in 3D
+  // The second law stiffens beyond u_g = 1.35 Delta: the bonds at 1.55 Delta are on that branch.
+  for (const MarderLaw& law : {marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false),
+                               marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false, 0,
+                                          1.35 * kDelta, 0.1 * kDelta)}) {
+    std::mt19937 rng(7);
+    // Bond lengths: inside the cutoff branch, in the Mooney-Rivlin range, near and beyond u_c.
+    const double lengths[6] = {1.02, 1.3, 1.55, 1.62, 0.97, 1.8};
+    std::uniform_real_distribution<double> jitter(-0.15, 0.15), z(-0.05, 0.05);
+    for (int trial = 0; trial < 5; ++trial) {
+      std::vector<double> d(18);
+      for (int k = 0; k < 6; ++k) {
+        const double t = k * kPi / 3 + jitter(rng), r = lengths[(k + trial) % 6] * kDelta;
+        d[3 * k] = r * std::cos(t);
+        d[3 * k + 1] = r * std::sin(t);
+        d[3 * k + 2] = z(rng) * kDelta;  // out of plane too: the law is rotationally invariant in 3D
+      }
+      const std::uint8_t all[6] = {1, 1, 1, 1, 1, 1}, some[6] = {1, 0, 1, 1, 0, 1};
+      check_gradient(law, 6, d, all);
+      check_gradient(law, 6, d, some);
+      check_gradient(law, 4, d, all);  // an edge node
     }
-    const std::uint8_t all[6] = {1, 1, 1, 1, 1, 1}, some[6] = {1, 0, 1, 1, 0, 1};
-    check_gradient(law, 6, d, all);
-    check_gradient(law, 6, d, some);
-    check_gradient(law, 4, d, all);  // an edge node
   }
 }
 
@@ -356,6 +360,16 @@ TEST(MarderParameters, RefusedWithAReason) {
   EXPECT_NE(marder_parameter_problem(1e4, 1.5, D, 0.8 * D, 3 * D).find("unstretched lattice unstable"), std::string::npos);
   EXPECT_NE(marder_parameter_problem(1e4, -3.0, D, 0.8 * D, 3 * D).find("unstretched lattice unstable"), std::string::npos);
   EXPECT_EQ(marder_parameter_problem(1e4, -1.5, D, 0.8 * D, 3 * D), "");
+  // Stiffening: its onset on the Mooney-Rivlin branch [Delta + u_s, u_c), a width >= 0.
+  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, 2.5 * D, 0.1 * D), "");
+  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, 1.05 * D, 0.1 * D), "");
+  for (double onset : {1.04 * D, 3 * D, 3.5 * D})
+    EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, onset, 0.1 * D)
+                  .find("must lie on the Mooney-Rivlin"),
+              std::string::npos)
+        << onset;
+  EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, 2 * D, -0.1 * D).find("width"),
+            std::string::npos);
 }
 
 TEST(MarderParameters, ReferenceLatticeStabilityBoundIsSharp) {
@@ -537,6 +551,40 @@ TEST(MarderWaves, LatticeSpeedsFollowTheSwitchNearUc) {
   EXPECT_GT(lat.shear / ref.shear, 1.1);
   EXPECT_NEAR(cl / lat.longitudinal, 1.0, 0.05);
   EXPECT_NEAR(cs / lat.shear, 1.0, 0.02);
+}
+
+// The stiffening pair term (A/36) (u - u_g)^4 / w^2: nothing while every bond is shorter than u_g
+// (the far field stays Mooney-Rivlin), and beyond it the long-wave stiffness gains exactly the
+// pair term's second derivative along the wave, sum_k [f_g''(u_k) (du_k/dF)^2 + f_g'(u_k)
+// d^2u_k/dF^2] with u_k = |F n_k Delta| over the six bonds of a node.
+TEST(MarderWaves, StiffeningActsOnlyBeyondItsOnset) {
+  const double us = 0.05 * kDelta, uc = 3 * kDelta;
+  const MarderLaw mr = marder_law(kA, 0.3, kDelta, us, uc, kMass, false);
+  const double l1 = 1.2, l2 = 2.0;  // bonds of 1.2 and 1.83 Delta
+  {
+    const MarderLaw law = marder_law(kA, 0.3, kDelta, us, uc, kMass, false, 0, 1.9 * kDelta, 0.1 * kDelta);
+    const WaveSpeeds a = marder_lattice_wave_speeds(law, l1, l2), b = marder_lattice_wave_speeds(mr, l1, l2);
+    EXPECT_EQ(a.longitudinal, b.longitudinal);
+    EXPECT_EQ(a.shear, b.shear);
+  }
+  const double ug = 1.5 * kDelta, w = 0.2 * kDelta;  // the diagonal bonds (1.83 Delta) stiffen
+  const MarderLaw law = marder_law(kA, 0.3, kDelta, us, uc, kMass, false, 0, ug, w);
+  double q11 = 0, q21 = 0;  // the stiffening's share of d^2U/dF_11^2 and d^2U/dF_21^2
+  for (int k = 0; k < 6; ++k) {
+    const double n1 = std::cos(k * kPi / 3) * kDelta, n2 = std::sin(k * kPi / 3) * kDelta;
+    const double x = l1 * n1, y = l2 * n2, u = std::hypot(x, y);
+    if (u <= ug) continue;
+    const double f1 = law.A / 9 * std::pow(u - ug, 3) / (w * w), f2 = law.A / 3 * std::pow((u - ug) / w, 2);
+    // du/dF_11 = x n1 / u, d^2u/dF_11^2 = n1^2 / u - (x n1)^2 / u^3; for F_21 (about 0): y n1 / u.
+    q11 += f2 * std::pow(x * n1 / u, 2) + f1 * (n1 * n1 / u - std::pow(x * n1, 2) / std::pow(u, 3));
+    q21 += f2 * std::pow(y * n1 / u, 2) + f1 * (n1 * n1 / u - std::pow(y * n1, 2) / std::pow(u, 3));
+  }
+  const WaveSpeeds a = marder_lattice_wave_speeds(law, l1, l2), b = marder_lattice_wave_speeds(mr, l1, l2);
+  EXPECT_GT(q11, 0.0);
+  EXPECT_NEAR((a.longitudinal * a.longitudinal - b.longitudinal * b.longitudinal) * kMass / q11, 1.0, 1e-4);
+  EXPECT_NEAR((a.shear * a.shear - b.shear * b.shear) * kMass / q21, 1.0, 1e-4);
+  // The stable step accounts for the stiffest bond: (A/3) ((u_c - u_g)/w)^2 more at u_c.
+  EXPECT_LT(marder_stable_time_step(law), marder_stable_time_step(mr));
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 
 usage: /usr/bin/python3 tools/lattice_crack_map.py SCENE CASES.csv OUT.csv [--set KEY=VALUE ...]
            [--peridrive EXE] [--np N] [--mpiexec CMD] [--mpi-flag=FLAG ...] [--work DIR] [--plot PNG]
-       /usr/bin/python3 tools/lattice_crack_map.py --plot PNG OUT.csv   (figure from a finished map)
+       /usr/bin/python3 tools/lattice_crack_map.py --plot PNG OUT.csv [OUT.csv ...]   (figure from finished maps)
 
 SCENE is a scene with one lattice body, one material and a seed crack along y = 0 (as
 drivers/scenes/supersonic_rubber.yaml). Each row of CASES.csv is one run; its columns:
@@ -13,6 +13,8 @@ drivers/scenes/supersonic_rubber.yaml). Each row of CASES.csv is one run; its co
                 the lattice's four long-wave speeds at (lx, ly) are within --mr-tolerance of the
                 Mooney-Rivlin ones (the derived constants of --dry-run)
   nu, b         kelvin_viscosity [m^2/s] and mooney_rivlin_b
+  ug, w         optional: stiffening_onset and stiffening_width in lattice spacings (empty or
+                absent: no stiffening; "min" u_c is searched without it, it acts beyond the far field)
   duration      the stage's duration [s]
   length        the strip's length [m] (its height, spacing and seed stay the scene's)
 For each case the script reads --dry-run's derived constants, runs the scene on --np ranks,
@@ -20,8 +22,10 @@ measures the tip with tools/crack_tip_lattice.py and appends one line to OUT.csv
 largest relative deviation of the lattice's speeds from Mooney-Rivlin (mr_deviation), the
 Mooney-Rivlin c_L along x and c_T, the mean crack speed (crack_tip_lattice's fit), the peak speed
 (largest least-squares slope over 5 consecutive frames of the measured run) and both over c_L.
-A case whose tip never leaves the seed is recorded with speed 0 (outcome "arrested").
---plot draws v/c_L (mean and peak) against mr_deviation. Needs python3-h5py, numpy, matplotlib.
+A case whose tip never leaves the seed is recorded with speed 0 (outcome "arrested"); one whose
+tip stops early (mean speed below 1e-3 c_L) keeps its speeds and is "arrested" too.
+--plot draws v/c_L (mean and peak) against mr_deviation, runs with stiffening in their own
+markers. Needs python3-h5py, numpy, matplotlib.
 """
 import argparse
 import csv
@@ -36,12 +40,23 @@ import h5py
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-FIELDS = ["lx", "ly", "us", "uc", "nu", "b", "duration", "length", "mr_deviation", "cl_mr", "ct_mr",
+FIELDS = ["lx", "ly", "us", "uc", "nu", "b", "ug", "w", "duration", "length", "mr_deviation", "cl_mr", "ct_mr",
           "v_mean", "v_peak", "v_mean_over_cl", "v_peak_over_cl", "outcome"]
 
 
-def overrides(case, spacing, uc):
-    return ["--set", f"materials.{case['material']}.cutoff={float(case['us']) * spacing!r}",
+def stiffening(case):
+    """(u_g, w) in lattice spacings, or None."""
+    ug, w = (case.get("ug") or "").strip(), (case.get("w") or "").strip()
+    return (float(ug), float(w)) if ug and w and float(w) > 0 else None
+
+
+def overrides(case, spacing, uc, stiff=True):
+    extra = []
+    if stiff and stiffening(case):
+        ug, w = stiffening(case)
+        extra = ["--set", f"materials.{case['material']}.stiffening_onset={ug * spacing!r}",
+                 "--set", f"materials.{case['material']}.stiffening_width={w * spacing!r}"]
+    return extra + ["--set", f"materials.{case['material']}.cutoff={float(case['us']) * spacing!r}",
             "--set", f"materials.{case['material']}.fracture_separation={uc * spacing!r}",
             "--set", f"materials.{case['material']}.kelvin_viscosity={case['nu']}",
             "--set", f"materials.{case['material']}.mooney_rivlin_b={case['b']}",
@@ -62,8 +77,8 @@ def deviation(values):
     return max(abs(values[a] / values[b] - 1) for a, b in pairs)
 
 
-def dry_run(args, case, spacing, uc):
-    cmd = [args.peridrive, args.scene, "--dry-run"] + args.overrides + overrides(case, spacing, uc)
+def dry_run(args, case, spacing, uc, stiff=True):
+    cmd = [args.peridrive, args.scene, "--dry-run"] + args.overrides + overrides(case, spacing, uc, stiff)
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"lattice_crack_map.py: --dry-run failed for {case}: {r.stderr.strip()}")
@@ -84,7 +99,7 @@ def run_case(args, case, scene_text, spacing, material, body):
     uc = case["uc"]
     if uc == "min":
         uc = 1.05 + float(case["us"])
-        while deviation(dry_run(args, case, spacing, uc)) > args.mr_tolerance:
+        while deviation(dry_run(args, case, spacing, uc, stiff=False)) > args.mr_tolerance:
             uc = round(uc + 0.05, 6)
             if uc > 20:
                 sys.exit(f"lattice_crack_map.py: no u_c below 20 Delta makes {case} Mooney-Rivlin")
@@ -102,6 +117,7 @@ def run_case(args, case, scene_text, spacing, material, body):
     tip = subprocess.run([sys.executable, os.path.join(HERE, "crack_tip_lattice.py"), out],
                          capture_output=True, text=True)
     row = {k: case[k] for k in ("lx", "ly", "us", "nu", "b", "duration", "length")}
+    row.update(ug=case.get("ug") or "", w=case.get("w") or "")
     row.update(uc=uc, mr_deviation=deviation(values), cl_mr=values["longitudinal_wave_speed_x"],
                ct_mr=values["shear_wave_speed"])
     if tip.returncode != 0:
@@ -112,7 +128,7 @@ def run_case(args, case, scene_text, spacing, material, body):
             x_end = float(f["mesh/reference_position"][...].reshape(-1, 3)[:, 0].max())
         row.update(v_mean=res["crack_speed"],
                    v_peak=peak_speed(os.path.join(out, "crack_tip.csv"), seed_end_of(scene_text), x_end, spacing),
-                   outcome="runs")
+                   outcome="runs" if res["crack_speed"] > 1e-3 * row["cl_mr"] else "arrested")
     row.update(v_mean_over_cl=row["v_mean"] / row["cl_mr"], v_peak_over_cl=row["v_peak"] / row["cl_mr"])
     return row
 
@@ -138,11 +154,15 @@ def plot(rows, png):
     dev = np.array([max(float(r["mr_deviation"]), 1e-4) for r in rows])
     mean = np.array([float(r["v_mean_over_cl"]) for r in rows])
     peak = np.array([float(r["v_peak_over_cl"]) for r in rows])
+    stiff = np.array([bool((r.get("w") or "").strip()) for r in rows])
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.axvspan(1e-4, 0.03, color="0.92", label="far field Mooney-Rivlin (speeds within 3%)")
     ax.axhline(1.0, color="k", lw=0.8)
-    ax.scatter(dev, peak, marker="^", color="C3", label="peak speed (5 frames)")
-    ax.scatter(dev, mean, marker="o", facecolor="none", edgecolor="C0", label="mean speed")
+    for sel, tag, up, ring in ((~stiff, "", "^", "o"), (stiff, ", stiffening", "v", "s")):
+        if sel.any():
+            ax.scatter(dev[sel], peak[sel], marker=up, color="C3" if tag == "" else "C2", label="peak speed (5 frames)" + tag)
+            ax.scatter(dev[sel], mean[sel], marker=ring, facecolor="none", edgecolor="C0" if tag == "" else "C4",
+                       label="mean speed" + tag)
     ax.set_xscale("log")
     ax.set_xlabel("largest deviation of the stretched lattice's wave speeds from Mooney-Rivlin")
     ax.set_ylabel("crack speed / Mooney-Rivlin c_L (along the crack)")
@@ -166,10 +186,10 @@ def main():
                     help="a scene override applied to every run (repeatable), e.g. bodies.strip.spacing=0.001")
     args = ap.parse_args()
     args.overrides = [a for kv in args.set for a in ("--set", kv)]
-    if len(args.paths) == 1:
+    if all(p.endswith(".csv") for p in args.paths):
         if not args.plot:
-            sys.exit("usage: lattice_crack_map.py --plot PNG OUT.csv (or SCENE CASES.csv OUT.csv)")
-        plot(list(csv.DictReader(open(args.paths[0]))), args.plot)
+            sys.exit("usage: lattice_crack_map.py --plot PNG OUT.csv [OUT.csv ...] (or SCENE CASES.csv OUT.csv)")
+        plot([r for p in args.paths for r in csv.DictReader(open(p))], args.plot)
         return
     if len(args.paths) != 3:
         sys.exit("usage: lattice_crack_map.py SCENE CASES.csv OUT.csv")
@@ -192,7 +212,8 @@ def main():
             w.writerow(row)
             f.flush()
             rows.append(row)
-            print(f"lx={row['lx']} ly={row['ly']} us={row['us']} uc={row['uc']:.2f} nu={row['nu']} b={row['b']}: "
+            stiff = f" ug={row['ug']} w={row['w']}" if row["w"] else ""
+            print(f"lx={row['lx']} ly={row['ly']} us={row['us']} uc={row['uc']:.2f} nu={row['nu']} b={row['b']}{stiff}: "
                   f"MR deviation {row['mr_deviation']:.3f}, v/c_L mean {row['v_mean_over_cl']:.3f} "
                   f"peak {row['v_peak_over_cl']:.3f} ({row['outcome']})", flush=True)
     if args.plot:

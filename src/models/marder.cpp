@@ -17,7 +17,8 @@ std::string num(double v) {
 
 }  // namespace
 
-std::string marder_parameter_problem(double a, double b, double delta, double us, double uc) {
+std::string marder_parameter_problem(double a, double b, double delta, double us, double uc, double onset,
+                                    double width) {
   if (!(a > 0))
     return "the Mooney-Rivlin constant a must be > 0 (a <= 0 gives no tension and no wave speed), got a = " +
            num(a);
@@ -33,6 +34,10 @@ std::string marder_parameter_problem(double a, double b, double delta, double us
     return "b = " + num(b) + " makes the unstretched lattice unstable: its cutoff branch (eq. 31) is stable to "
            "homogeneous shear and dilatation only for -2 Delta/u_s < b < Delta/u_s, here (" +
            num(-2 * delta / us) + ", " + num(delta / us) + "); expected a larger Delta/u_s or a smaller |b|";
+  if (!(width >= 0)) return "the stiffening width w must be >= 0, got " + num(width);
+  if (width > 0 && !(onset >= delta + us && onset < uc))
+    return "the stiffening onset u_g = " + num(onset) + " m must lie on the Mooney-Rivlin branch, Delta + u_s = " +
+           num(delta + us) + " m <= u_g < u_c = " + num(uc) + " m";
   return {};
 }
 
@@ -47,7 +52,7 @@ double marder_dashpot(double kelvin_viscosity, double delta, double mass) noexce
 }
 
 MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass, bool reversible,
-                     double kelvin_viscosity) {
+                     double kelvin_viscosity, double stiffening_onset, double stiffening_width) {
   MarderLaw law;
   law.a = a;
   law.b = b;
@@ -57,6 +62,8 @@ MarderLaw marder_law(double a, double b, double delta, double us, double uc, dou
   law.mass = mass;
   law.reversible = reversible;
   law.dashpot = marder_dashpot(kelvin_viscosity, delta, mass);
+  law.stiffening_onset = stiffening_onset;
+  law.stiffening_width = stiffening_width;
   const double d2 = delta * delta;
   law.A = mass * a / d2;                    // eq. (27), rho = mass per node (eq. 25)
   law.B = 9.0 * mass * a * b / (8.0 * d2 * d2);
@@ -237,7 +244,9 @@ double marder_stable_time_step(const MarderLaw& law) {
   const double D = law.delta, us = law.us, uc = law.uc, A = law.A, B = std::fabs(law.B);
   const double u1 = D + us;
   const double cutoff = A / 6.0 * (6.0 * u1 - 2.0 * D) / us + 4.0 * B / 9.0 * (3.0 * u1 * u1 - D * D);
-  const double quartic = A / 3.0 + 4.0 * B / 9.0 * (3.0 * uc * uc - D * D);
+  // The stiffening term adds (A/3) ((u - u_g)/w)^2, largest at u_c.
+  const double w = law.stiffening_width, x = w > 0 ? std::max(uc - law.stiffening_onset, 0.0) / w : 0.0;
+  const double quartic = A / 3.0 * (1.0 + x * x) + 4.0 * B / 9.0 * (3.0 * uc * uc - D * D);
   const double pair = 2.0 * std::max(cutoff, quartic);
   // Three-body terms a bond takes part in (10 ordered pairs of each of its two rows), with
   // X = d_j . d_k <= u_c^2: |g''| u_c^2 and |g'| from the angular law; the switch h adds

@@ -101,6 +101,10 @@ void emit_material(Writer& w, const Material& m) {
     w.key(4, "fracture_separation", m.marder->fracture_separation);
     w.key(4, "breaking", m.marder->reversible ? "reversible" : "irreversible");
     if (m.marder->kelvin_viscosity > 0) w.key(4, "kelvin_viscosity", m.marder->kelvin_viscosity);
+    if (m.marder->stiffening_width > 0) {
+      w.key(4, "stiffening_onset", m.marder->stiffening_onset);
+      w.key(4, "stiffening_width", m.marder->stiffening_width);
+    }
     return;
   }
   w.optional(4, "wave_speed", m.wave_speed);

@@ -79,6 +79,13 @@ Material read_marder_material(const Map& m, Material mat) {
   if (auto x = m.get("breaking"))
     p.reversible = x->choice<bool>({{"irreversible", false}, {"reversible", true}});
   if (auto x = m.get("kelvin_viscosity")) p.kelvin_viscosity = x->non_negative("m^2/s");
+  const auto onset = m.get("stiffening_onset"), width = m.get("stiffening_width");
+  if (onset && !width) m.missing("stiffening_width", "given with stiffening_onset");
+  if (width && !onset) m.missing("stiffening_onset", "given with stiffening_width");
+  if (onset) {
+    p.stiffening_onset = onset->positive("m");
+    p.stiffening_width = width->positive("m");
+  }
   mat.marder = p;
   return mat;
 }

@@ -96,10 +96,15 @@ inline const Keys kMaterialKeys = {
     {.name = "kelvin_viscosity", .unit = "m^2/s", .fallback = "0 (none)",
      .doc = "kinematic viscosity nu >= 0 of Kelvin dashpots on the intact bonds, force eta (e_ij . (v_j - v_i)) "
             "e_ij with eta = 8 m nu / (3 Delta^2); their work is booked as dissipated energy"},
+    {.name = "stiffening_onset", .unit = "m", .fallback = "none",
+     .doc = "u_g: bonds longer than u_g stiffen beyond the Mooney-Rivlin law, pair energy (A/36) (u - u_g)^4 / w^2 "
+            "(not in the paper); Delta + u_s <= u_g < u_c, given with stiffening_width"},
+    {.name = "stiffening_width", .unit = "m", .fallback = "none",
+     .doc = "w > 0: at u = u_g + w a bond's stiffness is twice the Mooney-Rivlin pair stiffness A/3"},
 };
 
 inline constexpr const char* kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking",
-                                   "kelvin_viscosity"};
+                                   "kelvin_viscosity", "stiffening_onset", "stiffening_width"};
 
 inline const Keys kHardeningKeys = {
     {.name = "coefficient", .required = true, .what = "hardening coefficient c', >= 0", .unit = "J/m^6",

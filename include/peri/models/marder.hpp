@@ -27,13 +27,18 @@ constexpr int kMarderMaxNeighbours = 6;
 /// u_s <= 0; u_c <= Delta + u_s (bonds would break before reaching the Mooney-Rivlin range);
 /// b >= 2 (the stretched sheet has no shear stiffness: c_s^2 = a (1 - b/2) <= 0); and b outside
 /// (-2 Delta/u_s, Delta/u_s), where the unstretched lattice (cutoff branch of eq. 31) is
-/// unstable to a homogeneous shear or dilatation (derived in docs/theory/marder.md).
-std::string marder_parameter_problem(double a, double b, double delta, double us, double uc);
+/// unstable to a homogeneous shear or dilatation (derived in docs/theory/marder.md); with
+/// stiffening (width w > 0), an onset u_g off the Mooney-Rivlin branch [Delta + u_s, u_c).
+std::string marder_parameter_problem(double a, double b, double delta, double us, double uc, double onset = 0,
+                                     double width = 0);
 
 /// Constants for a lattice of spacing Delta whose nodes have mass m.
-/// `kelvin_viscosity` is the kinematic viscosity nu [m^2/s] of the bond dashpots (0: none).
+/// `kelvin_viscosity` is the kinematic viscosity nu [m^2/s] of the bond dashpots (0: none);
+/// `stiffening_onset` u_g and `stiffening_width` w [m] the pair stiffening beyond the
+/// Mooney-Rivlin branch (MarderLaw::stiffening; w = 0: none).
 MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass,
-                     bool reversible, double kelvin_viscosity = 0);
+                     bool reversible, double kelvin_viscosity = 0, double stiffening_onset = 0,
+                     double stiffening_width = 0);
 
 /// Dashpot coefficient per bond [kg/s] that gives a triangular lattice of spacing Delta and node
 /// mass m the viscous stress rho nu (2 D + (tr D) I) (reference lattice, strain rate D):
@@ -89,7 +94,7 @@ constexpr std::uint8_t kMarderUnbreakable = 8;
 
 /// Estimate of the stable explicit time step of the lattice: sqrt(2 m / k) with k the sum over
 /// six neighbours of the largest pair stiffness reachable below u_c (cutoff branch at Delta + u_s
-/// or quartic branch at u_c, both rows of a bond) plus bounds of the three-body curvature over
+/// or quartic branch and stiffening at u_c, both rows of a bond) plus bounds of the three-body curvature over
 /// the pairs a bond takes part in, including the switch h near u_c (see marder.cpp). With
 /// dashpots (force from the half-step velocity, see docs/theory/marder.md) the step also
 /// satisfies (omega dt / 2)^2 + gamma dt / 2 <= 1 with omega = 2 / (undamped bound) and

@@ -23,6 +23,13 @@ struct MarderLaw {
   /// eta (e_ij . (v_j - v_i)) e_ij, e_ij the current bond direction. eta = 8 m nu / (3 Delta^2)
   /// for the material's kinematic viscosity nu (docs/theory/marder.md); 0: no dashpots.
   double dashpot = 0;
+  /// Strain stiffening beyond the Mooney-Rivlin branch (not in the paper; docs/theory/marder.md):
+  /// for u_g < u the pair energy gains (A/36) (u - u_g)^4 / w^2, so the bond's stiffness grows by
+  /// (A/3) ((u - u_g)/w)^2 -- the Mooney-Rivlin pair stiffness A/3 once more at u = u_g + w.
+  /// Zero below u_g, with its first three derivatives, so a far field below u_g stays exactly
+  /// Mooney-Rivlin. stiffening_width = 0: none.
+  double stiffening_onset = 0;  ///< u_g [m]
+  double stiffening_width = 0;  ///< w [m]
 
   /// Constant of f that makes the reference lattice energy zero: the "+4" of eqs. (23), (24),
   /// (31) is 4 Delta^4 B per node for Delta = 1, shared by the six pair terms of a node.
@@ -36,7 +43,7 @@ struct MarderLaw {
     const T s = u * u - d2;
     const T quartic = B / 9.0 * s * s + f_constant();
     if (u < delta + us) return A / 6.0 * s * (u - delta) / us + quartic;
-    return A / 6.0 * s + quartic;
+    return A / 6.0 * s + quartic + stiffening(u);
   }
   /// df/du.
   template <class T>
@@ -46,7 +53,21 @@ struct MarderLaw {
     const T s = u * u - d2;
     const T quartic = 4.0 * B / 9.0 * u * s;
     if (u < delta + us) return A / 6.0 * (2.0 * u * (u - delta) + s) / us + quartic;
-    return A / 3.0 * u + quartic;
+    return A / 3.0 * u + quartic + dstiffening(u);
+  }
+  /// The stiffening pair energy (A/36) (u - u_g)^4 / w^2 for u > u_g, else 0.
+  template <class T>
+  T stiffening(T u) const noexcept {
+    if (!(stiffening_width > 0) || u < stiffening_onset) return T(0.0);
+    const T x = u - stiffening_onset;
+    return A / 36.0 * (x * x) * (x * x) / (stiffening_width * stiffening_width);
+  }
+  /// Its derivative (A/9) (u - u_g)^3 / w^2.
+  template <class T>
+  T dstiffening(T u) const noexcept {
+    if (!(stiffening_width > 0) || u < stiffening_onset) return T(0.0);
+    const T x = u - stiffening_onset;
+    return A / 9.0 * x * x * x / (stiffening_width * stiffening_width);
   }
   /// Three-body switch h(u), eq. (32).
   template <class T>
