@@ -11,7 +11,7 @@ Cases (each a scene run for --steps steps, one frame, no checkpoints):
   pmb        400 x 400 PMB sheet, critical strain 0.5 (intact)
   block64    the 64^3 PMB block of compare_lammps.py, intact (s0 = 0.5)
   block64f   the same block fracturing (s0 = 0.0005: half its bonds break by step 50)
-  lattice    drivers/scenes/supersonic_rubber.yaml (Marder's lattice)
+  lattice    drivers/scenes/supersonic_rubber_broad_switch.yaml (Marder's lattice)
   network    drivers/scenes/fiber_network.yaml (fibers with long-range pairs)
 Alternating pairs spread a shared machine's noise over both builds alike; report the ratio, never
 an absolute time.
@@ -62,7 +62,7 @@ CASES = {
     "pmb": lambda: sheet("pmb", 0.5),
     "block64": lambda: block(0.5),
     "block64f": lambda: block(0.0005),
-    "lattice": lambda: scene_file("supersonic_rubber"),
+    "lattice": lambda: scene_file("supersonic_rubber_broad_switch"),
     "network": lambda: scene_file("fiber_network"),
 }
 

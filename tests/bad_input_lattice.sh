@@ -6,7 +6,7 @@ set -u
 peridrive=$1 src=$2 mpiexec=$3
 shift 3
 mpi=("$mpiexec" -n 2 "$@")
-scene=$src/drivers/scenes/supersonic_rubber.yaml
+scene=$src/drivers/scenes/supersonic_rubber_broad_switch.yaml
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 pass=0 fail=0
@@ -42,6 +42,9 @@ expect onset_beyond_uc "$f:$(line_of "$f" 'spacing:'): bodies.strip.spacing: lat
 expect onset_beyond_uc_why "the stiffening onset u_g = 0.0016 m must lie on the Mooney-Rivlin branch" -- "$f"
 f=$(variant width_zero 's/kelvin_viscosity: .*/kelvin_viscosity: 0.005\n    stiffening_onset: 0.0013\n    stiffening_width: 0/')
 expect width_zero "$f:$(line_of "$f" 'stiffening_width'): materials.rubber.stiffening_width: expected a positive number [m], got 0" -- "$f"
+f=$(variant break_beyond_uc 's/kelvin_viscosity: .*/kelvin_viscosity: 0.005\n    break_separation: 0.002/')
+expect break_beyond_uc "$f:$(line_of "$f" 'spacing:'): bodies.strip.spacing: lattice spacing 0.0005 m" -- "$f"
+expect break_beyond_uc_why "the break separation u_b = 0.002 m must lie in (Delta + u_s, u_c]" -- "$f"
 f=$(variant bad_breaking 's/breaking: irreversible/breaking: sometimes/')
 expect bad_breaking "materials.rubber.breaking: expected one of: irreversible, reversible; got sometimes" -- "$f"
 f=$(variant lattice_grid 's/spacing: 0.0005/spacing: 0.0005\n    grid: square/')

@@ -70,7 +70,7 @@ CASES = {
                       ["bodies.sheet.spacing=0.0003", "stages.pull.duration=8.0e-5", "output.frames=3"]),
     "pmb_block": (BLOCK, []),
     # Marder's lattice (two- and three-body terms, Kelvin dashpots), the crack running.
-    "lattice": ("supersonic_rubber.yaml",
+    "lattice": ("supersonic_rubber_broad_switch.yaml",
                 ["bodies.strip.size=[0.05, 0.04330127]", "stages.run.duration=2.0e-4", "output.frames=3",
                  "cracks.seed.to=[0.015, 0, 0]"]),
     # Fibers with long-range pairs between fibers (the pair sums over every rank's nodes).

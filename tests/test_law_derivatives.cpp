@@ -56,8 +56,8 @@ void expect_close(double a, double b, double rel, double scale, const char* what
 const peri::MarderLaw kLattice = peri::marder_law(1000, 0.4, 5e-4, 1.25e-4, 1.5e-3, 1e-6, false);
 
 // With the stiffening pair term beyond u_g = 2 Delta (w = 0.25 Delta).
-const peri::MarderLaw kStiffLattice =
-    peri::marder_law(1000, 0.4, 5e-4, 1.25e-4, 1.5e-3, 1e-6, false, 0, 1e-3, 1.25e-4);
+const peri::MarderLaw kStiffLattice = peri::marder_law(
+    1000, 0.4, 5e-4, 1.25e-4, 1.5e-3, 1e-6, false, {.stiffening_onset = 1e-3, .stiffening_width = 1.25e-4});
 
 TEST(LawDerivatives, MarderFunctionsAreTheirDerivatives) {
   for (const peri::MarderLaw& L : {kLattice, kStiffLattice}) {

@@ -107,9 +107,10 @@ void check_gradient(const MarderLaw& law, int n, std::vector<double> d, const st
 TEST(MarderForces, GradientOfNodeEnergyInEveryBranch) {
   // u_s large enough that h varies over the bonds near u_c: every term of the gradient matters.
   // The second law stiffens beyond u_g = 1.35 Delta: the bonds at 1.55 Delta are on that branch.
-  for (const MarderLaw& law : {marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false),
-                               marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false, 0,
-                                          1.35 * kDelta, 0.1 * kDelta)}) {
+  for (const MarderLaw& law :
+       {marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false),
+        marder_law(kA, 0.8, kDelta, 0.05 * kDelta, 1.6 * kDelta, kMass, false,
+                   {.stiffening_onset = 1.35 * kDelta, .stiffening_width = 0.1 * kDelta})}) {
     std::mt19937 rng(7);
     // Bond lengths: inside the cutoff branch, in the Mooney-Rivlin range, near and beyond u_c.
     const double lengths[6] = {1.02, 1.3, 1.55, 1.62, 0.97, 1.8};
@@ -253,12 +254,58 @@ TEST(MarderForces, IrreversibleBreakBooksTheEnergyItRemoves) {
   EXPECT_NEAR(t2.strain_energy, t.strain_energy, 1e-14 * before);
 }
 
+// break_separation u_b < u_c: the bonds break at u_b, while f and h keep u_c. Stretch a patch so
+// that every bond is 1.2 Delta long (u_b = 1.3, u_c = 1.5 Delta) and pull the centre node up by
+// 0.25 Delta: its two bonds to the lower neighbours reach 1.42 Delta, past u_b but short of u_c.
+TEST(MarderForces, BondsBreakAtTheBreakSeparation) {
+  Patch p = make_patch(5, 5);
+  const int n = static_cast<int>(p.volume.size());
+  std::vector<double> u(3 * n);
+  for (int i = 0; i < n; ++i) {
+    u[3 * i] = 0.2 * p.X[3 * i];
+    u[3 * i + 1] = 0.2 * p.X[3 * i + 1];
+  }
+  u[3 * 12 + 1] += 0.25 * kDelta;
+  // The lengths of the bonds of the pulled node, and how many lie in [u_b, u_c).
+  int between = 0;
+  for (std::int64_t b = p.offsets[12]; b < p.offsets[13]; ++b) {
+    const int j = p.neighbor[b];
+    const double dx = p.X[3 * j] + u[3 * j] - p.X[36] - u[36],
+                 dy = p.X[3 * j + 1] + u[3 * j + 1] - p.X[37] - u[37];
+    const double r = std::hypot(dx, dy);
+    between += r >= 1.3 * kDelta && r < 1.5 * kDelta;
+  }
+  ASSERT_EQ(between, 2);
+  for (const double ub : {0.0, 1.3 * kDelta}) {
+    const MarderLaw law =
+        marder_law(kA, 0.6, kDelta, 0.05 * kDelta, 1.5 * kDelta, kMass, false, {.break_separation = ub});
+    EXPECT_EQ(law.break_length(), ub > 0 ? ub : law.uc);
+    std::fill(p.broken.begin(), p.broken.end(), 0);
+    BondView v{p.X.data(),        u.data(),        p.volume.data(), p.offsets.data(),
+               p.neighbor.data(), p.broken.data(), nullptr};
+    const double before = marder_energy(law, v, p.rows.data(), p.rows.size());
+    BondTally t;
+    std::vector<std::uint8_t> dirs;
+    loop_forces(law, v, p.rows, n, true, t, dirs);
+    EXPECT_EQ(t.newly_broken, ub > 0 ? 2 * between : 0) << ub;  // both rows of each bond
+    EXPECT_NEAR(t.strain_energy + t.dissipated, before, 1e-12 * before);
+  }
+  // Refused outside (Delta + u_s, u_c].
+  const double D = kDelta;
+  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, {.break_separation = 3 * D}), "");
+  for (double ub : {1.04 * D, 3.01 * D, -D})
+    EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, {.break_separation = ub})
+                  .find("break separation"),
+              std::string::npos)
+        << ub;
+}
+
 TEST(MarderKelvin, PairDashpotIsTheExactExpressionAndDissipates) {
   // Two nodes, one bond, in 3D: the force on node 0 is eta (e . (v_1 - v_0)) e with e the current
   // bond direction, node 1 gets bit for bit the opposite, and the two rows together book the
   // power eta (e . (v_1 - v_0))^2 = -(F_0 . v_0 + F_1 . v_1). A broken bond has no dashpot.
   const double nu = 0.03;  // m^2/s
-  const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false, nu);
+  const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false, {.kelvin_viscosity = nu});
   EXPECT_DOUBLE_EQ(law.dashpot, 8 * kMass * nu / (3 * kDelta * kDelta));
   EXPECT_EQ(marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false).dashpot, 0.0);
   const std::vector<double> X = {0, 0, 0, kDelta, 0, 0};
@@ -315,14 +362,16 @@ TEST(MarderKelvin, HomogeneousStrainRateGivesTheContinuumViscosity) {
   // power of its row (half of each of its six bonds) is the continuum dissipation of one cell,
   // m nu (2 D:D + (tr D)^2) with D the symmetric part of L (viscous stress rho nu (2 D + tr D I)).
   const double nu = 0.02;
-  const MarderLaw law = marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false, nu);
+  const MarderLaw law =
+      marder_law(kA, 0.3, kDelta, 0.05 * kDelta, 3 * kDelta, kMass, false, {.kelvin_viscosity = nu});
   Patch p = make_patch(5, 5);
   const int n = static_cast<int>(p.volume.size());
   const double L[2][2] = {{30.0, -12.0}, {45.0, -7.0}};  // 1/s
   std::vector<double> u(3 * n, 0.0), vel(3 * n, 0.0);
   for (int i = 0; i < n; ++i)
     for (int a = 0; a < 2; ++a) vel[3 * i + a] = L[a][0] * p.X[3 * i] + L[a][1] * p.X[3 * i + 1];
-  BondView view{p.X.data(), u.data(), p.volume.data(), p.offsets.data(), p.neighbor.data(), p.broken.data(), nullptr};
+  BondView view{p.X.data(),        u.data(),        p.volume.data(), p.offsets.data(),
+                p.neighbor.data(), p.broken.data(), nullptr};
   const std::vector<std::uint8_t> dirs = marder_directions(view, n);
   const std::vector<std::int32_t> centre = {12};
   std::vector<double> slots(3 * kMarderSlots * n, 0.0), viscous(3 * n, 0.0);
@@ -331,8 +380,8 @@ TEST(MarderKelvin, HomogeneousStrainRateGivesTheContinuumViscosity) {
   const double D[2][2] = {{L[0][0], 0.5 * (L[0][1] + L[1][0])}, {0.5 * (L[0][1] + L[1][0]), L[1][1]}};
   const double DD = D[0][0] * D[0][0] + 2 * D[0][1] * D[0][1] + D[1][1] * D[1][1], tr = D[0][0] + D[1][1];
   const double expect = kMass * nu * (2 * DD + tr * tr);
-  std::printf("Kelvin dashpots, homogeneous strain rate: row power %.6e W, continuum %.6e W\n", t.viscous_power,
-              expect);
+  std::printf("Kelvin dashpots, homogeneous strain rate: row power %.6e W, continuum %.6e W\n",
+              t.viscous_power, expect);
   EXPECT_NEAR(t.viscous_power, expect, 1e-12 * expect);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(viscous[3 * 12 + c], 0.0, 1e-12 * law.dashpot * 50 * kDelta);
 }
@@ -342,7 +391,7 @@ TEST(MarderKelvin, StableStepShrinksWithTheDashpot) {
   const MarderLaw bare = marder_law(kA, 0.4, kDelta, 0.05 * kDelta, 2 * kDelta, kMass, false);
   const double dt0 = marder_stable_time_step(bare);
   for (double nu : {1e-3, 0.03, 1.0}) {
-    const MarderLaw law = marder_law(kA, 0.4, kDelta, 0.05 * kDelta, 2 * kDelta, kMass, false, nu);
+    const MarderLaw law = marder_law(kA, 0.4, kDelta, 0.05 * kDelta, 2 * kDelta, kMass, false, {.kelvin_viscosity = nu});
     const double dt = marder_stable_time_step(law), gamma = 24 * law.dashpot / kMass;
     EXPECT_LT(dt, dt0);
     EXPECT_NEAR(std::pow(dt / dt0, 2) + 0.5 * gamma * dt, 1.0, 1e-12);
@@ -361,14 +410,14 @@ TEST(MarderParameters, RefusedWithAReason) {
   EXPECT_NE(marder_parameter_problem(1e4, -3.0, D, 0.8 * D, 3 * D).find("unstretched lattice unstable"), std::string::npos);
   EXPECT_EQ(marder_parameter_problem(1e4, -1.5, D, 0.8 * D, 3 * D), "");
   // Stiffening: its onset on the Mooney-Rivlin branch [Delta + u_s, u_c), a width >= 0.
-  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, 2.5 * D, 0.1 * D), "");
-  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, 1.05 * D, 0.1 * D), "");
+  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, {.stiffening_onset = 2.5 * D, .stiffening_width = 0.1 * D}), "");
+  EXPECT_EQ(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, {.stiffening_onset = 1.05 * D, .stiffening_width = 0.1 * D}), "");
   for (double onset : {1.04 * D, 3 * D, 3.5 * D})
-    EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, onset, 0.1 * D)
+    EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, {.stiffening_onset = onset, .stiffening_width = 0.1 * D})
                   .find("must lie on the Mooney-Rivlin"),
               std::string::npos)
         << onset;
-  EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, 2 * D, -0.1 * D).find("width"),
+  EXPECT_NE(marder_parameter_problem(1e4, 0.4, D, 0.05 * D, 3 * D, {.stiffening_onset = 2 * D, .stiffening_width = -0.1 * D}).find("width"),
             std::string::npos);
 }
 
@@ -562,13 +611,15 @@ TEST(MarderWaves, StiffeningActsOnlyBeyondItsOnset) {
   const MarderLaw mr = marder_law(kA, 0.3, kDelta, us, uc, kMass, false);
   const double l1 = 1.2, l2 = 2.0;  // bonds of 1.2 and 1.83 Delta
   {
-    const MarderLaw law = marder_law(kA, 0.3, kDelta, us, uc, kMass, false, 0, 1.9 * kDelta, 0.1 * kDelta);
+    const MarderLaw law = marder_law(kA, 0.3, kDelta, us, uc, kMass, false,
+                                     {.stiffening_onset = 1.9 * kDelta, .stiffening_width = 0.1 * kDelta});
     const WaveSpeeds a = marder_lattice_wave_speeds(law, l1, l2), b = marder_lattice_wave_speeds(mr, l1, l2);
     EXPECT_EQ(a.longitudinal, b.longitudinal);
     EXPECT_EQ(a.shear, b.shear);
   }
   const double ug = 1.5 * kDelta, w = 0.2 * kDelta;  // the diagonal bonds (1.83 Delta) stiffen
-  const MarderLaw law = marder_law(kA, 0.3, kDelta, us, uc, kMass, false, 0, ug, w);
+  const MarderLaw law =
+      marder_law(kA, 0.3, kDelta, us, uc, kMass, false, {.stiffening_onset = ug, .stiffening_width = w});
   double q11 = 0, q21 = 0;  // the stiffening's share of d^2U/dF_11^2 and d^2U/dF_21^2
   for (int k = 0; k < 6; ++k) {
     const double n1 = std::cos(k * kPi / 3) * kDelta, n2 = std::sin(k * kPi / 3) * kDelta;

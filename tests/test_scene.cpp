@@ -636,7 +636,7 @@ TEST(SceneErrors, UnknownKey) {
             "scene.yaml:5: materials.rubber.densty: unknown key; expected one of: model, density, "
             "wave_speed, bulk_modulus, youngs_modulus, micromodulus, influence, critical_stretch, "
             "critical_stretch_at_horizon, tip_advance, hardening, mooney_rivlin_a, mooney_rivlin_b, cutoff, fracture_separation, "
-            "breaking, kelvin_viscosity, stiffening_onset, stiffening_width");
+            "breaking, kelvin_viscosity, stiffening_onset, stiffening_width, break_separation");
   EXPECT_THAT(error_of(kBase + "outptu: {frames: 2}\n"),
               AllOf(StartsWith("scene.yaml:16: outptu: unknown key; expected one of: name, "),
                     HasSubstr("stages, stability, output")));

@@ -9,7 +9,9 @@ lattice spacings of the seed crack's line that is contiguous (gaps <= 2.5 spacin
 damage nucleated further ahead is counted (damaged_ahead_of_tip, the most over the measured
 frames) but is not the tip. The crack speed is the least-squares slope of tip
 position against time over the frames where the tip has left the seed and is still more than
-10 spacings from the far edge; it is a reference-frame speed, compared with the reference-frame
+10 spacings from the far edge, and before the tip first jumps faster than 3 c_l between frames
+(it met damage formed ahead: tip_jumps_at, the time); it is a reference-frame speed, compared with
+the reference-frame
 long-wave speeds of the lattice in the stretched state ahead of the tip
 (lattice_longitudinal_speed_x, lattice_shear_speed_x of the derived constants; the Mooney-Rivlin
 formulas longitudinal_wave_speed_x, shear_wave_speed are reported beside them).
@@ -81,22 +83,29 @@ def main():
             times.append(float(g.attrs["time"]))
             frames.append(name)
         times, tips = np.array(times), np.array(tips)
-        x_end = X[:, 0].max()
-        use = (tips > seed_end + 5 * delta) & (tips < x_end - 10 * delta)
-        if use.sum() < 3:
-            sys.exit(f"{args.out}: the tip moved through fewer than 3 frames; no speed")
-        v, x0 = np.polyfit(times[use], tips[use], 1)
         def first(suffix):
             return next((values[k] for k in values if k.endswith(suffix)), None)
         cl_mr, cs_mr = first(".longitudinal_wave_speed_x"), first(".shear_wave_speed")
         # Compare with the lattice's own long-wave speeds at the far-field stretch where the run
         # reports them (they differ from Mooney-Rivlin when bonds are near u_c or below Delta + u_s).
         cl, cs = first(".lattice_longitudinal_speed_x") or cl_mr, first(".lattice_shear_speed_x") or cs_mr
+        x_end = X[:, 0].max()
+        use = (tips > seed_end + 5 * delta) & (tips < x_end - 10 * delta)
+        # A tip that jumps faster than 3 c_l between frames has met damage that formed ahead of it
+        # (the line failed there, or a rupture from the far end arrived): the crack from the seed
+        # is measured up to the frame before.
+        jumps = np.where(np.diff(tips) > 3 * cl * np.diff(times))[0]
+        ruptured = float(times[jumps[0] + 1]) if jumps.size else None
+        if jumps.size:
+            use &= np.arange(tips.size) <= jumps[0]
+        if use.sum() < 3:
+            sys.exit(f"{args.out}: the tip moved through fewer than 3 frames; no speed")
+        v, x0 = np.polyfit(times[use], tips[use], 1)
         result = {"crack_speed": v, "longitudinal_wave_speed_x": cl, "shear_wave_speed": cs,
                   "mooney_rivlin_longitudinal_x": cl_mr, "mooney_rivlin_shear": cs_mr,
                   "v_over_cl": v / cl, "v_over_cs": v / cs, "frames_used": int(use.sum()),
                   "tip_start": float(tips[use][0]), "tip_end": float(tips[use][-1]),
-                  "damaged_ahead_of_tip": int(max(np.array(ahead)[use]))}
+                  "damaged_ahead_of_tip": int(max(np.array(ahead)[use])), "tip_jumps_at": ruptured}
         with open(os.path.join(args.out, "crack_tip.csv"), "w") as o:
             o.write("time,tip_x\n")
             for t, x in zip(times, tips):

@@ -6,7 +6,7 @@ usage: /usr/bin/python3 tools/lattice_crack_map.py SCENE CASES.csv OUT.csv [--se
        /usr/bin/python3 tools/lattice_crack_map.py --plot PNG OUT.csv [OUT.csv ...]   (figure from finished maps)
 
 SCENE is a scene with one lattice body, one material and a seed crack along y = 0 (as
-drivers/scenes/supersonic_rubber.yaml). Each row of CASES.csv is one run; its columns:
+drivers/scenes/supersonic_rubber_broad_switch.yaml). Each row of CASES.csv is one run; its columns:
   lx, ly        the initial stretches (initial.displacement_gradient = diag(lx - 1, ly - 1, 0))
   us, uc        cutoff u_s and fracture separation u_c in lattice spacings (materials' cutoff,
                 fracture_separation); uc = "min" takes the smallest u_c (step 0.05 Delta) at which
@@ -14,18 +14,23 @@ drivers/scenes/supersonic_rubber.yaml). Each row of CASES.csv is one run; its co
                 Mooney-Rivlin ones (the derived constants of --dry-run)
   nu, b         kelvin_viscosity [m^2/s] and mooney_rivlin_b
   ug, w         optional: stiffening_onset and stiffening_width in lattice spacings (empty or
-                absent: no stiffening; "min" u_c is searched without it, it acts beyond the far field)
+                absent: no stiffening)
+  ub            optional: break_separation in lattice spacings (empty or absent: bonds break at u_c);
+                "min" u_c is searched without ug, w and ub (they act beyond the far field)
   duration      the stage's duration [s]
   length        the strip's length [m] (its height, spacing and seed stay the scene's)
 For each case the script reads --dry-run's derived constants, runs the scene on --np ranks,
 measures the tip with tools/crack_tip_lattice.py and appends one line to OUT.csv: the case, the
 largest relative deviation of the lattice's speeds from Mooney-Rivlin (mr_deviation), the
 Mooney-Rivlin c_L along x and c_T, the mean crack speed (crack_tip_lattice's fit), the peak speed
-(largest least-squares slope over 5 consecutive frames of the measured run) and both over c_L.
+(largest least-squares slope over 5 consecutive frames of the measured run, before any jump of
+the tip) and both over c_L.
 A case whose tip never leaves the seed is recorded with speed 0 (outcome "arrested"); one whose
-tip stops early (mean speed below 1e-3 c_L) keeps its speeds and is "arrested" too.
---plot draws v/c_L (mean and peak) against mr_deviation, runs with stiffening in their own
-markers. Needs python3-h5py, numpy, matplotlib.
+tip stops early (mean speed below 1e-3 c_L) keeps its speeds and is "arrested" too; one whose tip
+jumps (crack_tip_lattice's tip_jumps_at: the line failed ahead of it, or a rupture from the far
+end arrived) is "runs, then meets damage ahead", its speeds those of the crack before the jump.
+--plot draws v/c_L (mean and peak) against mr_deviation, runs with stiffening or an earlier
+break in their own markers. Needs python3-h5py, numpy, matplotlib.
 """
 import argparse
 import csv
@@ -40,7 +45,7 @@ import h5py
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-FIELDS = ["lx", "ly", "us", "uc", "nu", "b", "ug", "w", "duration", "length", "mr_deviation", "cl_mr", "ct_mr",
+FIELDS = ["lx", "ly", "us", "uc", "nu", "b", "ug", "w", "ub", "duration", "length", "mr_deviation", "cl_mr", "ct_mr",
           "v_mean", "v_peak", "v_mean_over_cl", "v_peak_over_cl", "outcome"]
 
 
@@ -56,6 +61,9 @@ def overrides(case, spacing, uc, stiff=True):
         ug, w = stiffening(case)
         extra = ["--set", f"materials.{case['material']}.stiffening_onset={ug * spacing!r}",
                  "--set", f"materials.{case['material']}.stiffening_width={w * spacing!r}"]
+    # Without ub (and during the u_c search) bonds break at u_c, whatever the scene says.
+    ub = float(case["ub"]) if stiff and (case.get("ub") or "").strip() else uc
+    extra += ["--set", f"materials.{case['material']}.break_separation={ub * spacing!r}"]
     return extra + ["--set", f"materials.{case['material']}.cutoff={float(case['us']) * spacing!r}",
             "--set", f"materials.{case['material']}.fracture_separation={uc * spacing!r}",
             "--set", f"materials.{case['material']}.kelvin_viscosity={case['nu']}",
@@ -85,9 +93,11 @@ def dry_run(args, case, spacing, uc, stiff=True):
     return derived(r.stdout)
 
 
-def peak_speed(csv_path, seed_end, x_end, delta):
+def peak_speed(csv_path, seed_end, x_end, delta, jump=None):
     t, x = np.loadtxt(csv_path, delimiter=",", skiprows=1, unpack=True, ndmin=2)
     use = (x > seed_end + 5 * delta) & (x < x_end - 10 * delta)
+    if jump is not None:
+        use &= t < jump  # the crack from the seed, before its tip jumps onto damage ahead
     t, x = t[use], x[use]
     if t.size < 5:
         return 0.0
@@ -117,7 +127,7 @@ def run_case(args, case, scene_text, spacing, material, body):
     tip = subprocess.run([sys.executable, os.path.join(HERE, "crack_tip_lattice.py"), out],
                          capture_output=True, text=True)
     row = {k: case[k] for k in ("lx", "ly", "us", "nu", "b", "duration", "length")}
-    row.update(ug=case.get("ug") or "", w=case.get("w") or "")
+    row.update(ug=case.get("ug") or "", w=case.get("w") or "", ub=case.get("ub") or "")
     row.update(uc=uc, mr_deviation=deviation(values), cl_mr=values["longitudinal_wave_speed_x"],
                ct_mr=values["shear_wave_speed"])
     if tip.returncode != 0:
@@ -127,8 +137,11 @@ def run_case(args, case, scene_text, spacing, material, body):
         with h5py.File(os.path.join(out, "frames.h5"), "r") as f:
             x_end = float(f["mesh/reference_position"][...].reshape(-1, 3)[:, 0].max())
         row.update(v_mean=res["crack_speed"],
-                   v_peak=peak_speed(os.path.join(out, "crack_tip.csv"), seed_end_of(scene_text), x_end, spacing),
+                   v_peak=peak_speed(os.path.join(out, "crack_tip.csv"), seed_end_of(scene_text), x_end, spacing,
+                                     res.get("tip_jumps_at")),
                    outcome="runs" if res["crack_speed"] > 1e-3 * row["cl_mr"] else "arrested")
+        if res.get("tip_jumps_at") is not None:
+            row["outcome"] = "runs, then meets damage ahead"
     row.update(v_mean_over_cl=row["v_mean"] / row["cl_mr"], v_peak_over_cl=row["v_peak"] / row["cl_mr"])
     return row
 
@@ -155,14 +168,16 @@ def plot(rows, png):
     mean = np.array([float(r["v_mean_over_cl"]) for r in rows])
     peak = np.array([float(r["v_peak_over_cl"]) for r in rows])
     stiff = np.array([bool((r.get("w") or "").strip()) for r in rows])
+    early = np.array([bool((r.get("ub") or "").strip()) for r in rows])
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.axvspan(1e-4, 0.03, color="0.92", label="far field Mooney-Rivlin (speeds within 3%)")
     ax.axhline(1.0, color="k", lw=0.8)
-    for sel, tag, up, ring in ((~stiff, "", "^", "o"), (stiff, ", stiffening", "v", "s")):
+    for sel, tag, up, ring, colours in ((~stiff & ~early, "", "^", "o", ("C3", "C0")),
+                                        (stiff & ~early, ", stiffening", "v", "s", ("C2", "C4")),
+                                        (early, ", break below u_c", ">", "D", ("C1", "C5"))):
         if sel.any():
-            ax.scatter(dev[sel], peak[sel], marker=up, color="C3" if tag == "" else "C2", label="peak speed (5 frames)" + tag)
-            ax.scatter(dev[sel], mean[sel], marker=ring, facecolor="none", edgecolor="C0" if tag == "" else "C4",
-                       label="mean speed" + tag)
+            ax.scatter(dev[sel], peak[sel], marker=up, color=colours[0], label="peak speed (5 frames)" + tag)
+            ax.scatter(dev[sel], mean[sel], marker=ring, facecolor="none", edgecolor=colours[1], label="mean speed" + tag)
     ax.set_xscale("log")
     ax.set_xlabel("largest deviation of the stretched lattice's wave speeds from Mooney-Rivlin")
     ax.set_ylabel("crack speed / Mooney-Rivlin c_L (along the crack)")
@@ -212,7 +227,7 @@ def main():
             w.writerow(row)
             f.flush()
             rows.append(row)
-            stiff = f" ug={row['ug']} w={row['w']}" if row["w"] else ""
+            stiff = (f" ug={row['ug']} w={row['w']}" if row["w"] else "") + (f" ub={row['ub']}" if row["ub"] else "")
             print(f"lx={row['lx']} ly={row['ly']} us={row['us']} uc={row['uc']:.2f} nu={row['nu']} b={row['b']}{stiff}: "
                   f"MR deviation {row['mr_deviation']:.3f}, v/c_L mean {row['v_mean_over_cl']:.3f} "
                   f"peak {row['v_peak_over_cl']:.3f} ({row['outcome']})", flush=True)

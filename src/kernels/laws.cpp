@@ -205,8 +205,7 @@ std::deque<MaterialModel>& catalog() {
     marder.lattice = true;
     marder.stiffness = {};
     marder.lattice_problem = [](const MarderParams& p, double spacing) {
-      return marder_parameter_problem(p.a, p.b, spacing, p.cutoff, p.fracture_separation, p.stiffening_onset,
-                                      p.stiffening_width);
+      return marder_parameter_problem(p.a, p.b, spacing, p.cutoff, p.fracture_separation, p.options);
     };
     c.push_back(marder);
     return c;

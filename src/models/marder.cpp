@@ -17,8 +17,9 @@ std::string num(double v) {
 
 }  // namespace
 
-std::string marder_parameter_problem(double a, double b, double delta, double us, double uc, double onset,
-                                    double width) {
+std::string marder_parameter_problem(double a, double b, double delta, double us, double uc,
+                                    const MarderOptions& options) {
+  const double onset = options.stiffening_onset, width = options.stiffening_width, ub = options.break_separation;
   if (!(a > 0))
     return "the Mooney-Rivlin constant a must be > 0 (a <= 0 gives no tension and no wave speed), got a = " +
            num(a);
@@ -38,6 +39,10 @@ std::string marder_parameter_problem(double a, double b, double delta, double us
   if (width > 0 && !(onset >= delta + us && onset < uc))
     return "the stiffening onset u_g = " + num(onset) + " m must lie on the Mooney-Rivlin branch, Delta + u_s = " +
            num(delta + us) + " m <= u_g < u_c = " + num(uc) + " m";
+  if (!(ub >= 0)) return "the break separation u_b must be > 0, got " + num(ub);
+  if (ub > 0 && !(ub > delta + us && ub <= uc))
+    return "the break separation u_b = " + num(ub) + " m must lie in (Delta + u_s, u_c] = (" + num(delta + us) +
+           ", " + num(uc) + "] m: a bond breaks on the Mooney-Rivlin branch, at u_c at the latest";
   return {};
 }
 
@@ -52,7 +57,7 @@ double marder_dashpot(double kelvin_viscosity, double delta, double mass) noexce
 }
 
 MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass, bool reversible,
-                     double kelvin_viscosity, double stiffening_onset, double stiffening_width) {
+                     const MarderOptions& options) {
   MarderLaw law;
   law.a = a;
   law.b = b;
@@ -61,9 +66,10 @@ MarderLaw marder_law(double a, double b, double delta, double us, double uc, dou
   law.uc = uc;
   law.mass = mass;
   law.reversible = reversible;
-  law.dashpot = marder_dashpot(kelvin_viscosity, delta, mass);
-  law.stiffening_onset = stiffening_onset;
-  law.stiffening_width = stiffening_width;
+  law.dashpot = marder_dashpot(options.kelvin_viscosity, delta, mass);
+  law.stiffening_onset = options.stiffening_onset;
+  law.stiffening_width = options.stiffening_width;
+  law.break_separation = options.break_separation;
   const double d2 = delta * delta;
   law.A = mass * a / d2;                    // eq. (27), rho = mass per node (eq. 25)
   law.B = 9.0 * mass * a * b / (8.0 * d2 * d2);
@@ -141,7 +147,7 @@ void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* 
   const bool dashpots = velocity && viscous && law.dashpot > 0;
   double d[3 * kMarderMaxNeighbours], grad[3 * kMarderMaxNeighbours];
   std::uint8_t active[kMarderMaxNeighbours], before[kMarderMaxNeighbours];
-  const double uc2 = law.uc * law.uc;
+  const double ub2 = law.break_length() * law.break_length();
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
     const std::int64_t b0 = v.offsets[i];
@@ -159,7 +165,7 @@ void marder_forces(const MarderLaw& law, const BondView& v, const std::int32_t* 
         r2 += d[3 * k + c] * d[3 * k + c];
       }
       std::uint8_t& flag = v.broken[b0 + k];
-      const bool beyond = r2 >= uc2 && !(flag & kMarderUnbreakable);
+      const bool beyond = r2 >= ub2 && !(flag & kMarderUnbreakable);
       if (law.reversible) {
         before[k] = active[k] = !(flag & kMarderCut);
         const std::uint8_t keep = flag & kMarderUnbreakable;

@@ -100,11 +100,13 @@ void emit_material(Writer& w, const Material& m) {
     w.key(4, "cutoff", m.marder->cutoff);
     w.key(4, "fracture_separation", m.marder->fracture_separation);
     w.key(4, "breaking", m.marder->reversible ? "reversible" : "irreversible");
-    if (m.marder->kelvin_viscosity > 0) w.key(4, "kelvin_viscosity", m.marder->kelvin_viscosity);
-    if (m.marder->stiffening_width > 0) {
-      w.key(4, "stiffening_onset", m.marder->stiffening_onset);
-      w.key(4, "stiffening_width", m.marder->stiffening_width);
+    const MarderOptions& o = m.marder->options;
+    if (o.kelvin_viscosity > 0) w.key(4, "kelvin_viscosity", o.kelvin_viscosity);
+    if (o.stiffening_width > 0) {
+      w.key(4, "stiffening_onset", o.stiffening_onset);
+      w.key(4, "stiffening_width", o.stiffening_width);
     }
+    if (o.break_separation > 0) w.key(4, "break_separation", o.break_separation);
     return;
   }
   w.optional(4, "wave_speed", m.wave_speed);

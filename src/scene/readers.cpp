@@ -78,14 +78,15 @@ Material read_marder_material(const Map& m, Material mat) {
   p.fracture_separation = m.at("fracture_separation").positive("m");
   if (auto x = m.get("breaking"))
     p.reversible = x->choice<bool>({{"irreversible", false}, {"reversible", true}});
-  if (auto x = m.get("kelvin_viscosity")) p.kelvin_viscosity = x->non_negative("m^2/s");
+  if (auto x = m.get("kelvin_viscosity")) p.options.kelvin_viscosity = x->non_negative("m^2/s");
   const auto onset = m.get("stiffening_onset"), width = m.get("stiffening_width");
   if (onset && !width) m.missing("stiffening_width", "given with stiffening_onset");
   if (width && !onset) m.missing("stiffening_onset", "given with stiffening_width");
   if (onset) {
-    p.stiffening_onset = onset->positive("m");
-    p.stiffening_width = width->positive("m");
+    p.options.stiffening_onset = onset->positive("m");
+    p.options.stiffening_width = width->positive("m");
   }
+  if (auto x = m.get("break_separation")) p.options.break_separation = x->positive("m");
   mat.marder = p;
   return mat;
 }

@@ -101,10 +101,14 @@ inline const Keys kMaterialKeys = {
             "(not in the paper); Delta + u_s <= u_g < u_c, given with stiffening_width"},
     {.name = "stiffening_width", .unit = "m", .fallback = "none",
      .doc = "w > 0: at u = u_g + w a bond's stiffness is twice the Mooney-Rivlin pair stiffness A/3"},
+    {.name = "break_separation", .unit = "m", .fallback = "fracture_separation",
+     .doc = "u_b: bonds break when their length reaches u_b, Delta + u_s < u_b <= u_c, while f and the switch h keep "
+            "u_c (not in the paper): a breaking stretch close to the far field's without the switch changing it"},
 };
 
 inline constexpr const char* kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking",
-                                   "kelvin_viscosity", "stiffening_onset", "stiffening_width"};
+                                   "kelvin_viscosity", "stiffening_onset", "stiffening_width",
+                                   "break_separation"};
 
 inline const Keys kHardeningKeys = {
     {.name = "coefficient", .required = true, .what = "hardening coefficient c', >= 0", .unit = "J/m^6",

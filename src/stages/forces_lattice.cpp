@@ -22,7 +22,7 @@ void Forces::lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& 
     const MarderParams& p = *m.marder;
     const double node_mass = m.density * g.cell_area * g.thickness;  // the rho of eq. (27)
     marder_[b] = marder_law(p.a, p.b, g.spacing, p.cutoff, p.fracture_separation, node_mass, p.reversible,
-                            p.kelvin_viscosity, p.stiffening_onset, p.stiffening_width);
+                            p.options);
     has_lattice_ = true;
     has_kelvin_ = has_kelvin_ || marder_[b]->dashpot > 0;
   }

@@ -27,18 +27,15 @@ constexpr int kMarderMaxNeighbours = 6;
 /// u_s <= 0; u_c <= Delta + u_s (bonds would break before reaching the Mooney-Rivlin range);
 /// b >= 2 (the stretched sheet has no shear stiffness: c_s^2 = a (1 - b/2) <= 0); and b outside
 /// (-2 Delta/u_s, Delta/u_s), where the unstretched lattice (cutoff branch of eq. 31) is
-/// unstable to a homogeneous shear or dilatation (derived in docs/theory/marder.md); with
-/// stiffening (width w > 0), an onset u_g off the Mooney-Rivlin branch [Delta + u_s, u_c).
-std::string marder_parameter_problem(double a, double b, double delta, double us, double uc, double onset = 0,
-                                     double width = 0);
+/// unstable to a homogeneous shear or dilatation (derived in docs/theory/marder.md). Of the
+/// options: a stiffening onset u_g off the Mooney-Rivlin branch [Delta + u_s, u_c), a width
+/// w < 0, a break separation u_b outside (Delta + u_s, u_c].
+std::string marder_parameter_problem(double a, double b, double delta, double us, double uc,
+                                     const MarderOptions& options = {});
 
-/// Constants for a lattice of spacing Delta whose nodes have mass m.
-/// `kelvin_viscosity` is the kinematic viscosity nu [m^2/s] of the bond dashpots (0: none);
-/// `stiffening_onset` u_g and `stiffening_width` w [m] the pair stiffening beyond the
-/// Mooney-Rivlin branch (MarderLaw::stiffening; w = 0: none).
+/// Constants for a lattice of spacing Delta whose nodes have mass m, with the options.
 MarderLaw marder_law(double a, double b, double delta, double us, double uc, double mass,
-                     bool reversible, double kelvin_viscosity = 0, double stiffening_onset = 0,
-                     double stiffening_width = 0);
+                     bool reversible, const MarderOptions& options = {});
 
 /// Dashpot coefficient per bond [kg/s] that gives a triangular lattice of spacing Delta and node
 /// mass m the viscous stress rho nu (2 D + (tr D) I) (reference lattice, strain rate D):
@@ -67,10 +64,10 @@ void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_
 /// Forces [N] of the rows: writes -dU_i/dx of each row into slot 0 of node i and into slot
 /// 1 + direction(j -> i) of every neighbour j (local indices, ghosts included; the caller zeroes
 /// the slots, reduces them to the owners and sums them). Updates the bond flags first:
-/// irreversible (default) a bond with u >= u_c breaks for good; reversible, the flag follows
-/// u >= u_c except for bonds cut at the start (flag bit kMarderCut). The energy lost when a bond
-/// breaks irreversibly (its two-body term and the three-body terms it switches off) is added to
-/// tally.dissipated, so kinetic + strain + dissipated is conserved. With `with_energy`, the
+/// irreversible (default) a bond with u >= u_b (MarderLaw::break_length) breaks for good;
+/// reversible, the flag follows u >= u_b except for bonds cut at the start (flag bit kMarderCut).
+/// The energy lost when a bond breaks irreversibly (its two-body term and the three-body terms it
+/// switches off) is added to tally.dissipated, so kinetic + strain + dissipated is conserved. With `with_energy`, the
 /// energy of the rows is added to tally.strain_energy.
 ///
 /// Kelvin dashpots (law.dashpot > 0 and `velocity` given: 3 * local velocities, ghosts

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "peri/core/error.hpp"
+#include "peri/models/laws/marder.hpp"
 #include "peri/scene/body_kind.hpp"
 
 namespace peri {
@@ -48,9 +49,7 @@ struct MarderParams {
   double cutoff = 0;               ///< u_s, short-distance cutoff [m]
   double fracture_separation = 0;  ///< u_c, separation at which a bond fails [m]
   bool reversible = false;         ///< bonds heal below u_c (default: irreversible)
-  double kelvin_viscosity = 0;     ///< nu of the bond dashpots [m^2/s], >= 0 (0: none)
-  double stiffening_onset = 0;     ///< u_g of the pair stiffening [m] (MarderLaw::stiffening)
-  double stiffening_width = 0;     ///< w of the pair stiffening [m], 0: none
+  MarderOptions options;           ///< dashpots, stiffening, break separation (0: none)
 };
 
 struct Material {

@@ -9,6 +9,14 @@
 
 namespace peri {
 
+/// The lattice's options beyond the paper's constants, as a scene gives them (docs/theory/marder.md).
+struct MarderOptions {
+  double kelvin_viscosity = 0;  ///< nu of the bond dashpots [m^2/s] (0: none)
+  double stiffening_onset = 0;  ///< u_g of the pair stiffening [m] (MarderLaw::stiffening)
+  double stiffening_width = 0;  ///< w of the pair stiffening [m] (0: none)
+  double break_separation = 0;  ///< u_b [m]: bonds break at u_b <= u_c, the switch stays at u_c (0: at u_c)
+};
+
 /// Constants of one lattice body (SI units: A in N/m, B in N/m^3).
 struct MarderLaw {
   double A = 0;          ///< eq. (27): A = m a / Delta^2
@@ -30,6 +38,12 @@ struct MarderLaw {
   /// Mooney-Rivlin. stiffening_width = 0: none.
   double stiffening_onset = 0;  ///< u_g [m]
   double stiffening_width = 0;  ///< w [m]
+  /// Length u_b <= u_c at which a bond breaks (not in the paper): 0 breaks at u_c; f and h keep
+  /// u_c, so a break below it leaves the far field's law untouched (docs/theory/marder.md).
+  double break_separation = 0;
+
+  /// Length at which a bond breaks: u_b if given, else u_c.
+  double break_length() const noexcept { return break_separation > 0 ? break_separation : uc; }
 
   /// Constant of f that makes the reference lattice energy zero: the "+4" of eqs. (23), (24),
   /// (31) is 4 Delta^4 B per node for Delta = 1, shared by the six pair terms of a node.
