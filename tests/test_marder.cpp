@@ -221,19 +221,26 @@ TEST(MarderForces, LoopForcesAreMinusGradientOfTotalEnergy) {
   }
 }
 
-TEST(MarderForces, IrreversibleBreakBooksTheEnergyItRemoves) {
-  // Pull one node of a patch beyond u_c: its bonds break, and the energy they held goes to
-  // tally.dissipated, so strain + dissipated is continuous across the break.
-  const MarderLaw law = marder_law(kA, 0.6, kDelta, 0.05 * kDelta, 1.5 * kDelta, kMass, false);
-  Patch p = make_patch(5, 5);
+// Displacements of a 5 x 5 patch stretched by 1.2 in its plane, its centre node (12) pulled up by
+// `lift`.
+std::vector<double> stretched_and_pulled(const Patch& p, double lift) {
   const int n = static_cast<int>(p.volume.size());
   std::vector<double> u(3 * n);
   for (int i = 0; i < n; ++i) {
     u[3 * i] = 0.2 * p.X[3 * i];
     u[3 * i + 1] = 0.2 * p.X[3 * i + 1];
   }
-  const int pulled = 12;  // the centre node
-  u[3 * pulled + 1] += 0.9 * kDelta;
+  u[3 * 12 + 1] += lift;
+  return u;
+}
+
+TEST(MarderForces, IrreversibleBreakBooksTheEnergyItRemoves) {
+  // Pull one node of a patch beyond u_c: its bonds break, and the energy they held goes to
+  // tally.dissipated, so strain + dissipated is continuous across the break.
+  const MarderLaw law = marder_law(kA, 0.6, kDelta, 0.05 * kDelta, 1.5 * kDelta, kMass, false);
+  Patch p = make_patch(5, 5);
+  const int n = static_cast<int>(p.volume.size());
+  std::vector<double> u = stretched_and_pulled(p, 0.9 * kDelta);
   BondView v{p.X.data(), u.data(), p.volume.data(), p.offsets.data(), p.neighbor.data(), p.broken.data(), nullptr};
   std::vector<std::uint8_t> intact(p.broken.size(), 0);
   std::swap(intact, p.broken);
@@ -260,12 +267,7 @@ TEST(MarderForces, IrreversibleBreakBooksTheEnergyItRemoves) {
 TEST(MarderForces, BondsBreakAtTheBreakSeparation) {
   Patch p = make_patch(5, 5);
   const int n = static_cast<int>(p.volume.size());
-  std::vector<double> u(3 * n);
-  for (int i = 0; i < n; ++i) {
-    u[3 * i] = 0.2 * p.X[3 * i];
-    u[3 * i + 1] = 0.2 * p.X[3 * i + 1];
-  }
-  u[3 * 12 + 1] += 0.25 * kDelta;
+  const std::vector<double> u = stretched_and_pulled(p, 0.25 * kDelta);
   // The lengths of the bonds of the pulled node, and how many lie in [u_b, u_c).
   int between = 0;
   for (std::int64_t b = p.offsets[12]; b < p.offsets[13]; ++b) {
