@@ -11,8 +11,7 @@ frames) but is not the tip. The crack speed is the least-squares slope of tip
 position against time over the frames where the tip has left the seed and is still more than
 10 spacings from the far edge, and before the tip first jumps faster than 3 c_l between frames
 (it met damage formed ahead: tip_jumps_at, the time); it is a reference-frame speed, compared with
-the reference-frame
-long-wave speeds of the lattice in the stretched state ahead of the tip
+the reference-frame long-wave speeds of the lattice in the stretched state ahead of the tip
 (lattice_longitudinal_speed_x, lattice_shear_speed_x of the derived constants; the Mooney-Rivlin
 formulas longitudinal_wave_speed_x, shear_wave_speed are reported beside them).
 Writes OUTDIR/crack_tip.csv, OUTDIR/crack_tip.json and OUTDIR/tip_region.png (frame K, default:

@@ -67,8 +67,8 @@ void marder_sum_slots(const double* slots, const std::int32_t* nodes, std::size_
 /// irreversible (default) a bond with u >= u_b (MarderLaw::break_length) breaks for good;
 /// reversible, the flag follows u >= u_b except for bonds cut at the start (flag bit kMarderCut).
 /// The energy lost when a bond breaks irreversibly (its two-body term and the three-body terms it
-/// switches off) is added to tally.dissipated, so kinetic + strain + dissipated is conserved. With `with_energy`, the
-/// energy of the rows is added to tally.strain_energy.
+/// switches off) is added to tally.dissipated, so kinetic + strain + dissipated is conserved. With
+/// `with_energy`, the energy of the rows is added to tally.strain_energy.
 ///
 /// Kelvin dashpots (law.dashpot > 0 and `velocity` given: 3 * local velocities, ghosts
 /// included): each row writes the dashpot force on its own node, sum over its intact bonds (CSR
@@ -91,8 +91,8 @@ constexpr std::uint8_t kMarderUnbreakable = 8;
 
 /// Estimate of the stable explicit time step of the lattice: sqrt(2 m / k) with k the sum over
 /// six neighbours of the largest pair stiffness reachable below u_c (cutoff branch at Delta + u_s
-/// or quartic branch and stiffening at u_c, both rows of a bond) plus bounds of the three-body curvature over
-/// the pairs a bond takes part in, including the switch h near u_c (see marder.cpp). With
+/// or quartic branch and stiffening at u_c, both rows of a bond) plus bounds of the three-body
+/// curvature over the pairs a bond takes part in, including the switch h near u_c (see marder.cpp). With
 /// dashpots (force from the half-step velocity, see docs/theory/marder.md) the step also
 /// satisfies (omega dt / 2)^2 + gamma dt / 2 <= 1 with omega = 2 / (undamped bound) and
 /// gamma = 24 eta / m the largest damping rate.
