@@ -6,12 +6,13 @@ The path: in each column of nodes (reference x, binned by the grid spacing) the 
 the nodes with damage >= --threshold (0.3: the nodes along a crack's faces, not those a row away);
 a column whose damaged nodes spread over more than --fork (default 2 mm) holds a fork and is
 reported. The mean line is the least-squares straight line through y(x) from --from (default: the
-first damaged column past the notch) to the path's end, and d(x) = y(x) - line. Sign changes
+first damaged column past the notch) to --to (default: the path's end), and d(x) = y(x) - line;
+forks are counted in the same window. Sign changes
 of d count with hysteresis: d must pass beyond +-h (--band, default one spacing) on the other
 side. Wavelength: twice the mean distance between consecutive crossings (taken where d changes
 sign); amplitude: the mean of |d| at its extreme between consecutive crossings.
 
-usage: crack_path.py RUN_DIR [--frame N] [--threshold 0.3] [--from X] [--band H] [--fork F]
+usage: crack_path.py RUN_DIR [--frame N] [--threshold 0.3] [--from X] [--to X] [--band H] [--fork F]
                      [--plot FILE] [--json]
 """
 import argparse
@@ -86,6 +87,7 @@ def main():
     ap.add_argument("--frame", type=int, default=-1)
     ap.add_argument("--threshold", type=float, default=0.3)
     ap.add_argument("--from", dest="start", type=float, default=None, help="first x of the fit [m]")
+    ap.add_argument("--to", dest="end", type=float, default=None, help="last x of the fit [m]")
     ap.add_argument("--band", type=float, default=None, help="hysteresis band [m] (default: the spacing)")
     ap.add_argument("--fork", type=float, default=0.002)
     ap.add_argument("--plot", default=None)
@@ -93,9 +95,12 @@ def main():
     a = ap.parse_args()
     X, damage, time = load(a.run, a.frame)
     xc, yc, spread, forks, h = path(X, damage, a.threshold, a.fork)
-    if a.start is not None:
-        keep = xc >= a.start
+    if a.start is not None or a.end is not None:
+        lo = -np.inf if a.start is None else a.start
+        hi = np.inf if a.end is None else a.end
+        keep = (xc >= lo) & (xc <= hi)
         xc, yc, spread = xc[keep], yc[keep], spread[keep]
+        forks = forks[(forks >= lo) & (forks <= hi)]
     res = oscillation(xc, yc, a.band if a.band is not None else h) or {"sign_changes": 0}
     res.update({"time": time, "spacing": float(h), "path_start": float(xc[0]) if len(xc) else None,
                 "path_end": float(xc[-1]) if len(xc) else None, "fork_columns": len(forks),
