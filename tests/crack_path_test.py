@@ -40,10 +40,8 @@ def sheet(fn, length=0.06, width=0.02, extra=None):
 
 def analyse(X, damage, start=None, end=None, band=h):
     xc, yc, spread, forks, _ = cp.path(X, damage, 0.3, 0.002)
-    lo = -np.inf if start is None else start
-    hi = np.inf if end is None else end
-    keep = (xc >= lo) & (xc <= hi)
-    return cp.oscillation(xc[keep], yc[keep], band), xc[keep], yc[keep], forks[(forks >= lo) & (forks <= hi)]
+    xc, yc, forks = cp.window(xc, yc, forks, start, end)
+    return cp.oscillation(xc, yc, band), xc, yc, forks
 
 
 # A straight crack tilted by 0.05: the fit takes the tilt, no sign change.

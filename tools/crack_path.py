@@ -48,6 +48,14 @@ def path(X, damage, threshold, fork):
     return cols, ys, spread, forks, h
 
 
+def window(xc, yc, forks, start=None, end=None):
+    """The path's columns and fork columns with start <= x <= end (None: unbounded)."""
+    lo = -np.inf if start is None else start
+    hi = np.inf if end is None else end
+    keep = (xc >= lo) & (xc <= hi)
+    return xc[keep], yc[keep], forks[(forks >= lo) & (forks <= hi)]
+
+
 def oscillation(xc, yc, band):
     """Line fit, deviation, crossings with hysteresis, wavelength and amplitude."""
     if len(xc) < 3:
@@ -95,12 +103,7 @@ def main():
     a = ap.parse_args()
     X, damage, time = load(a.run, a.frame)
     xc, yc, spread, forks, h = path(X, damage, a.threshold, a.fork)
-    if a.start is not None or a.end is not None:
-        lo = -np.inf if a.start is None else a.start
-        hi = np.inf if a.end is None else a.end
-        keep = (xc >= lo) & (xc <= hi)
-        xc, yc, spread = xc[keep], yc[keep], spread[keep]
-        forks = forks[(forks >= lo) & (forks <= hi)]
+    xc, yc, forks = window(xc, yc, forks, a.start, a.end)
     res = oscillation(xc, yc, a.band if a.band is not None else h) or {"sign_changes": 0}
     res.update({"time": time, "spacing": float(h), "path_start": float(xc[0]) if len(xc) else None,
                 "path_end": float(xc[-1]) if len(xc) else None, "fork_columns": len(forks),
