@@ -3,9 +3,9 @@
 damage along y(x) = y0 + A sin(2 pi x / lambda) + s x, the crack's faces one node either side.
 
 Checked: the path follows y(x) within a spacing; a straight tilted crack has no sign changes; the
-sine has one sign change per zero inside the sheet (at the half-wavelengths), a wavelength within 2% of lambda and an amplitude within a spacing of A; a window
-(--from/--to) counts only its own crossings and forks; a fork (two damaged bands in a column, 4 mm
-apart) is reported at its column.
+sine has one sign change per zero inside the sheet (at the half-wavelengths), a wavelength within
+2% of lambda and an amplitude within a spacing of A; a window (--from/--to) counts only its own
+crossings and forks; a fork (two damaged bands in a column, 4 mm apart) is reported at its column.
 usage: crack_path_test.py SOURCE_DIR
 """
 import importlib.util
@@ -39,7 +39,7 @@ def sheet(fn, length=0.06, width=0.02, extra=None):
 
 
 def analyse(X, damage, start=None, end=None, band=h):
-    xc, yc, spread, forks, _ = cp.path(X, damage, 0.3, 0.002)
+    xc, yc, _, forks, _ = cp.path(X, damage, 0.3, 0.002)
     xc, yc, forks = cp.window(xc, yc, forks, start, end)
     return cp.oscillation(xc, yc, band), xc, yc, forks
 

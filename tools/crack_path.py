@@ -7,9 +7,8 @@ the nodes with damage >= --threshold (0.3: the nodes along a crack's faces, not 
 a column whose damaged nodes spread over more than --fork (default 2 mm) holds a fork and is
 reported. The mean line is the least-squares straight line through y(x) from --from (default: the
 first damaged column past the notch) to --to (default: the path's end), and d(x) = y(x) - line;
-forks are counted in the same window. Sign changes
-of d count with hysteresis: d must pass beyond +-h (--band, default one spacing) on the other
-side. Wavelength: twice the mean distance between consecutive crossings (taken where d changes
+forks are counted in the same window. Sign changes of d count with hysteresis: d must pass beyond
++-h (--band, default one spacing) on the other side. Wavelength: twice the mean distance between consecutive crossings (taken where d changes
 sign); amplitude: the mean of |d| at its extreme between consecutive crossings.
 
 usage: crack_path.py RUN_DIR [--frame N] [--threshold 0.3] [--from X] [--to X] [--band H] [--fork F]
@@ -102,7 +101,7 @@ def main():
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     X, damage, time = load(a.run, a.frame)
-    xc, yc, spread, forks, h = path(X, damage, a.threshold, a.fork)
+    xc, yc, _, forks, h = path(X, damage, a.threshold, a.fork)
     xc, yc, forks = window(xc, yc, forks, a.start, a.end)
     res = oscillation(xc, yc, a.band if a.band is not None else h) or {"sign_changes": 0}
     res.update({"time": time, "spacing": float(h), "path_start": float(xc[0]) if len(xc) else None,
