@@ -68,6 +68,8 @@ expect fiber_repeated_point "bodies.fiber.path.1: expected a point different fro
 expect fiber_diameter "bodies.fiber.diameter: expected a positive number [m], got -1e-9" -- "$fiber" --set bodies.fiber.diameter=-1e-9
 expect fiber_origin "bodies.fiber.origin: not used by a fiber body" -- "$fiber" --set 'bodies.fiber.origin=[0,0,0]'
 expect fiber_spacing "bodies.fiber.spacing: spacing must not exceed the fiber's length along its path" -- "$fiber" --set bodies.fiber.spacing=1e-6
+expect fiber_kelvin "materials.protein.kelvin_viscosity: bodies.fiber is a fiber, which has no shear modulus to define the dashpots by (tau = rho nu / mu)" -- "$fiber" --set materials.protein.kelvin_viscosity=0.01
+expect kelvin_negative_membrane "materials.protein.kelvin_viscosity: expected a non-negative number [m^2/s], got -0.01" -- "$fiber" --set materials.protein.kelvin_viscosity=-0.01
 expect pair_kind "long_range.pairs.0.between: expected one of: adjacent_segments, distant_segments, other_fibers" -- "$fiber" --set long_range.pairs.0.between=neighbours
 expect pair_alpha "long_range.pairs.1.alpha: expected a non-negative number [J/m^6], got -1" -- "$fiber" --set long_range.pairs.1.alpha=-1
 # A rule for two particular segments: indices within the fiber's 20 segments (checked at setup),

@@ -144,6 +144,7 @@ Material read_material(const std::string& name, const Value& v) {
     if (!mat.critical_stretch) x->fail("requires critical_stretch (without failure no crack tip advances)");
     mat.tip_advance = x->positive("m");
   }
+  if (auto x = m.get("kelvin_viscosity")) mat.kelvin_viscosity = x->non_negative("m^2/s");
   if (auto x = m.get("hardening")) {
     const Map h(*x, &kHardeningKeys, "a map {coefficient: c, exponent: n}");
     Hardening hard;

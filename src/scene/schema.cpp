@@ -55,7 +55,7 @@ std::vector<std::string> models_taking(const std::string& key) {
   std::vector<std::string> takers;
   for (const std::string& name : material_model_names()) {
     const MaterialModel& m = *find_material_model(name);
-    const bool takes = key == "model" || key == "density" ||
+    const bool takes = key == "model" || key == "density" || key == "kelvin_viscosity" ||
                        (m.lattice ? marder_key
                                   : std::find(m.keys.begin(), m.keys.end(), key) != m.keys.end() ||
                                         std::find(m.stiffness.begin(), m.stiffness.end(), key) != m.stiffness.end());

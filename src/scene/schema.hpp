@@ -94,8 +94,11 @@ inline const Keys kMaterialKeys = {
             "is booked as dissipated; `reversible`: the paper's functional as written (f constant beyond u_c, h "
             "smooth; bonds act again below u_c; pre-cracks stay cut)"},
     {.name = "kelvin_viscosity", .unit = "m^2/s", .fallback = "0 (none)",
-     .doc = "kinematic viscosity nu >= 0 of Kelvin dashpots on the intact bonds, force eta (e_ij . (v_j - v_i)) "
-            "e_ij with eta = 8 m nu / (3 Delta^2); their work is booked as dissipated energy"},
+     .doc = "kinematic viscosity nu >= 0 of Kelvin-Voigt dashpots on the intact bonds, whose small-strain viscous "
+            "stress is rho nu (2 D + (tr D) I) (D: the strain rate); their work is booked as dissipated energy. "
+            "marder: force eta (e_ij . (v_j - v_i)) e_ij, eta = 8 m nu / (3 Delta^2); the peridynamic laws: each "
+            "bond's force gains tau C (e_ij . (v_j - v_i)), C its reference stiffness, tau = rho nu / mu (a wave "
+            "of angular frequency omega decays at tau omega^2 / 2); not for fibers. Lowers the stable step"},
     {.name = "stiffening_onset", .unit = "m", .fallback = "none",
      .doc = "u_g: bonds longer than u_g stiffen beyond the Mooney-Rivlin law, pair energy (A/36) (u - u_g)^4 / w^2 "
             "(not in the paper); Delta + u_s <= u_g < u_c, given with stiffening_width"},
@@ -107,7 +110,7 @@ inline const Keys kMaterialKeys = {
 };
 
 inline constexpr const char* kMarderKeys[] = {"mooney_rivlin_a", "mooney_rivlin_b", "cutoff", "fracture_separation", "breaking",
-                                   "kelvin_viscosity", "stiffening_onset", "stiffening_width",
+                                   "stiffening_onset", "stiffening_width",
                                    "break_separation"};
 
 inline const Keys kHardeningKeys = {

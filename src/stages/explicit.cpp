@@ -79,11 +79,11 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
   double* v = v_array->data();
   Boundaries& boundaries = boundaries_;
   double damped = 0;  // energy removed by damping: alpha m v.v dt, trapezoidal in time
-  // Energy removed by lattice dashpots: the kick by the dashpot force F_d over dt/2 changes the
+  // Energy removed by bond dashpots: the kick by the dashpot force F_d over dt/2 changes the
   // kinetic energy by F_d . (v_before + v_after)/2 dt/2 (exactly the share of F_d in
   // m (v_after^2 - v_before^2)/2), booked as dissipated with the opposite sign.
   double viscous = 0;
-  const bool kelvin = viscous_force != nullptr;  // lattice dashpots
+  const bool kelvin = viscous_force != nullptr;  // bond dashpots (lattice or peridynamic)
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
   const bool damped_run = damping_ > 0;
   // Free component k of node i: half kick, drift; returns the squared motion.
@@ -168,7 +168,7 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
   u_array.reset();
   v_array.reset();
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
-  // Forces at x(t + dt); lattice dashpots see the half-step velocity v(t + dt/2) (README
+  // Forces at x(t + dt); bond dashpots see the half-step velocity v(t + dt/2) (README
   // "Kelvin dissipation").
   forces_.set_time(t1);
   forces_.compute(with_energy, false, ledger_.bonds);

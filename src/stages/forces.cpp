@@ -9,7 +9,9 @@
 
 #include "peri/core/error.hpp"
 #include "peri/core/format.hpp"
+#include "peri/kernels/dashpots.hpp"
 #include "peri/kernels/tangent.hpp"
+#include "peri/models/model.hpp"
 #include "peri/stages/events.hpp"
 
 namespace peri {
@@ -90,6 +92,7 @@ Forces::Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Doma
   for (std::int32_t r : domain_.interior_rows) interior_by_body_[domain_.body[r]].push_back(r);
   for (std::int32_t r : domain_.boundary_rows) boundary_by_body_[domain_.body[r]].push_back(r);
   lattice_setup(scene, bodies);
+  dashpot_setup(scene, bodies);
   std::vector<double> tip_radius(nb, -1.0);
   for (std::size_t b = 0; b < nb; ++b)
     if (const Material& m = scene.material(scene.bodies[b].material); m.tip_advance && !marder_[b])
@@ -182,6 +185,7 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
         if (t.newly_broken != before) flags_changed();
       }
     if (rule) tip_advance_->stamp(view, time_);
+    if (!dashpot_tau_.empty() && !intact) add_dashpots(view, vel->data());
   }
   if (has_lattice_) lattice_reduce();
   if (long_range_) {
@@ -192,6 +196,42 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
   tally.newly_broken += t.newly_broken;
   tally.strain_energy = t.strain_energy;
   PetscLogEventEnd(events().forces, 0, 0, 0, 0);
+}
+
+void Forces::dashpot_setup(const Scene& scene, const std::vector<BodyGeometry>& bodies) {
+  std::vector<double> tau(laws_.size(), 0.0);
+  bool any = false;
+  for (std::size_t b = 0; b < laws_.size(); ++b) {
+    const Material& m = scene.material(scene.bodies[b].material);
+    if (marder_[b] || !(m.kelvin_viscosity > 0) || laws_[b].empty()) continue;
+    const ElasticConstants e = elastic_constants(laws_[b], bodies[b], m.density);
+    if (!(e.mu > 0) || bodies[b].traits.dimension == 1)
+      throw InputError(m.where.str() + ": materials." + m.name + ".kelvin_viscosity: bodies." + scene.bodies[b].name +
+                       " is a fiber, which has no shear modulus to define the dashpots by (tau = rho nu / mu)");
+    tau[b] = m.density * m.kelvin_viscosity / e.mu;
+    any = true;
+  }
+  if (!any) return;
+  dashpot_tau_ = std::move(tau);
+  has_kelvin_ = true;
+  viscous_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);  // (a lattice's rows too: it writes them)
+  dashpot_coefficient_.assign(domain_.bonds.neighbor.size(), 0.0);
+  const BondView view = bond_view();
+  for (std::size_t b = 0; b < dashpot_tau_.size(); ++b)
+    if (dashpot_tau_[b] > 0)
+      for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
+        dashpot_coefficients(laws_[b], dashpot_tau_[b], view, rows->data(), rows->size(), dashpot_coefficient_.data());
+}
+
+void Forces::add_dashpots(const BondView& view, const double* velocity) {
+  for (std::size_t b = 0; b < dashpot_tau_.size(); ++b) {
+    if (!(dashpot_tau_[b] > 0)) continue;
+    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]}) {
+      bond_dashpots(view, velocity, dashpot_coefficient_.data(), rows->data(), rows->size(), viscous_.data());
+      for (std::int32_t i : *rows)
+        for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(i) + c] += viscous_[3 * static_cast<std::size_t>(i) + c];
+    }
+  }
 }
 
 double Forces::add_long_range_forces(const double* u, bool with_energy) {
@@ -274,6 +314,8 @@ std::vector<double> Forces::stable_time_steps(const std::vector<double>& density
     }
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
       dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density[b], view, rows->data(), rows->size()));
+    if (!dashpot_tau_.empty() && std::isfinite(dt_body[b]))
+      dt_body[b] = dashpot_stable_time_step(dt_body[b], dashpot_tau_[b]);
   }
   return dt_body;
 }

@@ -28,7 +28,7 @@ struct EnergyLedger {
   /// The bond loop's (and release stages'): energy dissipated by broken bonds and the ordered
   /// bonds broken so far; strain_energy: of the last force evaluation (plus the tools' penalty).
   BondTally bonds;
-  double damping_work = 0;   ///< removed by damping, lattice dashpots and friction [J]
+  double damping_work = 0;   ///< removed by damping, bond dashpots and friction [J]
   double external_work = 0;  ///< done on the bodies by boundaries, tools, pressure, supports [J]
 };
 

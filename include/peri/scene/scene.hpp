@@ -73,6 +73,9 @@ struct Material {
   /// The incremental crack-tip advance of section 7.4 (kernels/tip_advance.hpp): a bond may break
   /// only where one of its ends lies within this distance [m] of a crack-tip node. Empty: off.
   std::optional<double> tip_advance;
+  /// Kinematic viscosity nu [m^2/s] of the peridynamic laws' bond dashpots
+  /// (kernels/dashpots.hpp); 0: none. (The marder model keeps its own in MarderParams.)
+  double kelvin_viscosity = 0;
   std::optional<Hardening> hardening;  ///< membrane model only
   std::optional<MarderParams> marder;  ///< model marder only
 };

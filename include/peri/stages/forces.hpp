@@ -81,8 +81,8 @@ class Forces {
   /// last pass over the bonds.
   const double* positions() const { return positions_.data(); }
   std::int64_t position_stride() const { return position_stride_; }
-  /// Lattice dashpot force densities of the last evaluation (3 per owned node), or nullptr when
-  /// no lattice body has dashpots.
+  /// Dashpot force densities of the last evaluation (3 per owned node; lattice dashpots and the
+  /// peridynamic bodies' kernels/dashpots.hpp), or nullptr when no body has dashpots.
   const double* viscous() const { return has_kelvin_ ? viscous_.data() : nullptr; }
 
   /// This rank's strain energy of the current state: a separate, non-breaking pass over the bonds
@@ -128,6 +128,8 @@ class Forces {
   void lattice_forces(const BondView& view, bool interior, bool with_energy, BondTally& tally,
                       const double* velocity);
   void lattice_reduce();
+  void dashpot_setup(const Scene& scene, const std::vector<BodyGeometry>& bodies);
+  void add_dashpots(const BondView& view, const double* velocity);
   double lattice_energy(const BondView& view);
   double add_long_range_forces(const double* u, bool with_energy);  // returns this rank's energy share
 
@@ -138,7 +140,9 @@ class Forces {
   std::vector<BondLaw> intact_laws_;  // same, never breaking (quasi-static residuals, tangents)
   std::vector<std::optional<MarderLaw>> marder_;  // per body: set for lattice bodies
   bool has_lattice_ = false;
-  bool has_kelvin_ = false;                      // some lattice body has bond dashpots (velocity halo)
+  bool has_kelvin_ = false;                      // some body has bond dashpots (velocity halo)
+  std::vector<double> dashpot_tau_;              // per peridynamic body: its dashpots' tau [s] (0: none)
+  std::vector<double> dashpot_coefficient_;      // per owned-row bond: tau C w V (kernels/dashpots.hpp)
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   std::vector<double> viscous_;                  // dashpot force densities, 3 * local (owned rows written)
   std::optional<LongRangeForces> long_range_;
