@@ -14,7 +14,7 @@
 
 namespace peri {
 
-/// The bonds' dashpot constants tau C_ij w_ij V_j [N s/m^5] of `rows` (owned rows of one
+/// The bonds' dashpot constants tau C_ij w_ij V_j [N s/m^4] of `rows` (owned rows of one
 /// body, reference geometry from the view), written at their CSR positions: coefficient[b].
 void dashpot_coefficients(const BondLaw& law, double tau, const BondView& view, const std::int32_t* rows,
                           std::size_t nrows, double* coefficient);
