@@ -179,6 +179,59 @@ TEST(Restart, WithAFrictionalToolIsBitForBit) {
   EXPECT_LT(whole.summary().energy_balance_error, 0.05);
 }
 
+// Bond dashpots make the force depend on the velocity they see: the half step's in a step, which
+// the step's end overwrites; the checkpoint keeps it so that the resumed run's first force
+// evaluation is the uninterrupted run's. Peridynamic dashpots (the tool scene) and the lattice's.
+const char* kLatticeDashpotScene = R"(
+name: lattice-dashpots
+materials:
+  rubber: {model: marder, density: 1000, mooney_rivlin_a: 1000, mooney_rivlin_b: 0.3, cutoff: 5.0e-5,
+           fracture_separation: 0.002, kelvin_viscosity: 0.002}
+bodies:
+  strip: {kind: lattice, material: rubber, origin: [0, -0.010392305, 0], size: [0.04, 0.02078461], thickness: 0.001, spacing: 0.001}
+cracks:
+  - {name: seed, from: [-1, 0, 0], to: [0.012, 0, 0]}
+boundaries:
+  - {name: top, region: {min: [-1, 0.0095, -1], max: [1, 1, 1]}}
+  - {name: bottom, region: {min: [-1, -1, -1], max: [1, -0.0095, 1]}}
+initial:
+  displacement_gradient: [[0.1, 0, 0], [0, 0.8, 0], [0, 0, 0]]
+stages:
+  - {name: run, steps: 600, safety_factor: 0.7}
+output: {frames: 1, series_every: 10}
+)";
+
+TEST(Restart, WithBondDashpotsIsBitForBit) {
+  std::string tool = kToolScene;
+  tool.replace(tool.find("critical_stretch: 0.03}"), 23, "critical_stretch: 0.03, kelvin_viscosity: 0.01}");
+  for (const auto& [text, name] : {std::pair<std::string, std::string>{tool, "tool, peridynamic dashpots"},
+                                   {kLatticeDashpotScene, "lattice dashpots"}}) {
+    const Scene scene = parse_scene(text, name);
+    Simulation whole(scene, PETSC_COMM_WORLD, quiet());
+    whole.run();
+    const auto resumed = resumed_run(scene, whole.total_steps() / 2 + 3, "restart-dashpots", [](const Checkpoint& c) {
+      EXPECT_TRUE(c.has_dashpot_velocity);
+    });
+    Simulation& second = *resumed;
+    const auto xa = whole.natural_positions(), xb = second.natural_positions();
+    const auto va = whole.natural_velocities(), vb = second.natural_velocities();
+    std::size_t differing = 0;
+    for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k] || va[k] != vb[k];
+    const EnergyRow ea = whole.summary().final_energy, eb = second.summary().final_energy;
+    if (world_rank() == 0)
+      std::printf("%s, %lld steps: %zu of %zu values differ after the restart; dissipated %.17g vs %.17g, "
+                  "broken bonds %lld\n",
+                  name.c_str(), static_cast<long long>(whole.total_steps()), differing, xa.size(), ea.dissipated,
+                  eb.dissipated, static_cast<long long>(ea.broken_bonds));
+    EXPECT_EQ(differing, 0u) << name;
+    EXPECT_GT(ea.dissipated, 0.0) << name;  // the dashpots (and bonds) worked before and after the checkpoint
+    EXPECT_EQ(ea.dissipated, eb.dissipated) << name;
+    EXPECT_EQ(ea.external_work, eb.external_work) << name;
+    EXPECT_EQ(ea.strain, eb.strain) << name;
+    EXPECT_EQ(ea.broken_bonds, eb.broken_bonds) << name;
+  }
+}
+
 // Quasi-static preload, release of a slit, a damped dynamic stage, then a pulled one.
 const char* kStagedScene = R"(
 name: staged
@@ -395,6 +448,18 @@ TEST(CheckpointFile, RoundTripKeepsEveryField) {
   EXPECT_EQ(r.velocity, c.velocity);
   EXPECT_EQ(r.broken, c.broken);
   EXPECT_EQ(r.extras, c.extras);
+  EXPECT_FALSE(r.has_dashpot_velocity);
+  EXPECT_TRUE(r.dashpot_velocity.empty());
+  // With bond dashpots: the velocity they last saw, a third node array.
+  Checkpoint d = c;
+  d.has_dashpot_velocity = true;
+  d.dashpot_velocity = c.velocity;
+  for (double& x : d.dashpot_velocity) x = 0.5 * x - 1.25;
+  write_checkpoint(f.path, d);
+  const Checkpoint rd = read_checkpoint(f.path);
+  EXPECT_TRUE(rd.has_dashpot_velocity);
+  EXPECT_EQ(rd.dashpot_velocity, d.dashpot_velocity);
+  EXPECT_EQ(rd.velocity, c.velocity);
 }
 
 TEST(CheckpointFile, RefusesDamagedForeignAndOtherVersions) {

@@ -363,9 +363,12 @@ void write_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm com
   int has_history = it != c.extras.end(), any_history = 0;
   MPI_Allreduce(&has_history, &any_history, 1, MPI_INT, MPI_MAX, comm);
   has_history = any_history;
+  int dashpots = c.has_dashpot_velocity, any_dashpots = 0;
+  MPI_Allreduce(&dashpots, &any_dashpots, 1, MPI_INT, MPI_MAX, comm);
   {
     std::string wrong;
-    if (c.displacement.size() != c.velocity.size() || c.displacement.size() % 3 != 0 || c.broken.size() % 2 != 0)
+    if (c.displacement.size() != c.velocity.size() || c.displacement.size() % 3 != 0 || c.broken.size() % 2 != 0 ||
+        (any_dashpots && c.dashpot_velocity.size() != c.velocity.size()))
       wrong = "the node or bond arrays have impossible sizes";
     else if (c.node_first != before[0] || total[0] != counters[1])
       wrong = "the ranks' node rows are not contiguous blocks of all " + std::to_string(counters[1]) + " nodes";
@@ -413,6 +416,8 @@ void write_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm com
                  all = static_cast<hsize_t>(total[0]);
       w.rows(g.get(), "displacement", H5T_NATIVE_DOUBLE, c.displacement.data(), first, n, all, 3);
       w.rows(g.get(), "velocity", H5T_NATIVE_DOUBLE, c.velocity.data(), first, n, all, 3);
+      if (any_dashpots)
+        w.rows(g.get(), "dashpot_velocity", H5T_NATIVE_DOUBLE, c.dashpot_velocity.data(), first, n, all, 3);
     }
     {
       H5Id g = w.group(f, "/bonds");
@@ -589,6 +594,13 @@ Checkpoint read_checkpoint_metadata(const std::string& path, std::uint64_t size)
   r.open_dataset(f, "/state/velocity", H5T_FLOAT, sizeof(double), 3, rows_v);
   if (rows_u != static_cast<std::uint64_t>(c.nodes) || rows_v != static_cast<std::uint64_t>(c.nodes))
     r.fail("state arrays do not hold " + std::to_string(c.nodes) + " nodes");
+  if (H5Lexists(f, "/state/dashpot_velocity", H5P_DEFAULT) > 0) {  // runs with bond dashpots
+    hsize_t rows_w = 0;
+    r.open_dataset(f, "/state/dashpot_velocity", H5T_FLOAT, sizeof(double), 3, rows_w);
+    if (rows_w != static_cast<std::uint64_t>(c.nodes))
+      r.fail("state arrays do not hold " + std::to_string(c.nodes) + " nodes");
+    c.has_dashpot_velocity = true;
+  }
   r.open_dataset(f, "/bonds/broken", H5T_INTEGER, sizeof(std::int64_t), 2, pairs);
   if (2 * static_cast<std::uint64_t>(pairs) > static_cast<std::uint64_t>(c.ordered_bonds))
     r.fail("more broken bonds than bonds");
@@ -632,7 +644,7 @@ Checkpoint read_checkpoint_metadata(const std::string& path, std::uint64_t size)
 }
 
 void read_checkpoint_nodes(const Checkpoint& meta, std::int64_t first, std::int64_t count, std::vector<double>& u,
-                           std::vector<double>& v) {
+                           std::vector<double>& v, std::vector<double>* w) {
   const Reader r(meta.path, meta.file_bytes);
   if (first < 0 || count < 0 || first + count > meta.nodes) r.fail("node rows out of range");
   const H5Id file = open_for_reading(r, meta.path);
@@ -648,6 +660,14 @@ void read_checkpoint_nodes(const Checkpoint& meta, std::int64_t first, std::int6
     H5Id d = r.open_dataset(file.get(), "/state/velocity", H5T_FLOAT, sizeof(double), 3, rows);
     if (rows != static_cast<hsize_t>(meta.nodes)) r.fail("state arrays do not hold " + std::to_string(meta.nodes) + " nodes");
     r.read_rows(d.get(), "/state/velocity", H5T_NATIVE_DOUBLE, first, count, 3, v.data());
+  }
+  if (w) w->clear();
+  if (w && meta.has_dashpot_velocity) {
+    w->assign(3 * static_cast<std::size_t>(count), 0.0);
+    H5Id d = r.open_dataset(file.get(), "/state/dashpot_velocity", H5T_FLOAT, sizeof(double), 3, rows);
+    if (rows != static_cast<hsize_t>(meta.nodes)) r.fail("state arrays do not hold " + std::to_string(meta.nodes) + " nodes");
+    r.read_rows(d.get(), "/state/dashpot_velocity", H5T_NATIVE_DOUBLE, first, count, 3, w->data());
+    if (!all_finite(*w)) r.fail("non-finite dashpot velocity");
   }
   if (!all_finite(u) || !all_finite(v)) r.fail("non-finite displacement or velocity");
 }
@@ -718,7 +738,7 @@ std::vector<double> read_checkpoint_history(const Checkpoint& meta, std::size_t 
 Checkpoint read_checkpoint(const std::string& path) {
   const std::uint64_t size = check_checkpoint_file(path, true);
   Checkpoint c = read_checkpoint_metadata(path, size);
-  read_checkpoint_nodes(c, 0, c.nodes, c.displacement, c.velocity);
+  read_checkpoint_nodes(c, 0, c.nodes, c.displacement, c.velocity, &c.dashpot_velocity);
   c.broken = read_checkpoint_broken(c, [](std::int64_t, std::int64_t) { return true; });
   if (c.history_values > 0) {  // the values as stored (their row width is the law's)
     const Reader r(path, size);

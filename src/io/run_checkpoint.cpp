@@ -33,7 +33,7 @@ void CheckpointExtras::restore(const Checkpoint& c) const {
 
 Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& state, const EnergyLedger& ledger,
                            const RunPosition& at, const RunSummary& summary, const CheckpointExtras& extras,
-                           MPI_Comm comm) {
+                           MPI_Comm comm, const double* dashpot_velocity) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
@@ -75,6 +75,11 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
     const VecArrayRead v(state.velocity());
     const double* slice = state.to_natural(v.data(), 3);
     c.velocity.assign(slice, slice + n3);
+  }
+  if (dashpot_velocity) {
+    const double* slice = state.to_natural(dashpot_velocity, 3);
+    c.dashpot_velocity.assign(slice, slice + n3);
+    c.has_dashpot_velocity = true;
   }
   const std::vector<std::int64_t> blocks = natural_blocks(state.natural_begin(), domain.global_nodes, comm);
   c.broken = broken_pairs_of_block(domain, blocks, comm);
@@ -137,16 +142,20 @@ void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, 
                      " does not fit this scene's stages");
 }
 
-void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedger& ledger, MPI_Comm comm) {
+void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedger& ledger, MPI_Comm comm,
+                   std::vector<double>* dashpot_velocity) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
   // Each rank reads its block of natural rows, then sends every owner the rows of its nodes.
   std::string error;
-  std::vector<double> u_block, v_block;
+  std::vector<double> u_block, v_block, w_block;
+  const bool dashpots = dashpot_velocity && c.has_dashpot_velocity;
+  if (dashpot_velocity) dashpot_velocity->clear();
   try {
     if (c.path.empty()) throw InputError("checkpoint: no file to restore from");
-    read_checkpoint_nodes(c, state.natural_begin(), state.natural_count(), u_block, v_block);
+    read_checkpoint_nodes(c, state.natural_begin(), state.natural_count(), u_block, v_block,
+                          dashpots ? &w_block : nullptr);
   } catch (const std::exception& e) {
     error = e.what();
   }
@@ -175,16 +184,16 @@ void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedg
     }
     MPI_Alltoallv(ids.data(), send.data(), sd.data(), MPI_INT64_T, wanted.data(), recv.data(), rd.data(), MPI_INT64_T,
                   comm);
-    // Replies: 3 values per requested node, in the order asked; displacement, then velocity, each
-    // block freed once its replies are packed (at most two blocks and one array in flight).
+    // Replies: 3 values per requested node, in the order asked; displacement, velocity, then the
+    // dashpots' velocity, each block freed once its replies are packed.
     for (int r = 0; r < ranks; ++r) {
       send[r] *= 3;
       sd[r] *= 3;
       recv[r] *= 3;
       rd[r] *= 3;
     }
-    for (int which = 0; which < 2; ++which) {
-      std::vector<double>& block = which == 0 ? u_block : v_block;
+    for (int which = 0; which < (dashpots ? 3 : 2); ++which) {
+      std::vector<double>& block = which == 0 ? u_block : which == 1 ? v_block : w_block;
       std::vector<double> reply(3 * static_cast<std::size_t>(asked));
       for (int k = 0; k < asked; ++k) {
         const std::size_t row = 3 * static_cast<std::size_t>(wanted[k] - state.natural_begin());
@@ -195,10 +204,18 @@ void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedg
       MPI_Alltoallv(reply.data(), recv.data(), rd.data(), MPI_DOUBLE, got.data(), send.data(), sd.data(), MPI_DOUBLE,
                     comm);
       reply = std::vector<double>();
-      const VecArray x(which == 0 ? state.displacement() : state.velocity());
-      for (std::int32_t k = 0; k < domain.owned; ++k) {
-        const std::size_t l = static_cast<std::size_t>(slot[k]);
-        for (int a = 0; a < 3; ++a) x[3 * l + a] = got[3 * static_cast<std::size_t>(k) + a];
+      const auto place = [&](double* x) {
+        for (std::int32_t k = 0; k < domain.owned; ++k) {
+          const std::size_t l = static_cast<std::size_t>(slot[k]);
+          for (int a = 0; a < 3; ++a) x[3 * l + a] = got[3 * static_cast<std::size_t>(k) + a];
+        }
+      };
+      if (which == 2) {
+        dashpot_velocity->assign(got.size(), 0.0);
+        place(dashpot_velocity->data());
+      } else {
+        const VecArray x(which == 0 ? state.displacement() : state.velocity());
+        place(x.data());
       }
     }
   }

@@ -155,7 +155,10 @@ void Forces::compute(bool with_energy, bool intact, BondTally& tally) {
   {
     LocalArray u(state_.displacement());
     std::optional<LocalArray> vel;
-    if (has_kelvin_) vel.emplace(state_.velocity());
+    if (has_kelvin_) {
+      vel.emplace(state_.velocity());
+      dashpot_velocity_.assign(vel->data(), vel->data() + 3 * static_cast<std::size_t>(domain_.owned));
+    }
     view.u = u.data();
     current_positions(domain_.X.data(), u.data(), 0, domain_.owned, position_stride_, positions_.data());
     for (std::size_t b = 0; b < laws_.size(); ++b)

@@ -379,7 +379,7 @@ void Simulation::add_checkpoint_extra(std::string name, std::function<std::vecto
 
 Checkpoint Simulation::make_checkpoint() {
   return peri::make_checkpoint(scene_, domain_, state_, ledger_, {step_, time_, stage_, stage_step_}, summary_, extras_,
-                               comm_);
+                               comm_, forces_.dashpot_velocity());
 }
 
 void Simulation::write_checkpoint() {
@@ -396,7 +396,8 @@ void Simulation::write_checkpoint() {
 }
 
 void Simulation::restore(const Checkpoint& c) {
-  restore_state(c, domain_, state_, ledger_, comm_);
+  std::vector<double> dashpot_velocity;
+  restore_state(c, domain_, state_, ledger_, comm_, forces_.has_dashpots() ? &dashpot_velocity : nullptr);
   forces_.flags_changed();
   restore_summary(c, scene_, summary_);
   step_ = c.step;
@@ -415,8 +416,20 @@ void Simulation::restore(const Checkpoint& c) {
         }
 
   // Forces at the restored positions, computed as the uninterrupted run did at the end of this
-  // step; every bond past its critical stretch there is already broken, so none breaks now.
-  verlet_.forces_at(time_);
+  // step; every bond past its critical stretch there is already broken, so none breaks now. Bond
+  // dashpots see the velocity they saw then (the half step's, kept by the checkpoint; files
+  // without it: the full step's, and the run continues close to, not exactly as, the original).
+  if (!dashpot_velocity.empty()) {
+    const auto swap_velocity = [&] {
+      const VecArray v(state_.velocity());
+      std::swap_ranges(dashpot_velocity.begin(), dashpot_velocity.end(), v.data());
+    };
+    swap_velocity();
+    verlet_.forces_at(time_);
+    swap_velocity();
+  } else {
+    verlet_.forces_at(time_);
+  }
   summary_.final_energy = reduce_energies(ledger_.bonds.strain_energy);
   output_.skip_frames_through(step_);
   if (rank_ == 0 && !options_.quiet) {

@@ -12,7 +12,9 @@
 //               ordered_bonds, step, time, stage, stage_step, initial_total_energy, ranks
 //   /scene      the resolved YAML, a scalar string dataset of any length (files written before
 //               it could exceed 64 KB hold it as an attribute `scene` of /, still read)
-//   /state      displacement [N,3], velocity [N,3] (natural node order: rank-independent)
+//   /state      displacement [N,3], velocity [N,3] (natural node order: rank-independent);
+//               with bond dashpots also dashpot_velocity [N,3], the velocity the last force
+//               evaluation's dashpots saw (the half step's, which the step's end overwrites)
 //   /bonds      broken [B,2]: every broken bond once as natural ids (i < j), sorted
 //   /tallies    per writing rank: dissipated, damping_work, external_work, newly_broken, owner_hash
 //   /extras     one 1-D double dataset per registered extra array (diagnostics' history);
@@ -62,6 +64,9 @@ struct Checkpoint {
   /// Natural order [m], [m/s]: 3 values per node of the rows node_first, node_first + 1, ...
   /// (all N rows when read by read_checkpoint; a rank's block when written collectively).
   std::vector<double> displacement, velocity;
+  /// With bond dashpots: the velocity [m/s] their last evaluation saw, as displacement (the
+  /// force at the checkpoint depends on it); empty without dashpots (and in older files).
+  std::vector<double> dashpot_velocity;
   std::int64_t node_first = 0;
   std::vector<std::int64_t> broken;               ///< 2B: (i, j) pairs, i < j, sorted (or a rank's part)
   std::map<std::string, std::vector<double>> extras;  ///< named extra arrays
@@ -73,6 +78,7 @@ struct Checkpoint {
   bool arrays = true;               ///< false: the arrays above are in the file, not here
   std::int64_t broken_pairs = 0;    ///< rows of /bonds/broken
   std::int64_t history_values = 0;  ///< values of /extras/bonds.history (0: none stored)
+  bool has_dashpot_velocity = false;  ///< dashpot_velocity is written / is in the file
 };
 
 /// The extra array that holds the per-bond history (its rows are read per rank, not by
@@ -89,7 +95,8 @@ std::string previous_checkpoint_path(const std::string& path);
 /// existing `path` (if any) is renamed to previous_checkpoint_path(path); then the temporary is
 /// renamed to `path`. At every moment one complete checkpoint exists. Collective over `comm`:
 /// every rank passes the same metadata, tallies and extras (the data of those is rank 0's) and
-/// its own part of the node rows (displacement and velocity from row node_first), of the broken
+/// its own part of the node rows (displacement and velocity from row node_first; dashpot_velocity
+/// too on every rank or on none), of the broken
 /// pairs and of extras["bonds.history"]; the parts in rank order must be the sorted whole. A
 /// failure on any rank throws Error on every rank (the temporary removed, the checkpoints before
 /// kept); no rank is left waiting.
@@ -109,10 +116,11 @@ Checkpoint read_checkpoint(const std::string& path);
 /// check_checkpoint_file(path, ...) returned `file_bytes`.
 Checkpoint read_checkpoint_metadata(const std::string& path, std::uint64_t file_bytes);
 
-/// Rows [first, first + count) of /state/displacement and /state/velocity (3 values a row), checked
+/// Rows [first, first + count) of /state/displacement and /state/velocity (3 values a row), and
+/// of /state/dashpot_velocity into `w` where the file has it (else `w` is left empty), checked
 /// finite. InputError on failure.
 void read_checkpoint_nodes(const Checkpoint& meta, std::int64_t first, std::int64_t count, std::vector<double>& u,
-                           std::vector<double>& v);
+                           std::vector<double>& v, std::vector<double>* w = nullptr);
 
 /// The broken pairs (i, j) for which keep(i, j), flattened, in the file's order. Streams the whole
 /// list in chunks (memory: one chunk and the pairs kept) and checks every pair (i < j < nodes,

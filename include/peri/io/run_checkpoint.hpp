@@ -50,10 +50,11 @@ class CheckpointExtras {
 /// The run's state as a checkpoint: on every rank the metadata, on rank 0 the tallies and extras,
 /// and each rank's part of the node and bond arrays, as write_checkpoint takes them: its block of
 /// natural rows of displacement and velocity, the broken pairs and bond-history rows of that
-/// block. Nothing is gathered. Collective.
+/// block; with bond dashpots (`dashpot_velocity`: 3 values per owned node in local order, the
+/// velocity their last evaluation saw) that velocity's rows too. Nothing is gathered. Collective.
 Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& state, const EnergyLedger& ledger,
                            const RunPosition& at, const RunSummary& summary, const CheckpointExtras& extras,
-                           MPI_Comm comm);
+                           MPI_Comm comm, const double* dashpot_velocity = nullptr);
 /// InputError unless `c` continues this scene: the same physics (only output.progress_seconds
 /// and output.checkpoint_every_* may differ), nodes and bonds, and a stage and step that fit
 /// the stages' step counts.
@@ -65,8 +66,10 @@ void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, 
 /// file lists bonds this scene lacks; the caller's plans must then forget the flags they keep.
 /// This rank's ledger:
 /// its own when the ownership is the checkpoint's (the sums continue bit for bit), else the
-/// totals on rank 0. Collective.
-void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedger& ledger, MPI_Comm comm);
+/// totals on rank 0. With `dashpot_velocity`, the dashpots' velocity where the file has it (3
+/// values per owned node, local order; left empty where it has not). Collective.
+void restore_state(const Checkpoint& c, Domain& domain, State& state, EnergyLedger& ledger, MPI_Comm comm,
+                   std::vector<double>* dashpot_velocity = nullptr);
 /// The summary figures of the stages before the checkpoint: pre-cracked and released bonds, the
 /// whole run's initial energy, each quasi-static stage's figures.
 void restore_summary(const Checkpoint& c, const Scene& scene, RunSummary& summary);

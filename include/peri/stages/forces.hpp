@@ -84,6 +84,13 @@ class Forces {
   /// Dashpot force densities of the last evaluation (3 per owned node; lattice dashpots and the
   /// peridynamic bodies' kernels/dashpots.hpp), or nullptr when no body has dashpots.
   const double* viscous() const { return has_kelvin_ ? viscous_.data() : nullptr; }
+  /// The velocity the dashpots of the last evaluation saw (3 per owned node; the half step's in a
+  /// dynamic step, which a checkpoint keeps so that a resumed run's first evaluation sees it too),
+  /// or nullptr when no body has dashpots.
+  const double* dashpot_velocity() const {
+    return has_kelvin_ && !dashpot_velocity_.empty() ? dashpot_velocity_.data() : nullptr;
+  }
+  bool has_dashpots() const { return has_kelvin_; }
 
   /// This rank's strain energy of the current state: a separate, non-breaking pass over the bonds
   /// and the lattice's terms (not the long-range pairs). Not collective.
@@ -144,6 +151,7 @@ class Forces {
   std::vector<double> dashpot_tau_;              // per peridynamic body: its dashpots' tau [s] (0: none)
   std::vector<double> dashpot_coefficient_;      // per owned-row bond: tau C w V (kernels/dashpots.hpp)
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
+  std::vector<double> dashpot_velocity_;          // the velocity the dashpots last saw, 3 * owned
   std::vector<double> viscous_;                  // dashpot force densities, 3 * local (owned rows written)
   std::optional<LongRangeForces> long_range_;
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
