@@ -33,7 +33,7 @@ void CheckpointExtras::restore(const Checkpoint& c) const {
 
 Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& state, const EnergyLedger& ledger,
                            const RunPosition& at, const RunSummary& summary, const CheckpointExtras& extras,
-                           MPI_Comm comm, const double* dashpot_velocity) {
+                           MPI_Comm comm, const std::vector<double>* dashpot_velocity) {
   int rank = 0, ranks = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &ranks);
@@ -76,8 +76,10 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
     const double* slice = state.to_natural(v.data(), 3);
     c.velocity.assign(slice, slice + n3);
   }
-  if (dashpot_velocity) {
-    const double* slice = state.to_natural(dashpot_velocity, 3);
+  if (dashpot_velocity) {  // (a collective scatter: every rank or none)
+    if (dashpot_velocity->size() != 3 * static_cast<std::size_t>(domain.owned))
+      throw Error("checkpoint: the dashpots' velocity does not hold the owned nodes");
+    const double* slice = state.to_natural(dashpot_velocity->data(), 3);
     c.dashpot_velocity.assign(slice, slice + n3);
     c.has_dashpot_velocity = true;
   }

@@ -50,11 +50,12 @@ class CheckpointExtras {
 /// The run's state as a checkpoint: on every rank the metadata, on rank 0 the tallies and extras,
 /// and each rank's part of the node and bond arrays, as write_checkpoint takes them: its block of
 /// natural rows of displacement and velocity, the broken pairs and bond-history rows of that
-/// block; with bond dashpots (`dashpot_velocity`: 3 values per owned node in local order, the
-/// velocity their last evaluation saw) that velocity's rows too. Nothing is gathered. Collective.
+/// block; with bond dashpots (`dashpot_velocity`, on every rank: 3 values per owned node in local
+/// order, the velocity their last evaluation saw) that velocity's rows too. Nothing is gathered.
+/// Collective.
 Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& state, const EnergyLedger& ledger,
                            const RunPosition& at, const RunSummary& summary, const CheckpointExtras& extras,
-                           MPI_Comm comm, const double* dashpot_velocity = nullptr);
+                           MPI_Comm comm, const std::vector<double>* dashpot_velocity = nullptr);
 /// InputError unless `c` continues this scene: the same physics (only output.progress_seconds
 /// and output.checkpoint_every_* may differ), nodes and bonds, and a stage and step that fit
 /// the stages' step counts.

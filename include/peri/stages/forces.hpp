@@ -87,9 +87,7 @@ class Forces {
   /// The velocity the dashpots of the last evaluation saw (3 per owned node; the half step's in a
   /// dynamic step, which a checkpoint keeps so that a resumed run's first evaluation sees it too),
   /// or nullptr when no body has dashpots.
-  const double* dashpot_velocity() const {
-    return has_kelvin_ && !dashpot_velocity_.empty() ? dashpot_velocity_.data() : nullptr;
-  }
+  const std::vector<double>* dashpot_velocity() const { return has_kelvin_ ? &dashpot_velocity_ : nullptr; }
   bool has_dashpots() const { return has_kelvin_; }
 
   /// This rank's strain energy of the current state: a separate, non-breaking pass over the bonds
