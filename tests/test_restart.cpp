@@ -181,14 +181,19 @@ TEST(Restart, WithAFrictionalToolIsBitForBit) {
 
 // Bond dashpots make the force depend on the velocity they see: the half step's in a step, which
 // the step's end overwrites; the checkpoint keeps it so that the resumed run's first force
-// evaluation is the uninterrupted run's. Peridynamic dashpots (the tool scene) and the lattice's.
+// evaluation is the uninterrupted run's. Peridynamic dashpots (the tool scene) and the lattice's,
+// on a lattice whose bonds break only in a box about the crack's line (the others carry an
+// unbreakable bit beside the broken one, which the file must neither record as broken nor
+// erase), in both breaking modes (the reversible one keeps the pre-crack's bonds cut by a bit of
+// their own).
 const char* kLatticeDashpotScene = R"(
 name: lattice-dashpots
 materials:
   rubber: {model: marder, density: 1000, mooney_rivlin_a: 1000, mooney_rivlin_b: 0.3, cutoff: 5.0e-5,
-           fracture_separation: 0.002, kelvin_viscosity: 0.002}
+           fracture_separation: 0.002, kelvin_viscosity: 0.002, breaking: BREAKING}
 bodies:
-  strip: {kind: lattice, material: rubber, origin: [0, -0.010392305, 0], size: [0.04, 0.02078461], thickness: 0.001, spacing: 0.001}
+  strip: {kind: lattice, material: rubber, origin: [0, -0.010392305, 0], size: [0.04, 0.02078461], thickness: 0.001, spacing: 0.001,
+          breakable: {min: [-1, -0.003, -1], max: [1, 0.003, 1]}}
 cracks:
   - {name: seed, from: [-1, 0, 0], to: [0.012, 0, 0]}
 boundaries:
@@ -204,8 +209,12 @@ output: {frames: 1, series_every: 10}
 TEST(Restart, WithBondDashpotsIsBitForBit) {
   std::string tool = kToolScene;
   tool.replace(tool.find("critical_stretch: 0.03}"), 23, "critical_stretch: 0.03, kelvin_viscosity: 0.01}");
+  std::string irreversible = kLatticeDashpotScene, reversible = kLatticeDashpotScene;
+  irreversible.replace(irreversible.find("BREAKING"), 8, "irreversible");
+  reversible.replace(reversible.find("BREAKING"), 8, "reversible");
   for (const auto& [text, name] : {std::pair<std::string, std::string>{tool, "tool, peridynamic dashpots"},
-                                   {kLatticeDashpotScene, "lattice dashpots"}}) {
+                                   {irreversible, "lattice dashpots, breakable box"},
+                                   {reversible, "lattice dashpots, breakable box, reversible"}}) {
     const Scene scene = parse_scene(text, name);
     Simulation whole(scene, PETSC_COMM_WORLD, quiet());
     whole.run();

@@ -140,7 +140,7 @@ std::vector<std::int64_t> broken_pairs_of_block(const Domain& d, const std::vect
   std::vector<std::int64_t> mine;
   for (std::int32_t r = 0; r < d.owned; ++r)
     for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b)
-      if (d.bonds.broken[b] && d.natural[r] < d.natural[d.bonds.neighbor[b]])
+      if ((d.bonds.broken[b] & kBrokenFlag) && d.natural[r] < d.natural[d.bonds.neighbor[b]])
         mine.insert(mine.end(), {d.natural[r], d.natural[d.bonds.neighbor[b]]});
   std::vector<std::int64_t> pairs = rows_to_blocks(mine, 2, blocks, MPI_INT64_T, comm);
   sort_rows(pairs, 2);
@@ -188,7 +188,9 @@ std::int64_t apply_broken_pairs(Domain& d, const std::vector<std::int64_t>& pair
         else hi = mid;
       }
       const bool hit = lo < np && pairs[2 * lo] == key.first && pairs[2 * lo + 1] == key.second;
-      d.bonds.broken[b] = hit ? 1 : 0;
+      // Bit 0 from the file; a lattice's other bits (cut by a pre-crack, unbreakable) are the
+      // setup's, which knows them from the scene.
+      d.bonds.broken[b] = static_cast<std::uint8_t>((d.bonds.broken[b] & ~kBrokenFlag) | (hit ? kBrokenFlag : 0));
       found += hit;
     }
   }

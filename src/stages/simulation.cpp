@@ -429,6 +429,11 @@ void Simulation::restore(const Checkpoint& c) {
     swap_velocity();
   } else {
     verlet_.forces_at(time_);
+    if (forces_.has_dashpots() && rank_ == 0 && !options_.quiet)
+      std::fprintf(stderr,
+                   "peridrive: note: checkpoint '%s' holds no dashpot velocity (written before it was kept): the "
+                   "resumed run continues close to, not bit for bit as, the uninterrupted one\n",
+                   c.path.c_str());
   }
   summary_.final_energy = reduce_energies(ledger_.bonds.strain_energy);
   output_.skip_frames_through(step_);
