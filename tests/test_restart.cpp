@@ -95,6 +95,15 @@ std::unique_ptr<Simulation> resumed_run(const Scene& scene, std::int64_t steps, 
   return second;
 }
 
+/// Position and velocity values (natural order) in which two runs differ.
+std::size_t differing_state(Simulation& a, Simulation& b) {
+  const auto xa = a.natural_positions(), xb = b.natural_positions();
+  const auto va = a.natural_velocities(), vb = b.natural_velocities();
+  std::size_t differing = 0;
+  for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k] || va[k] != vb[k];
+  return differing;
+}
+
 TEST(Restart, ContinuedRunIsBitForBitTheUninterruptedOne) {
   const Scene scene = parse_scene(kScene, "small-slit");
   Simulation whole(scene, PETSC_COMM_WORLD, quiet());
@@ -109,10 +118,8 @@ TEST(Restart, ContinuedRunIsBitForBitTheUninterruptedOne) {
 
   EXPECT_EQ(second.current_step(), whole.current_step());
   EXPECT_EQ(second.current_time(), whole.current_time());
-  const auto xa = whole.natural_positions(), xb = second.natural_positions();
-  const auto va = whole.natural_velocities(), vb = second.natural_velocities();
-  std::size_t differing = 0;
-  for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k] || va[k] != vb[k];
+  const auto xa = whole.natural_positions();
+  const std::size_t differing = differing_state(whole, second);
   const auto ba = whole.broken_bonds(), bb = second.broken_bonds();
   const EnergyRow ea = whole.summary().final_energy, eb = second.summary().final_energy;
   if (world_rank() == 0)
@@ -159,10 +166,8 @@ TEST(Restart, WithAFrictionalToolIsBitForBit) {
   whole.run();
   const auto resumed = resumed_run(scene, whole.total_steps() / 2 + 3, "restart-tool");
   Simulation& second = *resumed;
-  const auto xa = whole.natural_positions(), xb = second.natural_positions();
-  const auto va = whole.natural_velocities(), vb = second.natural_velocities();
-  std::size_t differing = 0;
-  for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k] || va[k] != vb[k];
+  const auto xa = whole.natural_positions();
+  const std::size_t differing = differing_state(whole, second);
   const EnergyRow ea = whole.summary().final_energy, eb = second.summary().final_energy;
   if (world_rank() == 0)
     std::printf("tool scene, %lld steps: %zu of %zu values differ after the restart; external work %.17g vs %.17g, "
@@ -222,15 +227,12 @@ TEST(Restart, WithBondDashpotsIsBitForBit) {
       EXPECT_TRUE(c.has_dashpot_velocity);
     });
     Simulation& second = *resumed;
-    const auto xa = whole.natural_positions(), xb = second.natural_positions();
-    const auto va = whole.natural_velocities(), vb = second.natural_velocities();
-    std::size_t differing = 0;
-    for (std::size_t k = 0; k < xa.size(); ++k) differing += xa[k] != xb[k] || va[k] != vb[k];
+    const std::size_t values = whole.natural_positions().size(), differing = differing_state(whole, second);
     const EnergyRow ea = whole.summary().final_energy, eb = second.summary().final_energy;
     if (world_rank() == 0)
       std::printf("%s, %lld steps: %zu of %zu values differ after the restart; dissipated %.17g vs %.17g, "
                   "broken bonds %lld\n",
-                  name.c_str(), static_cast<long long>(whole.total_steps()), differing, xa.size(), ea.dissipated,
+                  name.c_str(), static_cast<long long>(whole.total_steps()), differing, values, ea.dissipated,
                   eb.dissipated, static_cast<long long>(ea.broken_bonds));
     EXPECT_EQ(differing, 0u) << name;
     EXPECT_GT(ea.dissipated, 0.0) << name;  // the dashpots (and bonds) worked before and after the checkpoint
