@@ -304,6 +304,38 @@ TEST(PointCloud, ReproducesTheGridSolid) {
   if (world_rank() == 0) std::remove(file.c_str());
 }
 
+// A point cloud as a spreadsheet saves it ("CSV UTF-8": a byte order mark first, CRLF line ends,
+// the header capitalised) gives the same points as the plain file.
+TEST(PointCloud, ReadsASpreadsheetsCsv) {
+  int size = 1;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  const std::string plain = "test_cutouts_plain_np" + std::to_string(size) + ".csv";
+  const std::string sheet = "test_cutouts_sheet_np" + std::to_string(size) + ".csv";
+  if (world_rank() == 0) {
+    std::ofstream a(plain, std::ios::binary), b(sheet, std::ios::binary);
+    a << "x,y,z,volume\n";
+    b << "\xEF\xBB\xBFX,Y,Z,Volume\r\n";
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        char line[96];
+        std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g,1e-9", 0.001 * i, 0.001 * j, 0.0005 * (i + j));
+        a << line << "\n";
+        b << line << "\r\n";
+      }
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  const Scene a = parse_scene(block_scene("points: " + plain, false), "block.yaml");
+  const Scene b = parse_scene(block_scene("points: " + sheet, false), "block.yaml");
+  ASSERT_EQ(a.bodies.at(0).cloud.size(), 16u);
+  ASSERT_EQ(b.bodies.at(0).cloud.size(), 16u);
+  for (std::size_t k = 0; k < 16; ++k) {
+    EXPECT_EQ(a.bodies[0].cloud[k].x, b.bodies[0].cloud[k].x) << k;
+    EXPECT_EQ(a.bodies[0].cloud[k].volume, b.bodies[0].cloud[k].volume) << k;
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (world_rank() == 0) std::remove(plain.c_str()), std::remove(sheet.c_str());
+}
+
 // ------------------------------------------------------------------------------------------------
 // A sheet with a hole and a V-notch (a polygon) pulled apart until it tears: the same on 1 and 2
 // ranks.

@@ -3,6 +3,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "peri/core/format.hpp"
@@ -21,6 +22,10 @@ using scene_detail::Value;
 using scene_detail::Writer;
 
 inline constexpr double kPi = 3.14159265358979323846;
+
+/// The UTF-8 byte order mark some programs (spreadsheets' "CSV UTF-8") write first in a text file:
+/// the text readers skip it.
+inline constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
 
 // The horizon of a peridynamic body: horizon_factor (m spacings) or horizon [m].
 inline const Key kHorizonFactorKey = {.name = "horizon_factor", .fallback = "3",

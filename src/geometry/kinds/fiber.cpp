@@ -169,6 +169,7 @@ double read_polyline(const Value& v, Body& b) {
   double length = 0;
   while (std::getline(in, text)) {
     ++line;
+    if (line == 1 && text.starts_with(kUtf8Bom)) text.erase(0, kUtf8Bom.size());
     const auto first = text.find_first_not_of(" \t\r");
     if (first == std::string::npos || text[first] == '#') continue;
     std::string t = text.substr(first, text.find_last_not_of(" \t\r") - first + 1);

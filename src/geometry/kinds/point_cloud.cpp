@@ -244,13 +244,16 @@ void read_point_cloud(const Value& v, Body& b) {
   std::vector<CloudRow> rows;  // every row of the file (duplicates are checked over all of them)
   while (std::getline(in, text)) {
     ++line;
+    if (line == 1 && text.starts_with(kUtf8Bom)) text.erase(0, kUtf8Bom.size());  // spreadsheets' "CSV UTF-8"
     const std::string t = trim(text);
     if (t.empty() || t[0] == '#') continue;  // blank lines and comments
-    const std::vector<std::string> cells = split(t);
+    std::vector<std::string> cells = split(t);
     if (columns == 0) {
       const std::vector<std::string> four{"x", "y", "z", "volume"};
       std::vector<std::string> five = four;
       five.emplace_back("material");
+      for (std::string& c : cells)  // X,Y,Z,Volume as well
+        std::transform(c.begin(), c.end(), c.begin(), [](unsigned char ch) { return std::tolower(ch); });
       if (cells != four && cells != five)
         fail_at(line, "expected the header x,y,z,volume or x,y,z,volume,material, got " + shown(t));
       columns = cells.size();
