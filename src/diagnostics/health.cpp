@@ -75,12 +75,18 @@ void HealthCheck::check(std::int64_t step, double time, const double* u, const d
   }
 }
 
-void HealthCheck::check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable) const {
+void HealthCheck::check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable) {
   const double tolerance = scene_.stability.energy_error;
-  if (!(tolerance > 0) || error <= tolerance) return;
+  if (!(tolerance > 0) || error <= tolerance) {
+    energy_over_since_ = -1;
+    return;
+  }
+  if (energy_over_since_ < 0) energy_over_since_ = row.step;
+  if (row.step - energy_over_since_ < kEnergyErrorSteps) return;
   std::ostringstream msg;
   msg << "energy balance error " << number_text(error) << " at step " << row.step << " (t = " << number_text(row.time)
-      << " s) exceeds stability.energy_error = " << number_text(tolerance) << " (total energy " << number_text(row.total())
+      << " s) exceeds stability.energy_error = " << number_text(tolerance) << " since step " << energy_over_since_
+      << " (total energy " << number_text(row.total())
       << " J, " << number_text(e0) << " J at the start); likely cause: an unstable time step (dt = " << number_text(dt)
       << " s, stable bound " << number_text(dt_stable) << " s at the reference state; " << law_note(-1)
       << "), or boundary motion too violent for the resolution";
