@@ -18,9 +18,10 @@ SizeEstimate estimate_size(const Scene& scene) {
     e.bonds += n * family;
     // Bond dashpots: a constant per ordered bond (peridynamic laws; the lattice computes its own),
     // and per node the dashpot force and the velocity they saw (measured: 390 MB more at 1M nodes,
-    // 4.4e7 ordered bonds).
+    // 4.4e7 ordered bonds), and the peridynamic pass's node records (64 bytes, dashpot_records).
     const Material& m = scene.material(b.material);
-    if (m.kelvin_viscosity > 0) dashpot_bytes += (m.model == "marder" ? 0.0 : 8.0 * n * family) + 48.0 * n;
+    if (m.kelvin_viscosity > 0)
+      dashpot_bytes += m.model == "marder" ? 48.0 * n : 8.0 * n * family + 112.0 * n;
     if (family > e.largest_family) {
       e.largest_family = family;
       e.largest_family_body = static_cast<int>(bi);

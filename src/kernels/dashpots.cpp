@@ -13,23 +13,32 @@ void dashpot_coefficients(const BondLaw& law, double tau, const BondView& v, con
       coefficient[bond.at()] = tau * law.reference_stiffness(bond.xi2()) * bond.measure();
 }
 
-void bond_dashpots(const BondView& v, const double* velocity, const double* coefficient,
-                   const std::int32_t* rows, std::size_t nrows, double* viscous) {
+void dashpot_records(const BondView& v, const double* velocity, std::int64_t nodes, double* records) {
   const double* x = v.x;
   const std::int64_t s = v.x_stride;
+  for (std::int64_t j = 0; j < nodes; ++j) {
+    double* r = records + kDashpotRecord * j;
+    r[0] = x[j];
+    r[1] = x[s + j];
+    r[2] = x[2 * s + j];
+    for (int c = 0; c < 3; ++c) r[3 + c] = velocity[3 * j + c];
+  }
+}
+
+void bond_dashpots(const BondView& v, const double* records, const double* coefficient, const std::int32_t* rows,
+                   std::size_t nrows, double* viscous) {
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
-    const double* vi = velocity + 3 * static_cast<std::int64_t>(i);
+    const double* ri = records + kDashpotRecord * static_cast<std::int64_t>(i);
     double f[3] = {0, 0, 0};
     for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) {
       if (v.broken[b] & kBrokenFlag) continue;
-      const std::int32_t j = v.neighbor[b];
-      const double d[3] = {x[j] - x[i], x[s + j] - x[s + i], x[2 * s + j] - x[2 * s + i]};
+      const double* rj = records + kDashpotRecord * static_cast<std::int64_t>(v.neighbor[b]);
+      const double d[3] = {rj[0] - ri[0], rj[1] - ri[1], rj[2] - ri[2]};
       const double y2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
       if (!(y2 > 0)) continue;  // coincident ends: no direction
-      const double* vj = velocity + 3 * static_cast<std::int64_t>(j);
       // tau C w V (e . dv) e = tau C w V (d . dv) d / y^2.
-      const double rate = d[0] * (vj[0] - vi[0]) + d[1] * (vj[1] - vi[1]) + d[2] * (vj[2] - vi[2]);
+      const double rate = d[0] * (rj[3] - ri[3]) + d[1] * (rj[4] - ri[4]) + d[2] * (rj[5] - ri[5]);
       const double k = coefficient[b] * rate / y2;
       for (int c = 0; c < 3; ++c) f[c] += k * d[c];
     }

@@ -227,10 +227,13 @@ void Forces::dashpot_setup(const Scene& scene, const std::vector<BodyGeometry>& 
 }
 
 void Forces::add_dashpots(const BondView& view, const double* velocity) {
+  dashpot_records_.resize(static_cast<std::size_t>(kDashpotRecord * domain_.local()));
+  dashpot_records(view, velocity, domain_.local(), dashpot_records_.data());
   for (std::size_t b = 0; b < dashpot_tau_.size(); ++b) {
     if (!(dashpot_tau_[b] > 0)) continue;
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]}) {
-      bond_dashpots(view, velocity, dashpot_coefficient_.data(), rows->data(), rows->size(), viscous_.data());
+      bond_dashpots(view, dashpot_records_.data(), dashpot_coefficient_.data(), rows->data(), rows->size(),
+                    viscous_.data());
       for (std::int32_t i : *rows)
         for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(i) + c] += viscous_[3 * static_cast<std::size_t>(i) + c];
     }

@@ -19,10 +19,18 @@ namespace peri {
 void dashpot_coefficients(const BondLaw& law, double tau, const BondView& view, const std::int32_t* rows,
                           std::size_t nrows, double* coefficient);
 
+/// Doubles per node of dashpot_records: [x, y, z, v_x, v_y, v_z, -, -], one cache line.
+inline constexpr std::int64_t kDashpotRecord = 8;
+
+/// The nodes' records for bond_dashpots: each node's current position (view.x) and velocity
+/// (3 per local node, ghosts current) in one cache line, so that a bond reads one line of its
+/// neighbour, not four (three position planes and the velocity).
+void dashpot_records(const BondView& view, const double* velocity, std::int64_t nodes, double* records);
+
 /// Writes the dashpot force density of each of `rows` into viscous[3 i + c] (replacing what was
-/// there): the current positions from view.x, velocity: 3 per local node (ghosts current),
-/// coefficient: dashpot_coefficients' (broken bonds are skipped by their flags).
-void bond_dashpots(const BondView& view, const double* velocity, const double* coefficient,
+/// there): records: dashpot_records' of every local node; coefficient: dashpot_coefficients'
+/// (broken bonds are skipped by their flags).
+void bond_dashpots(const BondView& view, const double* records, const double* coefficient,
                    const std::int32_t* rows, std::size_t nrows, double* viscous);
 
 /// The stable explicit step with dashpots of retardation time tau, from the step dt0 without them

@@ -16,6 +16,7 @@
 #include <optional>
 #include <vector>
 
+#include "peri/core/simd.hpp"
 #include "peri/kernels/forces.hpp"
 #include "peri/geometry/discretization.hpp"
 #include "peri/models/long_range.hpp"
@@ -151,6 +152,7 @@ class Forces {
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   std::vector<double> dashpot_velocity_;          // the velocity the dashpots last saw, 3 * owned
   std::vector<double> viscous_;                  // dashpot force densities, 3 * local (owned rows written)
+  simd::AlignedVector<double> dashpot_records_;  // per local node: position and velocity (dashpot_records)
   std::optional<LongRangeForces> long_range_;
   std::vector<std::vector<std::int32_t>> interior_by_body_, boundary_by_body_;
   std::vector<RowBlocks> interior_plan_, boundary_plan_;  // the same rows grouped for the bond loop
