@@ -4,6 +4,7 @@
 // so that every problem of the file is an input error before anything is built:
 // "<file>:<line>: bodies.<name>.points: ..." ("<file>: point <k>: ..." for HDF5).
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
