@@ -149,6 +149,15 @@ print(f"  rows above 0.05: {len(over)} (steps {over}), worst {error(worst):.3g} 
 sys.exit(0 if 1 <= len(over) <= 3 and error(rows[-1]) < 0.05 else 1)
 PY
 then ok "tool_touch_transient: the run goes on"; else bad "tool_touch_transient: exit status $rc"; fi
+# The balloon's pressure rising from rest: at every row its first steps' kinetic energy leads the
+# work (error 1 at steps 1-4); the run goes on (it stopped at step 1 before).
+out="$work/out-ramp"
+"${mpi[@]}" "$peridrive" "$balloon" --set output.series_every=1 --set stages.0.steps=20 --set stages.1.steps=5 --out "$out" --quiet \
+  > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ] && [ "$($py -c "import json; print(json.load(open('$out/summary.json'))['steps'])")" = 25 ]; then
+  ok "load_from_rest_transient: 25 steps"
+else bad "load_from_rest_transient: exit status $rc"; fi
 
 # A --set of steps replaces the file's duration (the other way round too): the run takes them.
 out="$work/out-steps"
