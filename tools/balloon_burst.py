@@ -27,7 +27,6 @@ import os
 import re
 import sys
 
-import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -66,17 +65,18 @@ def main():
     ap.add_argument("--min-piece", type=int, default=20)
     ap.add_argument("--json-only", action="store_true")
     args = ap.parse_args()
+    peri_view.require_run(args.out)
     s = resolved(args.out)
     v = s["tool_velocity"]
     if not np.linalg.norm(v) > 0:
         sys.exit("balloon_burst.py: the fragment does not move; no impact point")
     impact = -v / np.linalg.norm(v)
     rows = []
-    with h5py.File(os.path.join(args.out, "frames.h5"), "r") as f:
+    with peri_view.open_frames(args.out) as f:
         ref = f["mesh/reference_position"][...].reshape(-1, 3)
         rel = ref - s["center"]
         theta = np.degrees(np.arccos(np.clip(rel @ impact / np.linalg.norm(rel, axis=1), -1, 1)))
-        names = sorted(f["frames"].keys())
+        names = peri_view.frame_names(f, args.out)
         for name in names:
             g = f["frames"][name]
             d = g["damage"][...]
@@ -128,4 +128,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)

@@ -16,15 +16,18 @@ usage: crack_path.py RUN_DIR [--frame N] [--threshold 0.3] [--from X] [--to X] [
 """
 import argparse
 import json
+import os
 import sys
 
-import h5py
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import peri_view  # noqa: E402
 
 
 def load(run, frame):
-    with h5py.File(f"{run}/frames.h5", "r") as f:
-        names = sorted(f["frames"].keys())
+    with peri_view.open_frames(run) as f:
+        names = peri_view.frame_names(f, run)
         g = f["frames"][names[frame]]
         X = g["position"][()] - g["displacement"][()]
         return X, g["damage"][()], float(g.attrs["time"])
@@ -137,4 +140,4 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(peri_view.run_tool(main))

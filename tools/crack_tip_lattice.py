@@ -24,12 +24,14 @@ import os
 import re
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import peri_view  # noqa: E402
 
 
 def derived(out):
@@ -56,12 +58,13 @@ def main():
     ap.add_argument("--band", type=float, default=3.0)
     ap.add_argument("--frame", type=int, default=None)
     args = ap.parse_args()
+    peri_view.require_run(args.out)
     values, c0, c1, delta = derived(args.out)
     y_line = 0.5 * (c0[1] + c1[1])
     seed_end = max(c0[0], c1[0])
-    with h5py.File(os.path.join(args.out, "frames.h5"), "r") as f:
+    with peri_view.open_frames(args.out) as f:
         X = f["mesh/reference_position"][...]
-        names = sorted(f["frames"].keys())
+        names = peri_view.frame_names(f, args.out)
         missing = [k for k in ("position", "damage") if names and k not in f["frames"][names[0]]]
         if missing:
             sys.exit(f"crack_tip_lattice.py: the frames hold no {', '.join(missing)} (output.fields); run the scene with them")
@@ -147,4 +150,4 @@ def main():
     fig.savefig(os.path.join(args.out, "tip_region.png"), dpi=110)
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)

@@ -9,7 +9,9 @@ Needs Debian's python3-h5py, python3-numpy, python3-matplotlib and python3-yaml.
 """
 import json
 import os
+import re
 import sys
+import time
 
 import h5py
 import numpy as np
@@ -56,18 +58,97 @@ def choose_view(kinds):
     return "scatter3d"
 
 
+# The run directories a tool has opened (require_run): run_tool reads the last again when a run
+# writing it changed frames.h5 under the tool.
+_opened = []
+
+
+def require_run(outdir):
+    """Exit with a message unless `outdir` holds a run's frames.h5."""
+    path = os.path.join(outdir, "frames.h5")
+    if not os.path.isfile(path):
+        what = "no such directory" if not os.path.isdir(outdir) else "no frames.h5 in it"
+        raise SystemExit(f"{outdir}: {what}; expected a peridrive output directory")
+    _opened.append(outdir)
+    return path
+
+
+def is_live(outdir, quiet_seconds=60.0):
+    """Whether a run seems to be writing `outdir`: no summary.json (written last) and frames.h5
+    modified within the last `quiet_seconds`."""
+    try:
+        age = time.time() - os.path.getmtime(os.path.join(outdir, "frames.h5"))
+    except OSError:
+        return False
+    return not os.path.exists(os.path.join(outdir, "summary.json")) and age < quiet_seconds
+
+
+def run_tool(main, wait=60.0):
+    """Runs a tool's main(). A run still writing frames.h5 leaves it consistent only after each
+    frame's flush (parallel HDF5 offers readers nothing between), so a read may fail while the
+    run writes the next frame (h5py: "Unable to open object", "bad heap free list", a truncated
+    file). Such a failure in a live run's directory (is_live) runs main again after a pause, for
+    up to `wait` seconds; any other error is raised as it is."""
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            return main()
+        except (OSError, KeyError) as e:
+            if not (_opened and "Unable to" in str(e) and is_live(_opened[-1]) and time.monotonic() < deadline):
+                raise
+            print(f"{_opened[-1]}: frames.h5 changed while it was read (a run is writing it); reading it again",
+                  file=sys.stderr)
+            del _opened[:]
+            time.sleep(0.5)
+
+
+def open_frames(outdir, wait=10.0):
+    """The run's frames.h5, opened read-only. A run that is still writing it leaves it consistent
+    only after each frame's flush: opening it meanwhile may fail (HDF5 reports a truncated file),
+    so in a live run's directory (is_live) the open is retried for `wait` seconds before the tool
+    exits with a message."""
+    path = require_run(outdir)
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            return h5py.File(path, "r")
+        except OSError as e:
+            if not is_live(outdir):
+                raise SystemExit(f"{path}: cannot be read ({e})") from None
+            if time.monotonic() >= deadline:
+                raise SystemExit(f"{path}: cannot be read ({e}); a run is writing it: try again after its "
+                                 "next frame") from None
+            time.sleep(0.25)
+
+
+def frame_names(f, outdir):
+    """The names of the complete frames of an open frames.h5, in order: those frames.xdmf lists
+    (rewritten after each frame is flushed, so a frame a running run is writing is left out),
+    or every frame where there is no frames.xdmf."""
+    names = sorted(f["frames"].keys())
+    try:
+        with open(os.path.join(outdir, "frames.xdmf"), encoding="utf-8") as x:
+            listed = set(re.findall(r"frames\.h5:/frames/(\w+)/", x.read()))
+    except OSError:
+        return names
+    return [name for name in names if name in listed]
+
+
 def scene_text(outdir):
     """The run's resolved scene: frames.h5's /scene dataset (or its older `scene` attribute), else
     scene.resolved.yaml."""
     path = os.path.join(outdir, "frames.h5")
     if os.path.exists(path):
-        with h5py.File(path, "r") as f:
+        with open_frames(outdir) as f:
             if "scene" in f:
                 return f["scene"].asstr()[()]
             if "scene" in f.attrs:
                 v = f.attrs["scene"]
                 return v.decode() if isinstance(v, bytes) else str(v)
-    with open(os.path.join(outdir, "scene.resolved.yaml"), encoding="utf-8") as f:
+    path = os.path.join(outdir, "scene.resolved.yaml")
+    if not os.path.isfile(path):
+        require_run(outdir)  # (exits: neither file)
+    with open(path, encoding="utf-8") as f:
         return f.read()
 
 
@@ -77,14 +158,12 @@ class Run:
 
     def __init__(self, outdir):
         self.outdir = outdir
-        self.h5 = os.path.join(outdir, "frames.h5")
-        if not os.path.exists(self.h5):
-            raise SystemExit(f"{self.h5}: not found; expected a peridrive output directory")
+        self.h5 = require_run(outdir)
         self.scene = yaml.safe_load(scene_text(outdir))
         bodies = self.scene.get("bodies") or {}
         self.body_names = list(bodies)
         self.kinds = [(bodies[b] or {}).get("kind", "membrane") for b in self.body_names]
-        with h5py.File(self.h5, "r") as f:
+        with self.open() as f:
             self.reference = f["mesh/reference_position"][...]
             self.body = f["mesh/body"][...].astype(int)
             # Mesh membranes' triangles (natural ids) as frame indices; with a node selection,
@@ -99,17 +178,21 @@ class Run:
                     held = (natural[at] == tris).all(axis=1)
                     tris = at[held]
                 self.triangles = tris
-            self.frame_names = sorted(f["frames"].keys())
+            self.frame_names = frame_names(f, outdir)
         if not self.frame_names:
             raise SystemExit(f"{self.h5}: no complete frame")
         self.view = choose_view(self.kinds)
         self.extent = float(np.ptp(self.reference, axis=0).max()) if len(self.reference) else 0.0
         self.unit, self.scale = length_unit(self.extent)
 
+    def open(self):
+        """frames.h5, opened read-only (open_frames: retried while a run writes a frame)."""
+        return open_frames(self.outdir)
+
     def require(self, tool, *fields):
         """Exit with status 2, naming the tool and the fields, when the frames lack any of them (a
         scene's output.fields chose which they hold)."""
-        with h5py.File(self.h5, "r") as f:
+        with self.open() as f:
             held = set(f["frames"][self.frame_names[0]].keys())
         missing = [name for name in fields if name not in held]
         if missing:
@@ -126,7 +209,7 @@ class Run:
         """Frame k (negative: from the end): time, step, position, displacement, damage. A frame
         holds the fields the scene's output.fields chose: position and displacement stand for each
         other (with the reference positions), and a field neither gives is None."""
-        with h5py.File(self.h5, "r") as f:
+        with self.open() as f:
             g = f["frames"][self.frame_names[k]]
             get = lambda name: g[name][...].astype(float) if name in g else None
             position, displacement = get("position"), get("displacement")

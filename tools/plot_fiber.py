@@ -35,7 +35,6 @@ import csv
 import os
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
@@ -217,7 +216,7 @@ def main():
     mine = run.nodes_of("fiber")
     unit, scale = peri_view.length_unit(float(np.ptp(run.reference[mine], axis=0).max()))
     run.require("plot_fiber.py", "position", "damage")
-    with h5py.File(run.h5, "r") as f:
+    with run.open() as f:
         frames = f["frames"]
         keys = run.frame_names
         times = [float(frames[k].attrs.get("time", np.nan)) for k in keys]
@@ -263,4 +262,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)

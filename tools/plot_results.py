@@ -354,4 +354,4 @@ def dynamic_release_rate(outdir):
 
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)

@@ -18,7 +18,6 @@ import csv
 import os
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
@@ -44,7 +43,7 @@ def main():
     c = np.array(run.scene["bodies"][spheres[0]]["center"], dtype=float)
     mine = run.body == run.body_names.index(spheres[0])
     run.require("plot_sphere.py", "position", "damage")
-    with h5py.File(run.h5, "r") as f:
+    with run.open() as f:
         keys = run.frame_names
         times = [float(f["frames"][k].attrs.get("time", np.nan)) for k in keys]
         pos = [f["frames"][k]["position"][()][mine] for k in keys]
@@ -82,4 +81,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)

@@ -52,7 +52,6 @@ import json
 import os
 import sys
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
@@ -241,7 +240,7 @@ def crack_rule(rule, ref, ends, scene, damage):
 def read_frame(run, which):
     """(index, frame group data) for --frame/--time: time, step, position, and every field."""
     names = run.frame_names
-    with h5py.File(run.h5, "r") as f:
+    with run.open() as f:
         if isinstance(which, float):
             times = np.array([float(f["frames"][k].attrs["time"]) for k in names])
             k = int(np.argmin(np.abs(times - which)))
@@ -584,7 +583,7 @@ def main(argv=None):
     for axis, extent in zip((ax.xaxis, ax.yaxis, ax.zaxis), span):
         axis.set_major_locator(MaxNLocator(max(2, int(round(8 * extent / span.max())))))
     name = run.scene.get("name", os.path.basename(os.path.normpath(args.outdir)))
-    with h5py.File(run.h5, "r") as f:
+    with run.open() as f:
         duration = float(f["frames"][run.frame_names[-1]].attrs["time"])
     tu, ts = peri_view.time_unit(max(duration, data["time"], 1e-300))
     title = args.title or (f"{name}: frame {k} of {len(run.frame_names) - 1}, t = {data['time'] / ts:.4g} {tu}"
@@ -620,4 +619,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)

@@ -28,7 +28,6 @@ import json
 import os
 import sys
 
-import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -57,9 +56,9 @@ def main():
     material = scene["materials"][body["material"]]
     s0 = material.get("critical_stretch")
     critical = (1 + float(s0) if material.get("model") == "pmb" else float(s0)) if s0 is not None else None
-    with h5py.File(os.path.join(args.out, "frames.h5"), "r") as f:
+    with peri_view.open_frames(args.out) as f:
         X = f["mesh/reference_position"][...].reshape(-1, 3)
-        names = sorted(f["frames"].keys())
+        names = peri_view.frame_names(f, args.out)
         g = f["frames"][names[args.frame]]
         damage = g["damage"][...]
         cur = g["position"][...].reshape(-1, 3)
@@ -172,4 +171,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    peri_view.run_tool(main)
