@@ -14,7 +14,6 @@ Long scenes are cut to their first --max-steps steps (default: none) with --set 
 the same cut for both builds.
 """
 import argparse
-import csv
 import json
 import os
 import shutil

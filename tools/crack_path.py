@@ -65,7 +65,7 @@ def oscillation(xc, yc, band):
     a, b = np.polyfit(xc, yc, 1)
     d = yc - (a * xc + b)
     crossings, extremes = [], []
-    side, best, best_abs = 0, None, 0.0
+    side, best_abs = 0, 0.0
     for k in range(len(d)):
         s = 1 if d[k] > band else (-1 if d[k] < -band else 0)
         if s != 0 and side == 0:

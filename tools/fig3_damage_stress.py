@@ -263,7 +263,6 @@ def main(argv):
         # (a cusp is judged raw: a running mean would round it off)
         ok_m, words_m = shape(case, l1m, pm if case["name"] == "cusp" else smoothed(l1m, pm, args.smooth))
         ok_err = err.max() <= args.tolerance and err.mean() <= args.mean_tolerance
-        q = summary.get("quasistatic", {})
         print(f"{case['name']}: m = {args.m}, {len(l1m)} increments, {summary['nodes']} nodes")
         print(f"  eq. (28):  {'ok  ' if ok_cf else 'FAIL'} {words_cf}")
         print(f"  measured{' (smoothed)' if args.smooth else ''}:  {'ok  ' if ok_m else 'FAIL'} {words_m}")

@@ -139,7 +139,7 @@ def plot_deformed(run, fr, t_unit, t_scale):
         fig, ax = plt.subplots(figsize=(7, 6))
         uz = fr["displacement"][:, 2] / s
         lim = max(float(np.percentile(np.abs(uz), 99.0)), 1e-12)
-        sc = scatter(ax, fr["position"], uz, run.spacing(), "coolwarm", f"out-of-plane displacement [{u}]",
+        scatter(ax, fr["position"], uz, run.spacing(), "coolwarm", f"out-of-plane displacement [{u}]",
                      -lim, lim, u, s)
         # Frame the sheet, not the odd fragment that flies away after separation.
         lo = np.percentile(fr["position"][:, :2], 0.5, axis=0) / s
@@ -151,12 +151,12 @@ def plot_deformed(run, fr, t_unit, t_scale):
     elif run.view == "solid":
         fig, ax = plt.subplots(figsize=(7, 6))
         sel, z = mid_plane(run)
-        sc = scatter(ax, fr["position"][sel], magnitude[sel], run.spacing(), "viridis", f"|u| [{u_unit}]", 0, top, u, s)
+        scatter(ax, fr["position"][sel], magnitude[sel], run.spacing(), "viridis", f"|u| [{u_unit}]", 0, top, u, s)
         ax.set_title(f"mid-plane slice (z = {z / s:.4g} {u} at rest), deformed, at {when}", fontsize=10)
     else:
         fig = plt.figure(figsize=(7.5, 6.5))
         ax = fig.add_subplot(projection="3d")
-        sc = scatter3d(ax, fr["position"], magnitude, "viridis", f"|u| [{u_unit}]", 0, top, u, s,
+        scatter3d(ax, fr["position"], magnitude, "viridis", f"|u| [{u_unit}]", 0, top, u, s,
                        run if run.view == "curves" else None)
         ax.set_title(f"deformed configuration at {when}", fontsize=10)
     fig.savefig(os.path.join(run.outdir, "deformed.png"), dpi=130, bbox_inches="tight")

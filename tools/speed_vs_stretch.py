@@ -24,7 +24,6 @@ import math
 import os
 import shlex
 import subprocess
-import sys
 import time
 
 import yaml

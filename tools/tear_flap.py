@@ -72,7 +72,6 @@ def main():
             clamped |= in_region(X, b["region"])
     lo, hi = X[:, :2].min(axis=0), X[:, :2].max(axis=0)
     gx = X[grip, 0]
-    middle = 0.5 * (gx.min() + gx.max())
     top = X[grip, 1].min()                    # the grip's inner edge; the tears run toward -y
     margin = 3 * spacing
     damaged = ((damage >= args.damage) & (X[:, 0] > lo[0] + margin) & (X[:, 0] < hi[0] - margin)
