@@ -7,8 +7,12 @@
 #include <gtest/gtest.h>
 #include <petscsys.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -82,6 +86,73 @@ std::vector<double> extrema(const Sampled& s, const std::vector<double>& y, int 
     out.push_back(s.t[k] + shift * h);
   }
   return out;
+}
+
+// The pass four rows at a time (AVX2 builds) against the row-by-row walk, on rows of 0 to 40
+// random bonds (so lanes end at different slots), some broken, a coincident pair, rows in a
+// shuffled order and a count that is not a multiple of four, with and without the rows' summary
+// bytes: the same bits, and rows not asked for untouched.
+TEST(Dashpots, FourRowsAtATimeAreTheBitsOfTheRowWalk) {
+  constexpr std::int32_t n = 103;
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const std::int64_t stride = n + 5;
+  std::vector<double> x(3 * stride), velocity(3 * n);
+  for (std::int32_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      x[c * stride + i] = 1e-3 * unit(rng);
+      velocity[3 * i + c] = 2.0 * unit(rng);
+    }
+  for (int c = 0; c < 3; ++c) x[c * stride + 8] = x[c * stride + 7];  // nodes 7 and 8 coincide
+  std::vector<std::int64_t> offsets{0};
+  std::vector<std::int32_t> neighbor;
+  std::vector<std::uint8_t> broken, row_broken(n, 0);
+  std::vector<double> coefficient;
+  for (std::int32_t i = 0; i < n; ++i) {
+    const int count = i == 7 ? 5 : static_cast<int>(rng() % 41);
+    for (int k = 0; k < count; ++k) {
+      std::int32_t j = i == 7 && k == 2 ? 8 : static_cast<std::int32_t>(rng() % n);
+      if (j == i) j = (j + 1) % n;
+      neighbor.push_back(j);
+      const bool cut = i % 5 == 1 && rng() % 4 == 0;
+      broken.push_back(cut ? kBrokenFlag : 0);
+      row_broken[i] |= cut;
+      coefficient.push_back(1e3 * (1.5 + unit(rng)));
+    }
+    offsets.push_back(static_cast<std::int64_t>(neighbor.size()));
+  }
+  std::vector<std::int32_t> rows(n);
+  for (std::int32_t i = 0; i < n; ++i) rows[i] = i;
+  std::shuffle(rows.begin(), rows.end(), rng);
+  const std::int32_t skipped[2] = {rows[n - 2], rows[n - 1]};
+  rows.resize(n - 2);  // 101 rows: the last group holds one
+  BondView v;
+  v.offsets = offsets.data();
+  v.neighbor = neighbor.data();
+  v.broken = broken.data();
+  v.x = x.data();
+  v.x_stride = stride;
+  std::vector<double> records(kDashpotRecord * n);
+  dashpot_records(v, velocity.data(), n, records.data());
+  for (std::uint8_t* summary : {row_broken.data(), static_cast<std::uint8_t*>(nullptr)}) {
+    v.row_broken = summary;
+    const double unset = std::numeric_limits<double>::quiet_NaN();
+    std::vector<double> fast(3 * n, unset), walk(3 * n, unset);
+    bond_dashpots(v, records.data(), coefficient.data(), rows.data(), rows.size(), fast.data());
+    bond_dashpots_portable(v, records.data(), coefficient.data(), rows.data(), rows.size(), walk.data());
+    EXPECT_EQ(std::memcmp(fast.data(), walk.data(), fast.size() * sizeof(double)), 0)
+        << (summary ? "with" : "without") << " the rows' summary bytes";
+    for (std::int32_t i : rows) EXPECT_TRUE(std::isfinite(fast[3 * i]) && std::isfinite(fast[3 * i + 2])) << "row " << i;
+    for (std::int32_t i : skipped) EXPECT_TRUE(std::isnan(fast[3 * i]) && std::isnan(fast[3 * i + 2])) << "row " << i;
+  }
+  // Row 7's bond to its coincident neighbour adds nothing: its force is that of its other bonds.
+  v.row_broken = nullptr;
+  double all[3 * n], without[3 * n];
+  const std::int32_t seven = 7;
+  bond_dashpots(v, records.data(), coefficient.data(), &seven, 1, all);
+  coefficient[offsets[7] + 2] = 0;
+  bond_dashpots(v, records.data(), coefficient.data(), &seven, 1, without);
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(all[21 + c], without[21 + c]);
 }
 
 TEST(Dashpots, StableStepMeetsTheJuryBound) {

@@ -29,9 +29,14 @@ void dashpot_records(const BondView& view, const double* velocity, std::int64_t 
 
 /// Writes the dashpot force density of each of `rows` into viscous[3 i + c] (replacing what was
 /// there): records: dashpot_records' of every local node; coefficient: dashpot_coefficients'
-/// (broken bonds are skipped by their flags).
+/// (broken bonds are skipped by their flags). With AVX2, four rows at a time, one per lane (each
+/// lane its own row's bonds in CSR order); the same bits as bond_dashpots_portable.
 void bond_dashpots(const BondView& view, const double* records, const double* coefficient,
                    const std::int32_t* rows, std::size_t nrows, double* viscous);
+
+/// bond_dashpots one row and one bond at a time, on every build (the unit tests' reference).
+void bond_dashpots_portable(const BondView& view, const double* records, const double* coefficient,
+                            const std::int32_t* rows, std::size_t nrows, double* viscous);
 
 /// The stable explicit step with dashpots of retardation time tau, from the step dt0 without them
 /// (both for the node whose stiffness sets dt0).
