@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # frames.xdmf through a real reader (meshio's XDMF time-series reader, as ParaView's Xdmf3 readers
 # it builds cells from the topology's connectivity), for 2-rank runs of a small membrane (velocity
-# written), a small PMB block (velocity not written) and a frames.h5 of the layout before
+# written; also with 400 frames, past those after which the XDMF is rewritten every time), a small
+# PMB block (velocity not written) and a frames.h5 of the layout before
 # /mesh/connectivity existed, continued by --resume (tests/restart/old_layout/): per run the
 # number of points and of vertex cells (0..N-1), every step's arrays by name and size, the time
 # values (those of frames.h5 exactly, those of series.csv at the same steps to its 12 digits),
@@ -100,6 +101,10 @@ check() {
 all="displacement velocity damage strain_energy_density body"
 run membrane "$all" -- "$src/tests/restart/tiny_sheet.yaml" --set output.frames=6 --set output.series_every=1
 run block "displacement damage strain_energy_density body" -- "$work/block.yaml"
+# More frames than the XDMF is rewritten after every one of (256): the frames after those are
+# listed by a rewrite at most once a second and, at the end, by the writer's last rewrite.
+run many_frames "$all" -- "$src/tests/restart/tiny_sheet.yaml" --set stages.pull.steps=400 --set output.frames=400 \
+  --set output.series_every=1
 # Frames of a node selection (every 3rd node, in a box), two fields, single precision; and frames
 # without positions (the geometry is the reference positions).
 run selection "damage body" -- "$src/tests/restart/tiny_sheet.yaml" --set output.frames=4 --set output.series_every=1 \

@@ -177,7 +177,7 @@ void FrameWriter::start(const std::string& resolved_scene, std::int64_t resume_s
   const std::string path = dir_ + "/" + stem_ + ".h5";
   if (resume_step >= 0) {
     if (reopen(path, fapl.get(), resume_step) || salvage(path, fapl.get(), resume_step, resolved_scene)) {
-      if (domain_.rank == 0) write_xdmf();
+      if (domain_.rank == 0) write_xdmf(true);
       return;
     }
     if (domain_.rank == 0)
@@ -381,7 +381,16 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
   return true;
 }
 
-FrameWriter::~FrameWriter() = default;
+FrameWriter::~FrameWriter() {
+  // The frames a throttled XDMF has not listed yet (the run's end, a failure, a stop).
+  if (domain_.rank == 0 && xdmf_listed_ != times_.size()) {
+    try {
+      write_xdmf(true);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "peridrive: warning: %s\n", e.what());
+    }
+  }
+}
 
 void FrameWriter::write_connectivity(hid_t mesh) {
   // One vertex cell per frame node, numbered in the file's order: readers that build cells from
@@ -428,6 +437,12 @@ void FrameWriter::agree(bool ok, const std::string& what) {
   // it (the frames before are whole on disk: each was flushed).
   file_.abandon();
   g_abandoned = true;
+  if (domain_.rank == 0 && xdmf_listed_ != times_.size()) {  // (the message below promises it)
+    try {
+      write_xdmf(true);
+    } catch (const std::exception&) {
+    }
+  }
   const double free = free_bytes(dir_);
   std::string why = dir_ + "/" + stem_ + ".h5: " + verdict;
   if (free >= 0 && free < frame_bytes())
@@ -449,6 +464,12 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
     double free = -1;
     if (domain_.rank == 0) free = free_bytes(dir_);
     MPI_Bcast(&free, 1, MPI_DOUBLE, 0, state_.comm());
+    if (free >= 0 && free < frame_bytes() && domain_.rank == 0 && xdmf_listed_ != times_.size()) {
+      try {  // (the message below promises it; the XDMF is small)
+        write_xdmf(true);
+      } catch (const std::exception&) {
+      }
+    }
     if (free >= 0 && free < frame_bytes())
       throw RuntimeFailure(dir_ + "/" + stem_ + ".h5: no space left for the frame of step " + std::to_string(step) +
                            ": it takes about " + std::to_string(static_cast<long long>(frame_bytes())) +
@@ -478,24 +499,25 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
   agree(H5Fflush(file_.get(), H5F_SCOPE_GLOBAL) >= 0, frame + "flushing");
   times_.push_back(time);
   steps_.push_back(step);
-  if (domain_.rank == 0) write_xdmf();
+  if (domain_.rank == 0) write_xdmf(false);
 }
 
-void FrameWriter::write_xdmf() const {
+void FrameWriter::write_xdmf(bool always) const {
+  const double now = MPI_Wtime();
+  if (!always && times_.size() > kXdmfEveryFrame && now - xdmf_written_at_ < kXdmfSeconds) return;
   write_xdmf_file(stem_ + ".xdmf", false);
   // The mesh membranes' triangles over the same frames (every node written: the triangles'
   // natural ids are the frames' node order).
   if (!triangles_.empty() && !output_.selects_nodes()) write_xdmf_file(stem_ + "_surface.xdmf", true);
+  xdmf_written_at_ = now;
+  xdmf_listed_ = times_.size();
 }
 
-void FrameWriter::write_xdmf_file(const std::string& name, bool surface) const {
+std::string FrameWriter::xdmf_grid(std::size_t k, bool surface) const {
   const std::string h5 = stem_ + ".h5";
   const long long n = sel_total_;
   std::ostringstream x;
   x << std::setprecision(17);
-  x << "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
-    << "<Xdmf Version=\"3.0\">\n <Domain>\n"
-    << "  <Grid Name=\"peridrive\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   auto item = [&](const std::string& path, int bs, int precision) {
     std::ostringstream s;
     s << "<DataItem Dimensions=\"" << n << (bs == 3 ? " 3" : "") << "\" NumberType=\"Float\" Precision=\""
@@ -503,35 +525,45 @@ void FrameWriter::write_xdmf_file(const std::string& name, bool surface) const {
     return s.str();
   };
   const int field_precision = output_.single_precision ? 4 : 8;
-  for (std::size_t k = 0; k < times_.size(); ++k) {
-    const std::string f = frame_name(static_cast<int>(k));
-    x << "   <Grid Name=\"frame" << k << "\" GridType=\"Uniform\">\n"
-      << "    <Time Value=\"" << times_[k] << "\"/>\n";
-    if (surface)
-      x << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << triangles_.size() << "\">"
-        << "<DataItem Dimensions=\"" << triangles_.size() << " 3\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">"
-        << h5 << ":/mesh/triangles</DataItem></Topology>\n";
-    else
-      x << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\">"
-        << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5
-        << ":/mesh/connectivity</DataItem></Topology>\n";
-    x
-      << "    <Geometry GeometryType=\"XYZ\">"
-      << (output_.has_field("position") ? item(f + "/position", 3, field_precision)
-                                        : item("/mesh/reference_position", 3, 8))
-      << "</Geometry>\n";
-    for (const std::string& name : frame_field_names()) {
-      if (name == "position" || !output_.has_field(name)) continue;
-      const bool vector = name == "displacement" || name == "velocity";
-      x << "    <Attribute Name=\"" << name << "\" AttributeType=\"" << (vector ? "Vector" : "Scalar")
-        << "\" Center=\"Node\">" << item(f + "/" + name, vector ? 3 : 1, field_precision) << "</Attribute>\n";
-    }
-    x << "    <Attribute Name=\"body\" AttributeType=\"Scalar\" Center=\"Node\">" << item("/mesh/body", 1, 8)
-      << "</Attribute>\n"
-      << "   </Grid>\n";
+  const std::string f = frame_name(static_cast<int>(k));
+  x << "   <Grid Name=\"frame" << k << "\" GridType=\"Uniform\">\n"
+    << "    <Time Value=\"" << times_[k] << "\"/>\n";
+  if (surface)
+    x << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << triangles_.size() << "\">"
+      << "<DataItem Dimensions=\"" << triangles_.size() << " 3\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">"
+      << h5 << ":/mesh/triangles</DataItem></Topology>\n";
+  else
+    x << "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n << "\" NodesPerElement=\"1\">"
+      << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Precision=\"8\" Format=\"HDF\">" << h5
+      << ":/mesh/connectivity</DataItem></Topology>\n";
+  x << "    <Geometry GeometryType=\"XYZ\">"
+    << (output_.has_field("position") ? item(f + "/position", 3, field_precision) : item("/mesh/reference_position", 3, 8))
+    << "</Geometry>\n";
+  for (const std::string& name : frame_field_names()) {
+    if (name == "position" || !output_.has_field(name)) continue;
+    const bool vector = name == "displacement" || name == "velocity";
+    x << "    <Attribute Name=\"" << name << "\" AttributeType=\"" << (vector ? "Vector" : "Scalar")
+      << "\" Center=\"Node\">" << item(f + "/" + name, vector ? 3 : 1, field_precision) << "</Attribute>\n";
   }
-  x << "  </Grid>\n </Domain>\n</Xdmf>\n";
-  write_text_file(dir_ + "/" + name, x.str());
+  x << "    <Attribute Name=\"body\" AttributeType=\"Scalar\" Center=\"Node\">" << item("/mesh/body", 1, 8)
+    << "</Attribute>\n"
+    << "   </Grid>\n";
+  return x.str();
+}
+
+void FrameWriter::write_xdmf_file(const std::string& name, bool surface) const {
+  // The frames' entries, generated once each (a resume that dropped frames starts them again).
+  std::string& grids = xdmf_grids_[surface];
+  std::size_t& cached = xdmf_cached_[surface];
+  if (cached > times_.size()) grids.clear(), cached = 0;
+  for (; cached < times_.size(); ++cached) grids += xdmf_grid(cached, surface);
+  std::string text =
+      "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
+      "  <Grid Name=\"peridrive\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  text.reserve(text.size() + grids.size() + 64);
+  text += grids;
+  text += "  </Grid>\n </Domain>\n</Xdmf>\n";
+  write_text_file(dir_ + "/" + name, text);
 }
 
 std::string rows_up_to(const std::string& path, const std::string& header, std::int64_t step) {

@@ -92,9 +92,17 @@ class FrameWriter {
   /// This rank's reason for a failed write that the free space does not show, or "".
   std::string local_reason() const;
   /// <stem>.xdmf (the nodes as vertices), and with mesh membranes' triangles and every node in the
-  /// frames, <stem>_surface.xdmf (the same frames over the triangles).
-  void write_xdmf() const;
+  /// frames, <stem>_surface.xdmf (the same frames over the triangles), listing every frame written.
+  /// Unless `always`, past kXdmfEveryFrame frames only when kXdmfSeconds of wall time have passed
+  /// since the last rewrite (each rewrite writes every frame's entry: rewriting after every frame
+  /// made a run of N frames write O(N^2) bytes); the destructor and the failure paths write what
+  /// is left. Rank 0.
+  void write_xdmf(bool always) const;
   void write_xdmf_file(const std::string& name, bool surface) const;
+  /// Frame k's <Grid> entry of the XDMF (surface: over the mesh membranes' triangles).
+  std::string xdmf_grid(std::size_t k, bool surface) const;
+  static constexpr std::size_t kXdmfEveryFrame = 256;
+  static constexpr double kXdmfSeconds = 1.0;
   bool reopen(const std::string& path, hid_t fapl, std::int64_t resume_step);  // collective
   /// When reopen() fails: the file's readable frames up to resume_step copied into a new file
   /// that replaces it (false if it cannot be opened at all). Collective.
@@ -113,6 +121,13 @@ class FrameWriter {
   std::vector<std::array<std::int64_t, 3>> triangles_;
   std::vector<double> times_;
   std::vector<std::int64_t> steps_;
+  // The XDMF entries of frames 0 .. xdmf_cached_ - 1 (vertices, surface), kept so that a rewrite
+  // generates only the new frames' text; when the XDMF files were last written, and how many
+  // frames they list.
+  mutable std::string xdmf_grids_[2];
+  mutable std::size_t xdmf_cached_[2] = {0, 0};
+  mutable double xdmf_written_at_ = 0;
+  mutable std::size_t xdmf_listed_ = 0;
 };
 
 /// CSV energy series, written by rank 0 (other ranks hold an inert writer).
