@@ -123,7 +123,7 @@ def open_frames(outdir, wait=10.0):
 
 def frame_names(f, outdir):
     """The names of the complete frames of an open frames.h5, in order: those frames.xdmf lists
-    (rewritten after each frame is flushed, so a frame a running run is writing is left out),
+    (rewritten only after frames are flushed, so a frame a running run is writing is left out),
     or every frame where there is no frames.xdmf."""
     names = sorted(f["frames"].keys())
     try:
