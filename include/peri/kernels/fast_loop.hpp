@@ -324,9 +324,12 @@ void forces(const C& L, const BondView& v, const RowBlocks& rows, double* force,
   const std::size_t nfree = rows.free.size();
   refresh_records(v, rows);
   const double* rec = rows.scratch.records.data();
+  constexpr std::size_t kAhead = 2 * W;  // the lists of the group two groups on
   for (std::size_t r = 0; r < nfree; r += W) {
     const std::int32_t* group = rows.free.data() + r;
     const int count = static_cast<int>(std::min<std::size_t>(W, nfree - r));
+    if (r + kAhead < nfree)
+      prefetch_lists(v, group + kAhead, static_cast<int>(std::min<std::size_t>(W, nfree - r - kAhead)));
     bool intact = true;
     for (int l = 0; l < count && intact; ++l)
       intact = v.row_broken ? !v.row_broken[group[l]] : !any_flag(v.broken + v.offsets[group[l]], v.broken + v.offsets[group[l] + 1]);

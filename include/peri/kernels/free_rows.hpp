@@ -69,6 +69,17 @@ inline void refresh_records(const BondView& v, const RowBlocks& plan) {
   }
 }
 
+// Asks for the neighbour lists of up to W free rows ahead of their walk. Each lane reads its own
+// row's list, W lists at a time, and on a body larger than the cache the hardware's prefetchers
+// missed many of them: the loop over groups of rows asks for the lists of a later group.
+inline void prefetch_lists(const BondView& v, const std::int32_t* rows, int count) {
+  for (int l = 0; l < count; ++l) {
+    const std::int64_t b0 = v.offsets[rows[l]], b1 = v.offsets[rows[l] + 1];
+    for (std::int64_t b = b0; b < b1; b += 16) __builtin_prefetch(v.neighbor + b);
+    if (b1 > b0) __builtin_prefetch(v.neighbor + b1 - 1);
+  }
+}
+
 // A block's node records (lane l's at rec[l], [x, y, z, V, X, Y, Z, 0]) as seven vectors of the
 // lanes' x, y, z, V, X, Y, Z.
 template <class S>
