@@ -396,14 +396,14 @@ bool FrameWriter::salvage(const std::string& path, hid_t fapl, std::int64_t resu
   return true;
 }
 
-FrameWriter::~FrameWriter() {
-  // The frames a throttled XDMF has not listed yet (the run's end, a failure, a stop).
-  if (domain_.rank == 0 && xdmf_listed_ != times_.size()) {
-    try {
-      write_xdmf(true);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "peridrive: warning: %s\n", e.what());
-    }
+FrameWriter::~FrameWriter() { list_unlisted_frames(true); }
+
+void FrameWriter::list_unlisted_frames(bool warn) const noexcept {
+  if (domain_.rank != 0 || xdmf_listed_ == times_.size()) return;
+  try {
+    write_xdmf(true);
+  } catch (const std::exception& e) {
+    if (warn) std::fprintf(stderr, "peridrive: warning: %s\n", e.what());
   }
 }
 
@@ -452,12 +452,7 @@ void FrameWriter::agree(bool ok, const std::string& what) {
   // it (the frames before are whole on disk: each was flushed).
   file_.abandon();
   g_abandoned = true;
-  if (domain_.rank == 0 && xdmf_listed_ != times_.size()) {  // (the message below promises it)
-    try {
-      write_xdmf(true);
-    } catch (const std::exception&) {
-    }
-  }
+  list_unlisted_frames(false);  // (the message below promises it)
   const double free = free_bytes(dir_);
   std::string why = dir_ + "/" + stem_ + ".h5: " + verdict;
   if (free >= 0 && free < frame_bytes())
@@ -479,18 +474,14 @@ void FrameWriter::write(std::int64_t step, double time, const double* u, const d
     double free = -1;
     if (domain_.rank == 0) free = free_bytes(dir_);
     MPI_Bcast(&free, 1, MPI_DOUBLE, 0, state_.comm());
-    if (free >= 0 && free < frame_bytes() && domain_.rank == 0 && xdmf_listed_ != times_.size()) {
-      try {  // (the message below promises it; the XDMF is small)
-        write_xdmf(true);
-      } catch (const std::exception&) {
-      }
-    }
-    if (free >= 0 && free < frame_bytes())
+    if (free >= 0 && free < frame_bytes()) {
+      list_unlisted_frames(false);  // (the message below promises it; the XDMF is small)
       throw RuntimeFailure(dir_ + "/" + stem_ + ".h5: no space left for the frame of step " + std::to_string(step) +
                            ": it takes about " + std::to_string(static_cast<long long>(frame_bytes())) +
                            " bytes and the file system holding '" + dir_ + "' has " +
                            std::to_string(static_cast<long long>(free)) + " free; " + stem_ +
                            ".xdmf lists the frames written before it");
+    }
     const H5Id g(H5Gcreate2(file_.get(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
     agree(g.ok(), frame + "creating group " + name);
     scalar_attribute<long long>(g.get(), "step", H5T_NATIVE_LLONG, step);

@@ -98,6 +98,9 @@ class FrameWriter {
   /// made a run of N frames write O(N^2) bytes); the destructor and the failure paths write what
   /// is left. Rank 0.
   void write_xdmf(bool always) const;
+  /// The frames the XDMF does not list yet, listed now (rank 0), where the run ends or fails;
+  /// a failure to write it is printed as a warning if `warn`, else left to the run's own message.
+  void list_unlisted_frames(bool warn) const noexcept;
   void write_xdmf_file(const std::string& name, bool surface) const;
   /// Frame k's <Grid> entry of the XDMF (surface: over the mesh membranes' triangles).
   std::string xdmf_grid(std::size_t k, bool surface) const;
