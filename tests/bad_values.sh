@@ -60,6 +60,21 @@ expect membrane_stretch_resolution "materials.rubber.critical_stretch: expected 
 expect pmb_strain_resolution "materials.film.critical_stretch: expected a critical bond strain s_0 >= 1e-10" -- "$tool" "${coarse[@]}" --set materials.film.critical_stretch=1e-300
 expect tool_stiffness_huge "--set: tools.0.stiffness: expected a number in (0, 1e6], got 1e300" -- "$tool" "${coarse[@]}" --set tools.rod.stiffness=1e300
 
+# --- Nodes so far from the origin that a position cannot hold the spacing ------------------------
+expect origin_far "<default scene>:$(($(line_of '^  sheet:') + 1)): bodies.sheet: a node at (1e+20, -0.0245, 0) m lies 1e+23 spacings (0.001 m) from the origin, where a position is rounded to 1.11022e+07 spacings; expected every node within 1e+09 spacings of the origin: move the body (origin) toward it" -- "${coarse[@]}" --set 'bodies.sheet.origin=[1e20, -0.025, 0]'
+expect origin_overflow "bodies.sheet: a node at (1e+308, -0.0245, 0) m lies more than 1.8e+308 spacings (0.001 m) from the origin" -- "${coarse[@]}" --set 'bodies.sheet.origin=[1e308, -0.025, 0]'
+printf 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n1e308,1e308,0,1e-9\n-1e308,-1e308,-1e308,1e-9\n' > "$work/far.csv"
+cat > "$work/far.yaml" <<EOF
+name: far
+materials:
+  m: {model: pmb, density: 1000, bulk_modulus: 1e9, critical_stretch: 0.01}
+bodies:
+  block: {kind: solid, material: m, points: far.csv, spacing: 0.001}
+stages:
+  - {name: s, steps: 5}
+EOF
+expect points_far "$work/far.yaml:5: bodies.block: a node at (1e+308, 1e+308, 0) m lies more than 1.8e+308 spacings (0.001 m) from the origin; expected every node within 1e+09 spacings of the origin: move the body (the file's coordinates) toward it" -- "$work/far.yaml"
+
 # --- Step counts and damping: refused with the key, the time step it came from and the figure ------
 expect duration_huge "<default scene>:$stage_line: stages.0.duration: 1e+13 s in steps of 3.71387e-07 s (safety_factor 0.35 x the stable bound 1.0611e-06 s) takes 2.69261e+19 steps; expected at most 1000000000 steps per stage" -- "${coarse[@]}" --set stages.0.duration=1e13
 expect dt_tiny "stages.0.duration: 0.00013 s in steps of 1e-300 s (stages.0.dt) takes 1.3e+296 steps" -- "${coarse[@]}" --set stages.0.dt=1e-300
@@ -179,6 +194,23 @@ else bad "overlapping_boundaries: expected one warning '$want'"; fi
 "${mpi[@]}" "$peridrive" "$scenes/membrane_tearing.yaml" --set bodies.sheet.spacing=0.001 --dry-run > "$work/stdout" 2> "$work/stderr"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "clamps_sharing_corners: no warning"
 else bad "clamps_sharing_corners: exit status or warning"; fi
+
+# A body 2e6 spacings from the origin runs, with a warning of the round-off in its positions.
+cat > "$work/distant.yaml" <<EOF
+name: distant
+materials:
+  m: {model: membrane, density: 1200, wave_speed: 1000, critical_stretch: 1.6}
+bodies:
+  sheet: {material: m, origin: [2000, 0, 0], size: [0.01, 0.01], thickness: 0.0005, spacing: 0.001}
+stages:
+  - {name: s, steps: 5}
+output: {frames: 2}
+EOF
+"${mpi[@]}" "$peridrive" "$work/distant.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
+want="distant.yaml:5: bodies.sheet: a node at (2000.01, 0.0005, 0) m lies 2.00001e+06 spacings (0.001 m) from the origin, where a position is rounded to 2.22046e-10 of a spacing: stretches that small are round-off"
+if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "origin_distant: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "origin_distant: expected one warning '$want'"; fi
 
 # Pre-cracks that cross no bond (here: beside the sheet) are named in a warning; the run goes on.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}]' --dry-run \

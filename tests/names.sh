@@ -79,13 +79,23 @@ start() {
   rm -rf "$work/cwd-$id" && mkdir -p "$work/cwd-$id/run"
   (cd "$work/cwd-$id/run" && "$@" --quiet > "$work/$id.out" 2> "$work/$id.err"; echo $? > "$work/$id.rc") &
 }
-# refused ID LABEL WANT_PREFIX WANT: the run ID (ended) refused its input alike, wrote nothing.
+# refused ID LABEL WANT_PREFIX WANT [COMMAND...]: the run ID (ended) refused its input alike, wrote
+# nothing. A run killed by SIGSEGV (139) after it printed the expected message is run once more
+# (COMMAND) and reported: MPI_Finalize has been seen to crash about once in a thousand runs here
+# (Open MPI 4.1, open-mpi/ompi#10117); the rerun must pass on its own.
 refused() {
   local id=$1 label=$2 prefix=$3 want=$4 rc left
+  shift 4
   rc=$(cat "$work/$id.rc")
+  if [ "$rc" -eq 139 ] && [ $# -gt 0 ] && grep -qF -- "$want" "$work/$id.err"; then
+    echo "note $label: exit status 139 after the expected message (stderr: $(tr '\n' ' ' < "$work/$id.err" | head -c 2000)); run again"
+    start "$id" -- "$@"
+    wait
+    rc=$(cat "$work/$id.rc")
+  fi
   left=$(find "$work/cwd-$id" -mindepth 1 ! -path "$work/cwd-$id/run")
   if [ "$rc" -ne 2 ]; then
-    echo "FAIL $label: exit status $rc, expected 2: $(head -c 300 "$work/$id.err")"; fail=$((fail + 1))
+    echo "FAIL $label: exit status $rc, expected 2: $(head -c 2000 "$work/$id.err")"; fail=$((fail + 1))
   elif [ "$(grep -c "peridrive: error:" "$work/$id.err")" -ne 1 ]; then
     echo "FAIL $label: expected exactly one error line:"; head -c 600 "$work/$id.err"; fail=$((fail + 1))
   elif ! grep -qF -- "peridrive: error: $prefix" "$work/$id.err" || ! grep -qF -- "$want" "$work/$id.err"; then
@@ -109,15 +119,15 @@ for kind in scene material body crack boundary tool stage; do
     wait
     for k in $(seq "$first" $((first + 4))); do
       want=$(cat "$work/cases/$kind.$k.want")
-      refused "file$k" "$kind $k file" "$work/cases/$kind.$k.yaml:" "$want"
-      refused "set$k" "$kind $k --set" "--set: " "$want"
+      refused "file$k" "$kind $k file" "$work/cases/$kind.$k.yaml:" "$want" "$peridrive" "$work/cases/$kind.$k.yaml"
+      refused "set$k" "$kind $k --set" "--set: " "$want" "$peridrive" "$work/cases/valid.yaml" --set "$(cat "$work/cases/$kind.$k.set")"
     done
   done
   # The path-like name on 2 ranks: every rank refuses it alike.
   f="$work/cases/$kind.6.yaml"
   start mpi -- "${mpi[@]}" "$peridrive" "$f"
   wait
-  refused mpi "$kind ../../x file, 2 ranks" "$f:" "$(cat "$work/cases/$kind.6.want")"
+  refused mpi "$kind ../../x file, 2 ranks" "$f:" "$(cat "$work/cases/$kind.6.want")" "${mpi[@]}" "$peridrive" "$f"
   [ "$fail" -eq "$before" ] && echo "ok   $kind: 15 hostile names refused in the file and through --set, 1 and 2 ranks"
 done
 

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "peri/bonds/crossing.hpp"
+#include "peri/core/error.hpp"
 
 namespace peri {
 
@@ -103,6 +104,10 @@ void CellList::build(const double* X, std::int64_t n, double reach_) {
         hi[d] = std::max(hi[d], X[3 * i + d]);
       }
   }
+  for (int d = 0; d < 3; ++d)  // (the setup refuses nodes this far apart before: check_node_positions)
+    if (!std::isfinite(hi[d] - lo_[d]))
+      throw InputError("the nodes span more than the largest double along axis " + std::to_string(d) +
+                       "; expected nodes within 1e9 spacings of the origin");
   size_ = reach_ * (1.0 + 1e-9);
   // Keep the number of cells O(N) even for sparse scenes (grow the cell if needed).
   for (;;) {

@@ -36,7 +36,9 @@ Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, 
   warn_large_families(scene, estimate_size(scene), rank);
   check_fits(scene, comm, settings.method == PartitionMethod::Bonds);
   stop_point(comm);
-  return discretize(scene);
+  Nodes nodes = discretize(scene);
+  check_node_positions(scene, nodes, rank);
+  return nodes;
 }
 
 /// Per boundary, the nodes of its region (natural ids, ascending).

@@ -20,6 +20,11 @@ constexpr double kSmallestStep = 1e-150;  // [s]: 2 / dt^2 (a tool's penalty) st
 constexpr double kEnergyRange = 1e280;    // [J]: a body's energy scale sum m c_l^2 in [1/x, x]
 constexpr double kLargestStrain = 100;    // initial displacement / body extent
 constexpr double kLargestWallStress = 100;  // sphere: p R / (2 h) / in-plane bulk modulus
+// A node's distance from the origin in spacings (its largest coordinate / dx): positions are
+// rounded to 2^-53 of their magnitude, so at 1e9 spacings to 1.1e-7 of a spacing (stretches
+// below about 1e-6 are round-off; refused), at 1e6 spacings to 1.1e-10 (warned).
+constexpr double kFarthestNode = 1e9;
+constexpr double kFarNodeWarning = 1e6;
 
 std::string num(double v) {
   std::ostringstream s;
@@ -91,6 +96,43 @@ void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vect
                    scene.boundaries[b].where.str().c_str(), first.c_str(), later.c_str(),
                    static_cast<long long>(shared), later.c_str(), first.c_str());
     }
+}
+
+void check_node_positions(const Scene& scene, const Nodes& nodes, int rank) {
+  for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+    const BodyGeometry& g = nodes.bodies[b];
+    const Body& body = scene.bodies[b];
+    double far = 0;
+    std::int64_t at = -1;
+    for (std::int64_t i = g.first; i < g.first + g.count; ++i)
+      for (int d = 0; d < 3; ++d)
+        if (!(std::fabs(nodes.X[3 * i + d]) <= far)) far = std::fabs(nodes.X[3 * i + d]), at = i;
+    if (at < 0 || !(g.spacing > 0)) continue;
+    const double ratio = far / g.spacing;
+    if (ratio <= kFarNodeWarning) continue;
+    const std::string where = !body.points.empty() || !body.mesh.empty() || !body.polyline.empty()
+                                  ? "the file's coordinates"
+                              : !body.path.empty() ? "path"
+                              : body.network       ? "network"
+                                                   : "origin";
+    std::ostringstream msg;
+    msg << body.where.str() << ": bodies." << body.name << ": a node at (" << num(nodes.X[3 * at]) << ", "
+        << num(nodes.X[3 * at + 1]) << ", " << num(nodes.X[3 * at + 2]) << ") m lies ";
+    if (std::isfinite(ratio))
+      msg << num(ratio) << " spacings (" << num(g.spacing) << " m) from the origin, where a position is rounded to "
+          << num(ratio * std::ldexp(1.0, -53)) << (ratio > 0x1p53 ? " spacings" : " of a spacing");
+    else
+      msg << "more than 1.8e+308 spacings (" << num(g.spacing) << " m) from the origin";
+    if (std::isfinite(ratio) && ratio <= kFarthestNode) {
+      if (rank == 0)
+        std::fprintf(stderr, "peridrive: warning: %s: stretches that small are round-off; moved toward the origin "
+                     "(%s), the body keeps positions to 1e-16 of its size\n", msg.str().c_str(), where.c_str());
+      continue;
+    }
+    msg << "; expected every node within " << num(kFarthestNode) << " spacings of the origin: move the body ("
+        << where << ") toward it";
+    throw InputError(msg.str());
+  }
 }
 
 void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector<BondLaw>& laws,

@@ -25,6 +25,9 @@ void warn_large_families(const Scene& scene, const SizeEstimate& e, int rank);
 /// Warns (rank 0) of boundaries that share nodes but move them differently. regions: per
 /// boundary, its nodes (natural ids, ascending).
 void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vector<std::int64_t>>& regions, int rank);
+/// Every node within 1e9 spacings of the origin, where positions keep a spacing to 1e-7; a
+/// warning (rank 0) beyond 1e6 spacings.
+void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
 /// Node measures, masses and each body's energy scale within the doubles' range (global node
 /// arrays). laws, density: per body.
 void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector<BondLaw>& laws,
