@@ -8,7 +8,7 @@ namespace peri {
 
 SizeEstimate estimate_size(const Scene& scene) {
   SizeEstimate e;
-  double dashpot_bytes = 0;
+  double dashpot_bytes = 0, free_bytes = 0;
   for (std::size_t bi = 0; bi < scene.bodies.size(); ++bi) {
     const Body& b = scene.bodies[bi];
     const double n = b.kind->node_estimate(b);
@@ -16,6 +16,9 @@ SizeEstimate estimate_size(const Scene& scene) {
     const double family = std::min(b.kind->family_estimate(b), std::max(n - 1, 0.0));
     e.nodes += n;
     e.bonds += n * family;
+    // Irregular bodies (meshes, point clouds): a float weight per ordered bond, or the bond
+    // loop's interleaved neighbour lists (RowBlocks::free_lanes), 4 bytes either way.
+    if (!b.mesh.empty() || !b.points.empty()) free_bytes += 4.0 * n * family;
     // Bond dashpots: a constant per ordered bond (peridynamic laws; the lattice computes its own),
     // and per node the dashpot force and the velocity they saw (measured: 390 MB more at 1M nodes,
     // 4.4e7 ordered bonds), and the peridynamic pass's node records (64 bytes, dashpot_records).
@@ -28,8 +31,8 @@ SizeEstimate estimate_size(const Scene& scene) {
     }
   }
   // 5 bytes per ordered bond (32-bit neighbour, flag; the reference geometry is shared by family
-  // patterns) + ~350 bytes per node (state, PETSc, forces, output), as measured at 1M nodes.
-  e.bytes = 5.0 * e.bonds + 350.0 * e.nodes + dashpot_bytes;
+  // patterns; 9 in irregular bodies) + ~350 bytes per node (state, PETSc, forces, output), as measured at 1M nodes.
+  e.bytes = 5.0 * e.bonds + 350.0 * e.nodes + dashpot_bytes + free_bytes;
   return e;
 }
 

@@ -155,6 +155,32 @@ void plan_mirror(const BondView& v, RowBlocks& plan) {
 #endif
 }
 
+#if defined(PERI_AVX2)
+// RowBlocks::free_lanes of the plan's free rows, W lanes a group.
+void interleave_free_lanes(const BondView& v, RowBlocks& plan, int W) {
+  const std::size_t nfree = plan.free.size();
+  plan.free_lane_width = W;
+  plan.free_lanes_at.assign(1, 0);
+  std::int64_t total = 0;
+  for (std::size_t r = 0; r < nfree; r += W) {
+    std::int64_t nmax = 0;
+    for (std::size_t l = r; l < std::min(nfree, r + W); ++l)
+      nmax = std::max(nmax, v.offsets[plan.free[l] + 1] - v.offsets[plan.free[l]]);
+    plan.free_lanes_at.push_back(total += nmax * W);
+  }
+  plan.free_lanes.resize(static_cast<std::size_t>(total));
+  for (std::size_t r = 0, g = 0; r < nfree; r += W, ++g) {
+    std::int32_t* at = plan.free_lanes.data() + plan.free_lanes_at[g];
+    const std::int64_t slots = (plan.free_lanes_at[g + 1] - plan.free_lanes_at[g]) / W;
+    for (int l = 0; l < W; ++l) {
+      const std::int32_t i = plan.free[std::min(r + l, nfree - 1)];  // idle lanes repeat the last row
+      const std::int64_t b0 = v.offsets[i], n = v.offsets[i + 1] - b0;
+      for (std::int64_t k = 0; k < slots; ++k) at[k * W + l] = 8 * (n > 0 ? v.neighbor[b0 + std::min(k, n - 1)] : i);
+    }
+  }
+}
+#endif
+
 }  // namespace
 
 RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nrows, bool pair_bonds) {
@@ -189,6 +215,11 @@ RowBlocks plan_rows(const BondView& v, const std::int32_t* rows, std::size_t nro
       for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b)
         plan.free_nodes = std::max<std::int64_t>(plan.free_nodes, v.neighbor[b] + 1);
     }
+#if defined(PERI_AVX2)
+    // (The records' offsets, 8 j, held in 32 bits: up to 2^28 local nodes.)
+    if (P.free_weight.empty() && plan.free_nodes <= std::numeric_limits<std::int32_t>::max() / 8)
+      interleave_free_lanes(v, plan, simd::Wide::W);
+#endif
   }
   // Whether list entries a[0 .. m-1] continue a run from row `first` with stride s whose next row
   // is its q-th: rows first + (q + l) s, first's pattern, neighbours those of first shifted by

@@ -113,6 +113,13 @@ Forces::Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Doma
   PetscLogEventEnd(events().plans, 0, 0, 0, 0);
 }
 
+std::size_t Forces::plan_bytes() const {
+  std::size_t bytes = 0;
+  for (const std::vector<RowBlocks>* plans : {&interior_plan_, &boundary_plan_})
+    for (const RowBlocks& plan : *plans) bytes += plan.extra_bytes();
+  return bytes;
+}
+
 BondView Forces::bond_view() {
   BondView v{domain_.X.data(), nullptr, domain_.volume.data(), domain_.bonds.offsets.data(),
              domain_.bonds.neighbor.data(), domain_.bonds.broken.data(), &domain_.bonds.patterns,

@@ -229,6 +229,7 @@ void setup_figures(const Problem& p, const Partition& partition, PartitionMethod
       break;
     }
   double bpb = d.bonds.bytes_per_bond(), bpb_max = 0;
+  if (!d.bonds.neighbor.empty()) bpb += static_cast<double>(p.forces->plan_bytes()) / static_cast<double>(d.bonds.size());
   MPI_Allreduce(&bpb, &bpb_max, 1, MPI_DOUBLE, MPI_MAX, p.comm);
   summary.bytes_per_bond = bpb_max;
   summary.partition_seconds = partition.seconds;

@@ -139,14 +139,16 @@ __attribute__((always_inline)) inline Records<simd::Simd4> transpose_records(con
 // neighbour's node record, the W are transposed into vectors, the reference slot computed from
 // them (free_slot) and the law evaluated as in a block. A lane past its row's end repeats its last
 // bond, flagged dead. `Intact`: the rows have no broken bond (no flag bytes read); `Weighted`:
-// the measures carry the bonds' weights (FamilyPatterns::free_weight). The same bits as the
+// the measures carry the bonds' weights (FamilyPatterns::free_weight); `lanes`: the group's
+// neighbours interleaved (RowBlocks::free_lanes; unweighted rows), else each lane reads its row's
+// list. The same bits as the
 // portable walk's rows (the same operations in CSR order). The vector ports bound this
 // loop: per slot the transpose (on AVX-512 15 shuffles and 8 inserts) and the reference slot (15
 // operations) come on top of the law's own work, about three times a grid block's operations per
 // bond.
 template <bool Intact, bool Weighted, class Law, class C>
 void free_records(const Law& law_of, const C& L, const BondView& v, const double* rec, const std::int32_t* group,
-                  int count, double* force, BondTally& tally) {
+                  int count, double* force, BondTally& tally, const std::int32_t* lanes = nullptr) {
   using S = typename Law::Pack;
   constexpr int W = S::W;
   const Law law = law_of;  // a local copy, as in damaged_block
@@ -180,7 +182,14 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
     float wk[W];
     // (Each address pinned to a general register: GCC otherwise packs the eight into a vector and
     // extracts them one by one, 0.6 times as fast.)
-    if (k < nmin) [[likely]] {
+    if (!Weighted && lanes) {  // (RowBlocks::free_lanes: the records' offsets, lane by lane)
+      for (int l = 0; l < W; ++l) {
+        r[l] = rec + lanes[k * W + l];
+        __asm__("" : "+r"(r[l]));
+      }
+      if (k >= nmin) [[unlikely]]
+        for (int l = 0; l < W; ++l) dead |= static_cast<unsigned>(k >= n[l]) << l;
+    } else if (k < nmin) [[likely]] {
       for (int l = 0; l < W; ++l) {
         r[l] = rec + 8 * static_cast<std::int64_t>(nbr[l][k]);
         __asm__("" : "+r"(r[l]));

@@ -116,6 +116,8 @@ class Forces {
   void displacement_changed() { density_current_ = false; }
 
   const std::vector<BondLaw>& laws() const { return laws_; }
+  /// Bytes the bond loop's plans keep beside the bond arrays (RowBlocks::extra_bytes).
+  std::size_t plan_bytes() const;
   /// The lattice law of body b, or nullptr for a peridynamic body.
   const MarderLaw* marder(std::size_t b) const { return marder_[b] ? &*marder_[b] : nullptr; }
   /// This rank's bond arrays, positions as of the last pass (u filled by the caller).
