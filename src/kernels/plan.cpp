@@ -159,7 +159,6 @@ void plan_mirror(const BondView& v, RowBlocks& plan) {
 // RowBlocks::free_lanes of the plan's free rows, W lanes a group.
 void interleave_free_lanes(const BondView& v, RowBlocks& plan, int W) {
   const std::size_t nfree = plan.free.size();
-  plan.free_lane_width = W;
   plan.free_lanes_at.assign(1, 0);
   std::int64_t total = 0;
   for (std::size_t r = 0; r < nfree; r += W) {

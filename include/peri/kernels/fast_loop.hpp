@@ -328,13 +328,13 @@ void forces(const C& L, const BondView& v, const RowBlocks& rows, double* force,
   for (std::size_t r = 0; r < nfree; r += W) {
     const std::int32_t* group = rows.free.data() + r;
     const int count = static_cast<int>(std::min<std::size_t>(W, nfree - r));
-    if (r + kAhead < nfree && rows.free_lane_width != W)
+    if (r + kAhead < nfree && rows.free_lanes_at.empty())
       prefetch_lists(v, group + kAhead, static_cast<int>(std::min<std::size_t>(W, nfree - r - kAhead)));
     bool intact = true;
     for (int l = 0; l < count && intact; ++l)
       intact = v.row_broken ? !v.row_broken[group[l]] : !any_flag(v.broken + v.offsets[group[l]], v.broken + v.offsets[group[l] + 1]);
     if (P.free_weight.empty()) {
-      const std::int32_t* lanes = rows.free_lane_width == W ? rows.free_lanes.data() + rows.free_lanes_at[r / W] : nullptr;
+      const std::int32_t* lanes = rows.free_lanes_at.empty() ? nullptr : rows.free_lanes.data() + rows.free_lanes_at[r / W];
       if (intact) free_records<true, false>(laws.wide, L, v, rec, group, count, force, tally, lanes);
       else free_records<false, false>(laws.wide, L, v, rec, group, count, force, tally, lanes);
     } else {

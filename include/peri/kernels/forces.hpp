@@ -145,7 +145,7 @@ struct RowBlocks {
   /// reference slot from them.
   std::vector<std::int32_t> free;
   std::int64_t free_nodes = 0;  ///< local nodes the free rows read: 0 .. free_nodes-1
-  /// The free rows' neighbours as the SIMD loop reads them, group by group of free_lane_width
+  /// The free rows' neighbours as the SIMD loop reads them, group by group of the loop's W
   /// rows (`free` in order), slot-major: lane l's k-th neighbour j as 8 j (its node record's
   /// offset in Scratch::records) at free_lanes[free_lanes_at[group] + k W + l], for k up to
   /// the group's longest family (a lane past its row's end repeats its last neighbour; a row
@@ -153,10 +153,9 @@ struct RowBlocks {
   /// cost a pointer per lane that the loop could not keep in registers (the 400 x 400 mesh
   /// 1.3 times as fast). 4 bytes per ordered bond: kept only for free rows without weights
   /// (FamilyPatterns::free_weight empty), whose bonds then take about 9.5 bytes, not 13, and
-  /// up to 2^28 local nodes. Empty (width 0) otherwise or without the SIMD loop.
+  /// up to 2^28 local nodes. Both empty otherwise or without the SIMD loop.
   std::vector<std::int32_t> free_lanes;
   std::vector<std::int64_t> free_lanes_at;
-  int free_lane_width = 0;
   /// Bytes the plan keeps per bond it covers beyond the bond arrays (free_lanes).
   std::size_t extra_bytes() const { return free_lanes.size() * sizeof(std::int32_t) + free_lanes_at.size() * sizeof(std::int64_t); }
   std::vector<RowBox> boxes;  ///< runs whose bonds are evaluated once per pair (RowBox)
