@@ -298,6 +298,66 @@ TEST(Restart, AfterQuasiStaticReleaseAndDampedStages) {
   EXPECT_EQ(b.quasistatic_work_error, a.quasistatic_work_error);
 }
 
+// A run that a stability detector stops, resumed from its last checkpoint, must stop at the same
+// step with the same message: the energy check's count of steps above its tolerance goes into
+// the checkpoint, and no checkpoint is written before the state is checked (a node noted as
+// moving too far was once lost: the resumed run went on).
+TEST(Restart, ResumedRunStopsWhereTheUninterruptedOneStops) {
+  struct Case {
+    const char* name;
+    std::vector<Override> set;
+    const char* message;  // what the stop must say
+  };
+  const std::vector<Case> cases{
+      // Above a tolerance below round-off from the first row on: stops at the 10th step after it;
+      // the last checkpoint (every 4 steps) lies inside that window.
+      {"energy", {{"stability.energy_error", "1e-15"}, {"output.series_every", "1"}, {"output.checkpoint_every_steps", "4"}},
+       "exceeds stability.energy_error"},
+      // Twice the stable step: a node moves too far within a few steps; checkpoints every 3
+      // steps, checks (series rows, frames) far apart.
+      {"motion",
+       {{"stages.0.dt", "1.2e-6"}, {"stages.0.allow_unstable_dt", "true"}, {"stability.energy_error", "0"},
+        {"output.series_every", "100"}, {"output.checkpoint_every_steps", "3"}},
+       "unstable explicit integration"}};
+  auto stop_of = [](Simulation& sim) -> std::string {
+    try {
+      sim.run();
+    } catch (const RuntimeFailure& e) {
+      return e.what();
+    }
+    return "(no stop)";
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const Scene scene = parse_scene(kScene, "small-slit", c.set);
+    RunOptions o = quiet();
+    o.out_dir = shared_path(std::string("restart-stop-") + c.name);
+    std::string whole_stop, resumed_stop;
+    std::int64_t stopped_at = 0;
+    {
+      Simulation whole(scene, PETSC_COMM_WORLD, o);
+      whole_stop = stop_of(whole);
+      stopped_at = whole.current_step();
+    }
+    const Checkpoint last = read_checkpoint(o.out_dir + "/checkpoint.h5");
+    {
+      RunOptions r = quiet();
+      r.restart = load_checkpoint(o.out_dir + "/checkpoint.h5", PETSC_COMM_WORLD);
+      Simulation resumed(scene, PETSC_COMM_WORLD, r);
+      resumed_stop = stop_of(resumed);
+    }
+    MPI_Barrier(PETSC_COMM_WORLD);
+    if (world_rank() == 0) {
+      std::filesystem::remove_all(o.out_dir);
+      std::printf("%s: stopped at step %lld, last checkpoint at step %lld: %.90s\n", c.name,
+                  static_cast<long long>(stopped_at), static_cast<long long>(last.step), whole_stop.c_str());
+    }
+    EXPECT_NE(whole_stop.find(c.message), std::string::npos) << whole_stop;
+    EXPECT_LT(last.step, stopped_at);
+    EXPECT_EQ(resumed_stop, whole_stop);
+  }
+}
+
 TEST(Restart, ExtraArraysRoundTrip) {
   const Scene scene = parse_scene(kScene, "small-slit");
   const std::string path = shared_path("restart-extras");

@@ -93,6 +93,12 @@ void HealthCheck::check_energy(const EnergyRow& row, double error, double e0, do
   throw RuntimeFailure(msg.str());
 }
 
+void HealthCheck::restore(const std::vector<double>* saved) {
+  energy_over_since_ = -1;
+  if (saved && saved->size() == 1 && (*saved)[0] >= 0 && (*saved)[0] < 9.0e15 && (*saved)[0] == std::floor((*saved)[0]))
+    energy_over_since_ = static_cast<std::int64_t>((*saved)[0]);
+}
+
 std::string HealthCheck::law_note(int body) const {
   // Each law once, with the bodies that use it (in the order first met).
   std::vector<std::pair<std::string, std::vector<std::string>>> laws;  // law name, bodies

@@ -50,6 +50,11 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
     add_checkpoint_extra(
         "tip_advance_break_times", [this, rule] { return rule->save(time_, comm_); },
         [this, rule](const std::vector<double>* flat) { rule->restore(flat, forces_.bond_view()); });
+  // The energy check's count of steps above its tolerance: a resumed run stops where the run
+  // it continues would have.
+  add_checkpoint_extra(
+      "energy_error_since", [this] { return health_.save(); },
+      [this](const std::vector<double>* saved) { health_.restore(saved); });
   if (options_.restart)
     check_restart(*options_.restart, scene_, domain_.global_nodes, summary_.ordered_bonds, p_->stages.steps);
   tips_ = CrackTipMonitor::create(scene_, forces_.laws(), p_->bodies, p_->density,
@@ -177,9 +182,15 @@ void Simulation::explicit_step() {
   ++step_;
   ++stage_step_;
   const bool frame = output_.frame_due(step_);
-  // Nothing is written before the state is checked: no non-finite value reaches a file.
+  // Checkpoints come at these steps and the polls' (kCheckEvery, the last step).
+  const bool checkpoint_step =
+      scene_.output.checkpoint_every_steps > 0 && step_ % scene_.output.checkpoint_every_steps == 0;
+  // Nothing is written before the state is checked: no non-finite value reaches a file, and no
+  // checkpoint holds a step that moved a node too far (a resumed run stops where this one would).
+  // The checks' steps depend on the scene alone, not on whether this run writes checkpoints.
   // (Each reader of the velocity applies a deferred kick first: settle_kick().)
-  if (series || frame || step_ % kCheckEvery == 0 || step_ == total_steps_) check_health(step_, time_);
+  if (series || frame || checkpoint_step || step_ % kCheckEvery == 0 || step_ == total_steps_)
+    check_health(step_, time_);
   if (series) write_series_row();
   if (frame) write_frame();
   if (cadence_.due(step_, step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();

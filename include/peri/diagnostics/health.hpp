@@ -48,6 +48,11 @@ class HealthCheck {
   /// not recover.
   void check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable);
   static constexpr std::int64_t kEnergyErrorSteps = 10;
+  /// The energy check's memory across a restart (a checkpoint extra): the first step of the
+  /// current run of checks above the tolerance, or -1. `restore` takes a checkpoint's values
+  /// (nullptr: the checkpoint has none, as those written before it was kept: -1).
+  std::vector<double> save() const { return {static_cast<double>(energy_over_since_)}; }
+  void restore(const std::vector<double>* saved);
   /// How the laws behave near the stable bound: of body `body`, or of every body (-1).
   std::string law_note(int body) const;
 

@@ -334,8 +334,8 @@ struct Stage {
   std::vector<std::string> cracks;  ///< names of entries of Scene::cracks broken by this stage
 };
 
-/// Instability detectors of explicit stages (checked whenever energies or frames are written,
-/// and every 20 steps).
+/// Instability detectors of explicit stages (checked whenever energies, frames or checkpoints are
+/// written, and every 20 steps).
 struct Stability {
   /// Stop when |E(t) - E(0)| exceeds this fraction of the energy scale (E: kinetic + strain +
   /// dissipated - external work). 0 disables.
