@@ -40,6 +40,9 @@ class Verlet {
 
  private:
   void second_kick_free(double* v, double dt) const;  // the free runs' second half kick
+  /// row(i) for each boundary row and run(r) for each free run, in node order.
+  template <class Row, class Run>
+  void in_node_order(Row row, Run run) const;
   /// Adds the loads' forces at time t (after the bonds': positions current); with `book`, their
   /// work goes to the ledger.
   void add_load_forces(double t, bool book);
