@@ -19,12 +19,13 @@ SizeEstimate estimate_size(const Scene& scene) {
     // Irregular bodies (meshes, point clouds): a float weight per ordered bond, or the bond
     // loop's interleaved neighbour lists (RowBlocks::free_lanes), 4 bytes either way.
     if (!b.mesh.empty() || !b.points.empty()) free_bytes += 4.0 * n * family;
-    // Bond dashpots: a constant per ordered bond (peridynamic laws; the lattice computes its own),
-    // and per node the dashpot force and the velocity they saw (measured: 390 MB more at 1M nodes,
-    // 4.4e7 ordered bonds), and the peridynamic pass's node records (64 bytes, dashpot_records).
+    // Bond dashpots (peridynamic laws; the lattice computes its own): per ordered bond a constant
+    // and the neighbour once more, in the pass's vector groups (DashpotLanes: 12 bytes a slot, the
+    // groups' slots 1.01-1.04 times the bonds in the scenes), and per node the dashpot force and the
+    // velocity they saw and the pass's node records (64 bytes, dashpot_records).
     const Material& m = scene.material(b.material);
     if (m.kelvin_viscosity > 0)
-      dashpot_bytes += m.model == "marder" ? 48.0 * n : 8.0 * n * family + 112.0 * n;
+      dashpot_bytes += m.model == "marder" ? 48.0 * n : 12.5 * n * family + 112.0 * n;
     if (family > e.largest_family) {
       e.largest_family = family;
       e.largest_family_body = static_cast<int>(bi);

@@ -7,15 +7,9 @@
 #include "peri/core/simd.hpp"
 
 #include "peri/kernels/bond_loop.hpp"
+#include "peri/kernels/free_rows.hpp"  // (the node lines' transpose, AVX-512)
 
 namespace peri {
-
-void dashpot_coefficients(const BondLaw& law, double tau, const BondView& v, const std::int32_t* rows,
-                          std::size_t nrows, double* coefficient) {
-  for (std::size_t r = 0; r < nrows; ++r)
-    for (const FamilyBond& bond : family(v, rows[r]))
-      coefficient[bond.at()] = tau * law.reference_stiffness(bond.xi2()) * bond.measure();
-}
 
 void dashpot_records(const BondView& v, const double* velocity, std::int64_t nodes, double* records) {
   const double* x = v.x;
@@ -58,14 +52,35 @@ void dashpot_row(const BondView& v, const double* records, const double* coeffic
 }
 
 #if defined(PERI_AVX2)
-// Four records' [x, y, z, v_x, v_y, v_z] as six vectors of the lanes' values: per pair of fields,
-// lanes 0 and 2 (1 and 3) in the halves of one vector, then one unpack per field.
+// The lanes' node records [x, y, z, v_x, v_y, v_z] as six vectors, the live lanes of a slot, and
+// a sum of the live lanes.
+#if defined(PERI_AVX512VL)
+using Pack = simd::Simd8;
+struct Lines {
+  __m512d x, y, z, vx, vy, vz;
+};
+// As the free rows' node lines (their fields V, X, Y: here the velocity).
+__attribute__((always_inline)) inline Lines transpose_lines(const double* const rec[8]) {
+  const fast::Records<Pack> o = fast::transpose_records(rec);
+  return {o.x, o.y, o.z, o.V, o.X, o.Y};
+}
+// Ends apart (y^2 > 0, false for NaN as the scalar test) and not dead.
+__attribute__((always_inline)) inline __mmask8 live_lanes(__m512d y2, unsigned dead) {
+  return _mm512_cmp_pd_mask(y2, Pack::zero(), _CMP_GT_OQ) & static_cast<__mmask8>(~dead);
+}
+__attribute__((always_inline)) inline __m512d add_live(__mmask8 live, __m512d k, __m512d d, __m512d f) {
+  return _mm512_mask3_fmadd_pd(k, d, f, live);
+}
+#else
+using Pack = simd::Simd4;
 struct Lines {
   __m256d x, y, z, vx, vy, vz;
 };
+// Per pair of fields, lanes 0 and 2 (1 and 3) in the halves of one vector, then one unpack per
+// field.
 __attribute__((always_inline)) inline Lines transpose_lines(const double* const rec[4]) {
   auto pair = [&](int l, int c) {
-    return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(rec[l] + c)), _mm_loadu_pd(rec[l + 2] + c), 1);
+    return _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(rec[l] + c)), _mm_load_pd(rec[l + 2] + c), 1);
   };
   Lines o;
   __m256d p = pair(0, 0), q = pair(1, 0);
@@ -79,64 +94,60 @@ __attribute__((always_inline)) inline Lines transpose_lines(const double* const 
   o.vz = _mm256_unpackhi_pd(p, q);
   return o;
 }
+__attribute__((always_inline)) inline __m256d live_lanes(__m256d y2, unsigned dead) {
+  return _mm256_andnot_pd(_mm256_load_pd(reinterpret_cast<const double*>(simd::kLaneMasks.bits[dead])),
+                          _mm256_cmp_pd(y2, Pack::zero(), _CMP_GT_OQ));
+}
+__attribute__((always_inline)) inline __m256d add_live(__m256d live, __m256d k, __m256d d, __m256d f) {
+  return _mm256_blendv_pd(f, Pack::fmadd(k, d, f), live);
+}
+#endif
 
-// Four rows, one per lane (`count` of them; idle lanes repeat the last row and write nothing),
-// each walking its own bonds in CSR order with add_dashpot's operations: a lane past its row's
-// end, or at a broken bond or coincident ends, keeps its sums (a blend, as the scalar walk's
+// Group g of `lanes`: its rows (`count` of them, group[0 ..]) one per lane, each walking its own
+// bonds in CSR order with add_dashpot's operations; a lane at a broken bond, at coincident ends or
+// past its row's end (its own record, constant 0) keeps its sums (as the scalar walk's
 // `continue`). The same bits as dashpot_row. `Intact`: no flag byte is read.
 template <bool Intact>
-void dashpot_rows4(const BondView& v, const double* records, const double* coefficient, const std::int32_t* group,
-                   int count, double* viscous) {
-  using S = simd::Simd4;
-  static constexpr double kNone = 0.0;
-  std::int32_t rows[4];
-  std::int64_t b0[4], n[4], nmin = INT64_MAX, nmax = 0;
-  const double* own[4];
-  for (int l = 0; l < 4; ++l) {
+void dashpot_group(const BondView& v, const double* records, const DashpotLanes& lanes, std::size_t g,
+                   const std::int32_t* group, int count, double* viscous) {
+  using S = Pack;
+  constexpr int W = S::W;
+  std::int32_t rows[W];
+  std::int64_t b0[W], n[W];
+  const double* own[W];
+  for (int l = 0; l < W; ++l) {
     rows[l] = group[l < count ? l : count - 1];
     b0[l] = v.offsets[rows[l]];
     n[l] = v.offsets[rows[l] + 1] - b0[l];
-    nmin = std::min(nmin, n[l]);
-    nmax = std::max(nmax, n[l]);
     own[l] = records + kDashpotRecord * static_cast<std::int64_t>(rows[l]);
   }
   const Lines o = transpose_lines(own);
-  __m256d f0 = S::zero(), f1 = S::zero(), f2 = S::zero();
-  for (std::int64_t k = 0; k < nmax; ++k) {
-    const double* r[4];
-    const double* c[4];
-    unsigned dead = 0;
-    if (k < nmin) [[likely]] {
-      for (int l = 0; l < 4; ++l) {
-        r[l] = records + kDashpotRecord * static_cast<std::int64_t>(v.neighbor[b0[l] + k]);
-        c[l] = coefficient + b0[l] + k;
-      }
-    } else {  // a lane past its row's end reads its own record (coincident: no bond)
-      for (int l = 0; l < 4; ++l) {
-        const bool past = k >= n[l];
-        dead |= static_cast<unsigned>(past) << l;
-        r[l] = past ? own[l] : records + kDashpotRecord * static_cast<std::int64_t>(v.neighbor[b0[l] + k]);
-        c[l] = past ? &kNone : coefficient + b0[l] + k;
-      }
+  const std::int32_t* __restrict nbr = lanes.neighbor.data() + lanes.at[g];
+  const double* __restrict coef = lanes.coefficient.data() + lanes.at[g];
+  const std::int64_t slots = (lanes.at[g + 1] - lanes.at[g]) / W;
+  typename S::V f0 = S::zero(), f1 = S::zero(), f2 = S::zero();
+  for (std::int64_t k = 0; k < slots; ++k) {
+    const double* r[W];
+    // (Each address pinned to a general register, as in the free rows' loop.)
+    for (int l = 0; l < W; ++l) {
+      r[l] = records + kDashpotRecord * static_cast<std::int64_t>(nbr[k * W + l]);
+      __asm__("" : "+r"(r[l]));
     }
+    unsigned dead = 0;
     if constexpr (!Intact)
-      for (int l = 0; l < 4; ++l)
+      for (int l = 0; l < W; ++l)
         dead |= static_cast<unsigned>(k < n[l] && (v.broken[b0[l] + k] & kBrokenFlag)) << l;
     const Lines j = transpose_lines(r);
-    const __m256d d0 = S::sub(j.x, o.x), d1 = S::sub(j.y, o.y), d2 = S::sub(j.z, o.z);
-    const __m256d y2 = S::fmadd(d2, d2, S::fmadd(d0, d0, S::mul(d1, d1)));
-    const __m256d rate =
-        S::fmadd(S::sub(j.vz, o.vz), d2, S::fmadd(S::sub(j.vx, o.vx), d0, S::mul(d1, S::sub(j.vy, o.vy))));
-    const __m256d cv = _mm256_setr_pd(*c[0], *c[1], *c[2], *c[3]);
-    const __m256d kk = S::div(S::mul(rate, cv), y2);
-    // Live lanes: ends apart (y^2 > 0, false for NaN as the scalar test) and not dead.
-    const __m256d live = _mm256_andnot_pd(_mm256_load_pd(reinterpret_cast<const double*>(simd::kLaneMasks.bits[dead])),
-                                          _mm256_cmp_pd(y2, S::zero(), _CMP_GT_OQ));
-    f0 = _mm256_blendv_pd(f0, S::fmadd(kk, d0, f0), live);
-    f1 = _mm256_blendv_pd(f1, S::fmadd(kk, d1, f1), live);
-    f2 = _mm256_blendv_pd(f2, S::fmadd(kk, d2, f2), live);
+    const auto d0 = S::sub(j.x, o.x), d1 = S::sub(j.y, o.y), d2 = S::sub(j.z, o.z);
+    const auto y2 = S::fmadd(d2, d2, S::fmadd(d0, d0, S::mul(d1, d1)));
+    const auto rate = S::fmadd(S::sub(j.vz, o.vz), d2, S::fmadd(S::sub(j.vx, o.vx), d0, S::mul(d1, S::sub(j.vy, o.vy))));
+    const auto kk = S::div(S::mul(rate, S::loadu(coef + k * W)), y2);
+    const auto live = live_lanes(y2, dead);
+    f0 = add_live(live, kk, d0, f0);
+    f1 = add_live(live, kk, d1, f1);
+    f2 = add_live(live, kk, d2, f2);
   }
-  double s0[4], s1[4], s2[4];
+  double s0[W], s1[W], s2[W];
   S::storeu(s0, f0);
   S::storeu(s1, f1);
   S::storeu(s2, f2);
@@ -151,28 +162,81 @@ void dashpot_rows4(const BondView& v, const double* records, const double* coeff
 
 }  // namespace
 
+namespace {
+// DashpotLanes of `rows`; coefficient(i, b): the constant of row i's bond at CSR position b.
+template <class Coefficient>
+DashpotLanes make_lanes(const BondView& v, const std::int32_t* rows, std::size_t nrows, Coefficient coefficient) {
+  constexpr std::size_t W = kDashpotLanes;
+  DashpotLanes out;
+  out.at.assign(1, 0);
+  for (std::size_t r = 0; r < nrows; r += W) {
+    std::int64_t slots = 0;
+    for (std::size_t l = r; l < std::min(nrows, r + W); ++l) slots = std::max(slots, v.offsets[rows[l] + 1] - v.offsets[rows[l]]);
+    out.at.push_back(out.at.back() + slots * static_cast<std::int64_t>(W));
+  }
+  out.neighbor.resize(static_cast<std::size_t>(out.at.back()));
+  out.coefficient.resize(static_cast<std::size_t>(out.at.back()));
+  for (std::size_t g = 0; g + 1 < out.at.size(); ++g)
+    for (std::size_t l = 0; l < W; ++l) {
+      const std::size_t r = g * W + l;
+      const std::int32_t i = rows[std::min(r, nrows - 1)];
+      const std::int64_t b0 = v.offsets[i], n = r < nrows ? v.offsets[i + 1] - b0 : 0;
+      for (std::int64_t k = 0, at = out.at[g] + static_cast<std::int64_t>(l); at < out.at[g + 1]; ++k, at += W) {
+        out.neighbor[at] = k < n ? v.neighbor[b0 + k] : i;
+        out.coefficient[at] = k < n ? coefficient(i, b0 + k) : 0.0;
+      }
+    }
+  return out;
+}
+}  // namespace
+
+DashpotLanes dashpot_lanes(const BondLaw& law, double tau, const BondView& v, const std::int32_t* rows,
+                           std::size_t nrows) {
+  return make_lanes(v, rows, nrows, [&](std::int32_t i, std::int64_t b) {
+    const Family bonds = family(v, i);
+    Family::iterator at = bonds.begin();
+    at.b = b;
+    const FamilyBond bond = *at;
+    return tau * law.reference_stiffness(bond.xi2()) * bond.measure();
+  });
+}
+
+DashpotLanes dashpot_lanes(const BondView& v, const double* coefficient, const std::int32_t* rows, std::size_t nrows) {
+  return make_lanes(v, rows, nrows, [&](std::int32_t, std::int64_t b) { return coefficient[b]; });
+}
+
 void bond_dashpots_portable(const BondView& v, const double* records, const double* coefficient,
                             const std::int32_t* rows, std::size_t nrows, double* viscous) {
   for (std::size_t r = 0; r < nrows; ++r) dashpot_row(v, records, coefficient, rows[r], viscous);
 }
 
-void bond_dashpots(const BondView& v, const double* records, const double* coefficient, const std::int32_t* rows,
+void bond_dashpots(const BondView& v, const double* records, const DashpotLanes& lanes, const std::int32_t* rows,
                    std::size_t nrows, double* viscous) {
 #if defined(PERI_AVX2)
-  // (Measured no faster: two groups of four interleaved in one loop, and runs of four consecutive
-  // rows of one family shape loading each field as one vector from planes, about 40 instructions
-  // per four bonds instead of 56.)
-  for (std::size_t r = 0; r < nrows; r += 4) {
-    const int count = static_cast<int>(std::min<std::size_t>(4, nrows - r));
+  // (Measured no faster, with each lane reading its row's CSR list: two groups of four
+  // interleaved in one loop, and runs of four consecutive rows of one family shape loading each
+  // field as one vector from planes, about 40 instructions per four bonds instead of 56.)
+  constexpr int W = kDashpotLanes;
+  for (std::size_t r = 0; r < nrows; r += W) {
+    const int count = static_cast<int>(std::min<std::size_t>(W, nrows - r));
     bool intact = v.row_broken != nullptr;
     for (int l = 0; l < count && intact; ++l) intact = v.row_broken[rows[r + l]] == 0;
     if (intact)
-      dashpot_rows4<true>(v, records, coefficient, rows + r, count, viscous);
+      dashpot_group<true>(v, records, lanes, r / W, rows + r, count, viscous);
     else
-      dashpot_rows4<false>(v, records, coefficient, rows + r, count, viscous);
+      dashpot_group<false>(v, records, lanes, r / W, rows + r, count, viscous);
   }
 #else
-  bond_dashpots_portable(v, records, coefficient, rows, nrows, viscous);
+  // One lane: each row's bonds in CSR order (add_dashpot's operations, as dashpot_row).
+  for (std::size_t r = 0; r < nrows; ++r) {
+    const std::int32_t i = rows[r];
+    const double* ri = records + kDashpotRecord * static_cast<std::int64_t>(i);
+    double f[3] = {0, 0, 0};
+    for (std::int64_t b = v.offsets[i], at = lanes.at[r]; b < v.offsets[i + 1]; ++b, ++at)
+      if (!(v.broken[b] & kBrokenFlag))
+        add_dashpot(ri, records + kDashpotRecord * static_cast<std::int64_t>(lanes.neighbor[at]), lanes.coefficient[at], f);
+    for (int c = 0; c < 3; ++c) viscous[3 * static_cast<std::int64_t>(i) + c] = f[c];
+  }
 #endif
 }
 

@@ -225,12 +225,14 @@ void Forces::dashpot_setup(const Scene& scene, const std::vector<BodyGeometry>& 
   dashpot_tau_ = std::move(tau);
   has_kelvin_ = true;
   viscous_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);  // (a lattice's rows too: it writes them)
-  dashpot_coefficient_.assign(domain_.bonds.neighbor.size(), 0.0);
   const BondView view = bond_view();
+  dashpot_lanes_.assign(dashpot_tau_.size(), {});
   for (std::size_t b = 0; b < dashpot_tau_.size(); ++b)
     if (dashpot_tau_[b] > 0)
-      for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
-        dashpot_coefficients(laws_[b], dashpot_tau_[b], view, rows->data(), rows->size(), dashpot_coefficient_.data());
+      for (int part = 0; part < 2; ++part) {
+        const std::vector<std::int32_t>& rows = part == 0 ? interior_by_body_[b] : boundary_by_body_[b];
+        dashpot_lanes_[b][part] = dashpot_lanes(laws_[b], dashpot_tau_[b], view, rows.data(), rows.size());
+      }
 }
 
 void Forces::add_dashpots(const BondView& view, const double* velocity) {
@@ -238,9 +240,9 @@ void Forces::add_dashpots(const BondView& view, const double* velocity) {
   dashpot_records(view, velocity, domain_.local(), dashpot_records_.data());
   for (std::size_t b = 0; b < dashpot_tau_.size(); ++b) {
     if (!(dashpot_tau_[b] > 0)) continue;
-    for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]}) {
-      bond_dashpots(view, dashpot_records_.data(), dashpot_coefficient_.data(), rows->data(), rows->size(),
-                    viscous_.data());
+    for (int part = 0; part < 2; ++part) {
+      const std::vector<std::int32_t>* rows = part == 0 ? &interior_by_body_[b] : &boundary_by_body_[b];
+      bond_dashpots(view, dashpot_records_.data(), dashpot_lanes_[b][part], rows->data(), rows->size(), viscous_.data());
       for (std::int32_t i : *rows)
         for (int c = 0; c < 3; ++c) force_[3 * static_cast<std::size_t>(i) + c] += viscous_[3 * static_cast<std::size_t>(i) + c];
     }

@@ -10,14 +10,12 @@
 #include <cstddef>
 #include <cstdint>
 
+#include <vector>
+
+#include "peri/core/simd.hpp"
 #include "peri/kernels/forces.hpp"
 
 namespace peri {
-
-/// The bonds' dashpot constants tau C_ij w_ij V_j [N s/m^4] of `rows` (owned rows of one
-/// body, reference geometry from the view), written at their CSR positions: coefficient[b].
-void dashpot_coefficients(const BondLaw& law, double tau, const BondView& view, const std::int32_t* rows,
-                          std::size_t nrows, double* coefficient);
 
 /// Doubles per node of dashpot_records: [x, y, z, v_x, v_y, v_z, -, -], one cache line.
 inline constexpr std::int64_t kDashpotRecord = 8;
@@ -27,12 +25,47 @@ inline constexpr std::int64_t kDashpotRecord = 8;
 /// neighbour, not four (three position planes and the velocity).
 void dashpot_records(const BondView& view, const double* velocity, std::int64_t nodes, double* records);
 
+/// Rows the dashpot pass walks side by side, one per vector lane: eight with AVX-512, four with
+/// AVX2, else one.
+#if defined(PERI_AVX512VL)
+inline constexpr int kDashpotLanes = 8;
+#elif defined(PERI_AVX2)
+inline constexpr int kDashpotLanes = 4;
+#else
+inline constexpr int kDashpotLanes = 1;
+#endif
+
+/// The dashpots of some rows as bond_dashpots reads them: the rows in groups of kDashpotLanes
+/// (in the rows' order), slot k of lane l of group g at at[g] + k kDashpotLanes + l for k below
+/// the group's longest family, holding the bond's neighbour j and constant tau C w V; a lane past
+/// its row's end holds its own row and 0 (coincident ends: no bond). One stream per group, so
+/// that a slot's lanes are read from one pointer (with a list and a constant pointer per lane the
+/// loop kept them on the stack), and the lanes' constants load as one vector. With one lane, each
+/// row's bonds in CSR order.
+struct DashpotLanes {
+  std::vector<std::int64_t> at;  ///< per group its first slot, then the end
+  std::vector<std::int32_t> neighbor;
+  simd::AlignedVector<double> coefficient;
+  std::size_t bytes() const {
+    return at.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) + coefficient.size() * sizeof(double);
+  }
+};
+
+/// The DashpotLanes of `rows` (owned rows of one body, reference geometry from the view) with
+/// the bonds' dashpot constants tau C_ij w_ij V_j [N s/m^4] of `law`.
+DashpotLanes dashpot_lanes(const BondLaw& law, double tau, const BondView& view, const std::int32_t* rows,
+                           std::size_t nrows);
+/// The same with given constants at the bonds' CSR positions (coefficient[b]).
+DashpotLanes dashpot_lanes(const BondView& view, const double* coefficient, const std::int32_t* rows,
+                           std::size_t nrows);
+
 /// Writes the dashpot force density of each of `rows` into viscous[3 i + c] (replacing what was
-/// there): records: dashpot_records' of every local node; coefficient: dashpot_coefficients'
-/// (broken bonds are skipped by their flags). With AVX2, four rows at a time, one per lane (each
-/// lane its own row's bonds in CSR order); the same bits as bond_dashpots_portable.
-void bond_dashpots(const BondView& view, const double* records, const double* coefficient,
-                   const std::int32_t* rows, std::size_t nrows, double* viscous);
+/// there): records: dashpot_records' of every local node; lanes: dashpot_lanes' of these rows
+/// (broken bonds are skipped by their flags). With AVX2 or AVX-512, kDashpotLanes rows at a time,
+/// one per lane (each lane its own row's bonds in CSR order); the same bits as
+/// bond_dashpots_portable.
+void bond_dashpots(const BondView& view, const double* records, const DashpotLanes& lanes, const std::int32_t* rows,
+                   std::size_t nrows, double* viscous);
 
 /// bond_dashpots one row and one bond at a time, on every build (the unit tests' reference).
 void bond_dashpots_portable(const BondView& view, const double* records, const double* coefficient,

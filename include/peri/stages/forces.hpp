@@ -12,11 +12,13 @@
 #include <mpi.h>
 #include <petscmat.h>
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <vector>
 
 #include "peri/core/simd.hpp"
+#include "peri/kernels/dashpots.hpp"
 #include "peri/kernels/forces.hpp"
 #include "peri/geometry/discretization.hpp"
 #include "peri/models/long_range.hpp"
@@ -150,7 +152,7 @@ class Forces {
   bool has_lattice_ = false;
   bool has_kelvin_ = false;                      // some body has bond dashpots (velocity halo)
   std::vector<double> dashpot_tau_;              // per peridynamic body: its dashpots' tau [s] (0: none)
-  std::vector<double> dashpot_coefficient_;      // per owned-row bond: tau C w V (kernels/dashpots.hpp)
+  std::vector<std::array<DashpotLanes, 2>> dashpot_lanes_;  // per body: its interior and boundary rows' dashpots
   std::vector<std::uint8_t> lattice_direction_;  // lattice direction of every owned-row bond
   std::vector<double> dashpot_velocity_;          // the velocity the dashpots last saw, 3 * owned
   std::vector<double> viscous_;                  // dashpot force densities, 3 * local (owned rows written)
