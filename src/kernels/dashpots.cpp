@@ -168,12 +168,7 @@ template <class Coefficient>
 DashpotLanes make_lanes(const BondView& v, const std::int32_t* rows, std::size_t nrows, Coefficient coefficient) {
   constexpr std::size_t W = kDashpotLanes;
   DashpotLanes out;
-  out.at.assign(1, 0);
-  for (std::size_t r = 0; r < nrows; r += W) {
-    std::int64_t slots = 0;
-    for (std::size_t l = r; l < std::min(nrows, r + W); ++l) slots = std::max(slots, v.offsets[rows[l] + 1] - v.offsets[rows[l]]);
-    out.at.push_back(out.at.back() + slots * static_cast<std::int64_t>(W));
-  }
+  out.at = lane_group_starts(v, rows, nrows, W);
   out.neighbor.resize(static_cast<std::size_t>(out.at.back()));
   out.coefficient.resize(static_cast<std::size_t>(out.at.back()));
   for (std::size_t g = 0; g + 1 < out.at.size(); ++g)

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "peri/kernels/bond_loop.hpp"
 #include "peri/kernels/fast_loop.hpp"
 #include "peri/kernels/forces.hpp"
 
@@ -159,15 +160,8 @@ void plan_mirror(const BondView& v, RowBlocks& plan) {
 // RowBlocks::free_lanes of the plan's free rows, W lanes a group.
 void interleave_free_lanes(const BondView& v, RowBlocks& plan, int W) {
   const std::size_t nfree = plan.free.size();
-  plan.free_lanes_at.assign(1, 0);
-  std::int64_t total = 0;
-  for (std::size_t r = 0; r < nfree; r += W) {
-    std::int64_t nmax = 0;
-    for (std::size_t l = r; l < std::min(nfree, r + W); ++l)
-      nmax = std::max(nmax, v.offsets[plan.free[l] + 1] - v.offsets[plan.free[l]]);
-    plan.free_lanes_at.push_back(total += nmax * W);
-  }
-  plan.free_lanes.resize(static_cast<std::size_t>(total));
+  plan.free_lanes_at = lane_group_starts(v, plan.free.data(), nfree, static_cast<std::size_t>(W));
+  plan.free_lanes.resize(static_cast<std::size_t>(plan.free_lanes_at.back()));
   for (std::size_t r = 0, g = 0; r < nfree; r += W, ++g) {
     std::int32_t* at = plan.free_lanes.data() + plan.free_lanes_at[g];
     const std::int64_t slots = (plan.free_lanes_at[g + 1] - plan.free_lanes_at[g]) / W;

@@ -6,6 +6,7 @@
 #pragma once
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -120,6 +121,21 @@ class Family {
   bool free_;
 };
 inline Family family(const BondView& v, std::int32_t i) { return Family(v, i); }
+
+/// Rows rows[0 .. nrows-1] in groups of W, their bonds slot-major (slot k of the group's lane l at
+/// starts[g] + k W + l; the vector loops' interleaved lists, RowBlocks::free_lanes and
+/// DashpotLanes): each group's first slot, then the end; a group holds W times its longest
+/// family's slots.
+inline std::vector<std::int64_t> lane_group_starts(const BondView& v, const std::int32_t* rows, std::size_t nrows,
+                                                   std::size_t W) {
+  std::vector<std::int64_t> starts{0};
+  for (std::size_t r = 0; r < nrows; r += W) {
+    std::int64_t slots = 0;
+    for (std::size_t l = r; l < std::min(nrows, r + W); ++l) slots = std::max(slots, v.offsets[rows[l] + 1] - v.offsets[rows[l]]);
+    starts.push_back(starts.back() + slots * static_cast<std::int64_t>(W));
+  }
+  return starts;
+}
 
 namespace law_loop {
 

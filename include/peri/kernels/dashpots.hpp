@@ -46,9 +46,6 @@ struct DashpotLanes {
   std::vector<std::int64_t> at;  ///< per group its first slot, then the end
   std::vector<std::int32_t> neighbor;
   simd::AlignedVector<double> coefficient;
-  std::size_t bytes() const {
-    return at.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t) + coefficient.size() * sizeof(double);
-  }
 };
 
 /// The DashpotLanes of `rows` (owned rows of one body, reference geometry from the view) with
