@@ -327,6 +327,31 @@ TEST(LongRange, PairRules) {
   EXPECT_LT(law.force(PairKind::DistantSegments, 1.5e-9), 0.0);   // negative beta: repels
 }
 
+// Nodes flung apart by a failing run (1e300 m, 1e309 cutoffs across) still get their cells: the
+// cell counts do not overflow, and the pair within the cutoff is found beside them.
+TEST(LongRange, CellsHoldNodesFarApart) {
+  LongRangeTable t;
+  for (int k = 0; k < 4; ++k) {
+    t.natural.push_back(k);
+    t.fiber.push_back(k);  // other fibers: every pair within the cutoff interacts
+    t.segment.push_back(0);
+    t.X.insert(t.X.end(), {1e-8 * k, 0, 0});
+    t.volume.push_back(1e-27);
+  }
+  const PairLaw law(long_range_spec());
+  const double y = 1.3e-9;
+  const std::vector<double> x = {-1e300, 0, 0, 0, 0, 0, y, 0, 0, 0, 1e300, -1e300};
+  std::vector<double> f(12, 0.0);
+  LongRangeList list;
+  long_range_forces(law, t, x.data(), {0, 1, 2, 3}, f.data(), list);
+  EXPECT_EQ(list.begin, (std::vector<std::int64_t>{0, 0, 1, 2, 2}));
+  const double expected = law.force(PairKind::OtherFibers, y) * 1e-27;
+  EXPECT_NEAR(f[3], expected, 1e-12 * std::fabs(expected));
+  EXPECT_EQ(f[6], -f[3]);
+  EXPECT_EQ(f[0], 0.0);
+  EXPECT_EQ(f[9], 0.0);
+}
+
 // A segments rule selects exactly its pair of segments of one fiber, in either order, whatever
 // its place among the rules (it overrides the adjacent or distant rule for that pair and nothing
 // else, never across fibers); its own cutoff holds for its pairs, the section's for the others;

@@ -110,15 +110,18 @@ void CellList::build(const double* X, std::int64_t n, double reach_) {
                        "; expected nodes within 1e9 spacings of the origin");
   size_ = reach_ * (1.0 + 1e-9);
   // Keep the number of cells O(N) even for sparse scenes (grow the cell if needed).
+  // (Counted in doubles: nodes flung far apart in a failing run would overflow 64-bit counts.)
+  std::array<double, 3> dims{};
   for (;;) {
     double total = 1;
     for (int d = 0; d < 3; ++d) {
-      dims_[d] = static_cast<std::int64_t>(std::floor((hi[d] - lo_[d]) / size_)) + 1;
-      total *= static_cast<double>(dims_[d]);
+      dims[d] = std::floor((hi[d] - lo_[d]) / size_) + 1;
+      total *= dims[d];
     }
     if (total <= 4.0 * static_cast<double>(n) + 64) break;
     size_ *= 1.5;
   }
+  for (int d = 0; d < 3; ++d) dims_[d] = static_cast<std::int64_t>(dims[d]);
   const std::int64_t ncells = dims_[0] * dims_[1] * dims_[2];
   start_.assign(ncells + 1, 0);
   std::vector<std::int64_t> cell(n);

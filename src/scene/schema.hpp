@@ -226,7 +226,8 @@ inline const Keys kRegionKeys = {
 inline const Keys kInitialKeys = {
     {.name = "displacement_gradient", .fallback = "zeros",
      .doc = "3 x 3 matrix G, rows as lists: u = G (X - center) (`[[0, 0, 0], [0, 0.08, 0], [0, 0, 0]]` stretches y "
-            "by 8%); may move a node by at most 100 times its body's extent"},
+            "by 8%); may move a node by at most 100 times its body's extent, and shorten no bond below 0.01 of its length "
+            "(F = I + G collapses no body)"},
     {.name = "velocity_gradient", .unit = "1/s", .fallback = "zeros", .doc = "3 x 3 matrix L: v = L (X - center)"},
     {.name = "center", .unit = "m", .fallback = "[0, 0, 0]", .doc = "the fixed point of both fields"},
     {.name = "seed", .fallback = "none",

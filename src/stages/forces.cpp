@@ -28,6 +28,14 @@ void LongRangeForces::refresh(const double* X, const double* u) {
   // sees; every node is some rank's own, so the ranks' verdicts together cover all nodes, and
   // every rank follows the same (global) decision.
   if (!halo.on_any_rank(list.stale(x.data(), static_cast<std::int64_t>(id.size())))) return;
+  // A node flung to infinity (a failing run, between two health checks) has no cell: stop the
+  // run as the health check would, on every rank.
+  bool finite = true;
+  for (std::size_t k = 0; k < 3 * own; ++k) finite = finite && std::isfinite(x[k]);
+  if (halo.on_any_rank(!finite))
+    throw RuntimeFailure("unstable explicit integration: a node of the long-range pairs is no longer at a finite "
+                         "position; likely cause: the time step is too large for the current state, or nodes "
+                         "pressed together far closer than the long-range law's cutoff");
   PetscLogEventBegin(events().long_range_build, 0, 0, 0, 0);
   halo.rebuild(static_cast<std::int64_t>(own), id, x, law.reach + list.skin);
   volume.resize(id.size());

@@ -1,12 +1,15 @@
 #include "peri/stages/setup_checks.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <map>
 #include <optional>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "peri/io/restart.hpp"
 #include "peri/models/model.hpp"
@@ -19,6 +22,7 @@ constexpr double kFamilyWarning = 1e4;    // bonds per node beyond which a horiz
 constexpr double kSmallestStep = 1e-150;  // [s]: 2 / dt^2 (a tool's penalty) stays finite
 constexpr double kEnergyRange = 1e280;    // [J]: a body's energy scale sum m c_l^2 in [1/x, x]
 constexpr double kLargestStrain = 100;    // initial displacement / body extent
+constexpr double kSmallestStretch = 0.01;  // initial bond length / reference length under F = I + H
 constexpr double kLargestWallStress = 100;  // sphere: p R / (2 h) / in-plane bulk modulus
 // A node's distance from the origin in spacings (its largest coordinate / dx): positions are
 // rounded to 2^-53 of their magnitude, so at 1e9 spacings to 1.1e-7 of a spacing (stretches
@@ -299,6 +303,43 @@ void check_initial_state(const Problem& p) {
         << scene.bodies[b].name << "' by up to " << num(u_max[b]) << " m, more than " << num(kLargestStrain)
         << " times its extent (" << num(extent) << " m); expected an initial stretch of at most " << num(kLargestStrain + 1);
     throw InputError(msg.str());
+  }
+  // The initial deformation gradient F = I + H collapses no bond: a bond it shortens to nothing
+  // puts two nodes on top of each other (H = -I along a direction flattens the body onto a
+  // plane). Per body, the smallest |F xi|^2 / |xi|^2 over the bonds, and where: on failure the bond
+  // of the rank that holds the smallest names its direction (the same message on every rank).
+  {
+    const std::array<double, 9>& H = ic.displacement_gradient;
+    std::vector<std::pair<double, int>> least(nb, {INFINITY, p.rank});
+    std::vector<std::array<double, 3>> direction(nb, {0, 0, 0});
+    const BondFamilies& bonds = domain.bonds;
+    for (std::int32_t i = 0; i < domain.owned; ++i) {
+      const int b = domain.body[i];
+      const double* Xi = &domain.X[3 * static_cast<std::size_t>(i)];
+      for (std::int64_t e = bonds.offsets[i]; e < bonds.offsets[i + 1]; ++e) {
+        const double* Xj = &domain.X[3 * static_cast<std::size_t>(bonds.neighbor[e])];
+        const double xi[3] = {Xj[0] - Xi[0], Xj[1] - Xi[1], Xj[2] - Xi[2]};
+        double y[3];
+        for (int a = 0; a < 3; ++a) y[a] = xi[a] + H[3 * a] * xi[0] + H[3 * a + 1] * xi[1] + H[3 * a + 2] * xi[2];
+        const double stretch2 = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) / (xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+        if (!(stretch2 < least[b].first)) continue;
+        least[b].first = stretch2;
+        direction[b] = {xi[0], xi[1], xi[2]};
+      }
+    }
+    MPI_Allreduce(MPI_IN_PLACE, least.data(), static_cast<int>(nb), MPI_DOUBLE_INT, MPI_MINLOC, p.comm);
+    for (std::size_t b = 0; b < nb; ++b) {
+      if (least[b].first >= kSmallestStretch * kSmallestStretch) continue;  // (a body without bonds keeps inf)
+      MPI_Bcast(direction[b].data(), 3, MPI_DOUBLE, least[b].second, p.comm);
+      const double length = std::hypot(direction[b][0], direction[b][1], direction[b][2]);
+      std::ostringstream msg;
+      msg << where << "initial.displacement_gradient: F = I + displacement_gradient shortens bonds of body '"
+          << scene.bodies[b].name << "' along (" << num(direction[b][0] / length) << ", " << num(direction[b][1] / length)
+          << ", " << num(direction[b][2] / length) << ") to " << num(std::sqrt(least[b].first))
+          << " of their length, collapsing the body; expected every bond's initial stretch |F xi| / |xi| to be at least "
+          << num(kSmallestStretch);
+      throw InputError(msg.str());
+    }
   }
   // Tools start clear of every node: one inside would be thrown out by a penalty force far
   // beyond what the time step resolves.
