@@ -601,6 +601,13 @@ TEST(SceneOverride, BadPaths) {
   EXPECT_THAT(error_of(read_file(kDefaultScenePath), {{"boundaries.left.velocity", "[1, 0, 0]"}}),
               AllOf(StartsWith("--set boundaries.left.velocity=[1, 0, 0]: "),
                     HasSubstr("no entry named 'left' in boundaries"), HasSubstr("top, bottom")));
+  // A key inside a body or material the scene lacks: a misspelt name, said as such with the
+  // names there are (not "missing required key" of an entry the override began).
+  EXPECT_EQ(error_of(kBase, {{"bodies.shet.spacing", "1"}}),
+            "--set bodies.shet.spacing=1: the scene has no body 'shet'; its bodies: sheet (a new body is given "
+            "whole: --set bodies.shet={...})");
+  EXPECT_THAT(error_of(kBase, {{"materials.rubbr.density", "1"}}),
+              StartsWith("--set materials.rubbr.density=1: the scene has no material 'rubbr'; its materials: rubber"));
   EXPECT_THAT(error_of(kBase, {{"name.x", "1"}}),
               AllOf(StartsWith("--set name.x=1: "), HasSubstr("'name'"), HasSubstr("no entry 'x'")));
   EXPECT_THAT(error_of(kBase, {{"bodies..spacing", "1"}}),
@@ -1116,7 +1123,7 @@ TEST(SceneNames, HostileNamesRefused) {
   }
   EXPECT_EQ(error_of(with("name: test", R"(name: "a\tb/\u00e9")")),
             "scene.yaml:1: name: expected a scene" + rule + ", got \"a\\x09b/\\xc3\\xa9\"");
-  EXPECT_EQ(error_of(kBase, {{"bodies.x/y.material", "rubber"}}),
+  EXPECT_EQ(error_of(kBase, {{"bodies.x/y", "{material: rubber}"}}),
             "--set: bodies: expected a body" + rule + " as key, got \"x/y\"");
   EXPECT_EQ(error_of(kBase, {{"name", std::string(70, 'z')}}),
             "--set: name: expected a scene" + rule + ", got \"" + std::string(40, 'z') + "\" (70 characters)");

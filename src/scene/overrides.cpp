@@ -89,6 +89,16 @@ void apply_override(YAML::Node& root, const Override& o, Context& ctx) {
       const YAML::Node& const_cur = cur;
       const YAML::Node existing = const_cur[segment];
       if (!existing.IsDefined() || existing.IsNull()) {
+        // A key inside an entry of materials or bodies that the scene lacks is a misspelt name
+        // far more often than a new entry built key by key (which takes a whole map anyway).
+        if (i == 1 && (segments[0] == "materials" || segments[0] == "bodies")) {
+          std::vector<std::string> names;
+          for (const auto& entry : const_cur) names.push_back(entry.first.as<std::string>());
+          const std::string what = segments[0] == "bodies" ? "body" : "material";
+          fail("the scene has no " + what + " '" + segment + "'" +
+               (names.empty() ? std::string() : "; its " + segments[0] + ": " + join(names)) + " (a new " + what +
+               " is given whole: --set " + segments[0] + "." + segment + "={...})");
+        }
         cur[segment] = YAML::Node(YAML::NodeType::Map);
         ctx.mark_overridden(path);
       }
