@@ -2,6 +2,6 @@
 #pragma once
 
 namespace peri {
-const char* git_revision();  ///< `git describe --always --dirty` at configure time
+const char* git_revision();  ///< `git describe --always --dirty` when the binary was built
 const char* version();       ///< project version
 }  // namespace peri
