@@ -374,6 +374,43 @@ TEST(Forces, AreNegativeGradientOfEnergy) {
   }
 }
 
+// A node's damage is the broken share of its family's measures w V_j; rows without a broken flag
+// are 0, whether row_broken says so or the flags are read (bits other than kBrokenFlag, which
+// mark lattice bonds, are no damage).
+TEST(Forces, NodeDamageIsTheBrokenShareOfTheMeasures) {
+  // Rows 0 and 1 of four nodes, each bonded to the other three; row 0 with a family pattern.
+  const std::vector<double> X = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  const std::vector<double> V = {1.0, 2.0, 3.0, 4.0};
+  const std::vector<std::int64_t> offsets = {0, 3, 6};
+  const std::vector<std::int32_t> nbr = {1, 2, 3, 0, 2, 3};
+  PatternBuilder builder;
+  builder.add_row({1.0, 1.0, 2.0}, {0.5 * 2.0, 1.0 * 3.0, 0.25 * 4.0}, 1.5);  // w V_j: 1, 3, 1
+  builder.add_free_row({1.0, 1.0, 1.0});
+  const FamilyPatterns patterns = builder.finish();
+  std::vector<std::uint8_t> broken(6, 0), row_broken(2, 0);
+  BondView v{X.data(), nullptr, V.data(), offsets.data(), nbr.data(), broken.data(), &patterns};
+  const std::int32_t rows[] = {0, 1};
+  auto damage = [&](bool with_row_bytes) {
+    v.row_broken = with_row_bytes ? row_broken.data() : nullptr;
+    std::vector<double> d(2, -1.0);
+    node_damage(v, rows, 2, d.data());
+    return d;
+  };
+  EXPECT_EQ(damage(true), (std::vector<double>{0.0, 0.0}));
+  broken[4] = 2;  // another bit than kBrokenFlag: no damage
+  row_broken[1] = 1;
+  EXPECT_EQ(damage(true), (std::vector<double>{0.0, 0.0}));
+  EXPECT_EQ(damage(false), (std::vector<double>{0.0, 0.0}));
+  broken[1] = kBrokenFlag;  // row 0's bond to node 2: w V_j = 3 of 5
+  broken[5] = kBrokenFlag | 2;  // row 1's bond to node 3: V_3 = 4 of 1 + 3 + 4 (free row: weight 1)
+  row_broken = {1, 1};
+  for (const bool with_row_bytes : {true, false}) {
+    const std::vector<double> d = damage(with_row_bytes);
+    EXPECT_DOUBLE_EQ(d[0], 3.0 / 5.0);
+    EXPECT_DOUBLE_EQ(d[1], 4.0 / 8.0);
+  }
+}
+
 // The energy booked at breaking, w(lambda_0) in closed form, is the micropotential evaluated at
 // y = lambda_0 |xi| for every law shape (membrane with and without hardening, conical influence,
 // linear lambda_0; PMB).

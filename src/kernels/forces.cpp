@@ -57,6 +57,19 @@ double bond_energy(const BondLaw& law, const BondView& v, const std::int32_t* ro
 void node_damage(const BondView& v, const std::int32_t* rows, std::size_t nrows, double* damage) {
   for (std::size_t r = 0; r < nrows; ++r) {
     const std::int32_t i = rows[r];
+    // A row without a broken bond has no damage: its byte of row_broken, else its flags, say so
+    // without the measures (a frame or a crack-tip sample of a sheet with one crack reads a few
+    // rows' measures, not every row's).
+    bool lost_any = !v.row_broken || v.row_broken[i];
+    if (lost_any) {
+      std::uint8_t flags = 0;
+      for (std::int64_t b = v.offsets[i]; b < v.offsets[i + 1]; ++b) flags |= v.broken[b] & kBrokenFlag;
+      lost_any = flags != 0;
+    }
+    if (!lost_any) {
+      damage[i] = 0.0;  // (lost / all = 0 / all)
+      continue;
+    }
     double all = 0, lost = 0;
     for (const FamilyBond& bond : family(v, i)) {
       const double m = bond.measure();
