@@ -81,16 +81,21 @@ double marder_node(const MarderLaw& law, int n, const double* d, const std::uint
   double r[kMarderMaxNeighbours], hv[kMarderMaxNeighbours], hr[kMarderMaxNeighbours];
   double energy = 0;
   const double rmin = 1e-12 * law.delta;  // coincident nodes: no direction, no force
+  // In passes over the bonds (lengths, the switches, then the terms), so that the bonds' chains
+  // of root, exponential and divisions overlap; each value is computed as law.h and law.dh do.
   for (int j = 0; j < n; ++j) {
     const double* dj = d + 3 * j;
     r[j] = std::max(std::sqrt(dj[0] * dj[0] + dj[1] * dj[1] + dj[2] * dj[2]), rmin);
+  }
+  for (int j = 0; j < n; ++j) hv[j] = active[j] ? law.h(r[j]) : 0.0;  // eq. (32)
+  for (int j = 0; j < n; ++j) {
+    const double* dj = d + 3 * j;
     double c = 0;
-    hv[j] = hr[j] = 0;
+    hr[j] = 0;
     if (active[j]) {
-      energy += law.f(r[j]);                // eq. (28)
+      energy += law.f(r[j]);  // eq. (28)
       c = law.df(r[j]) / r[j];
-      hv[j] = law.h(r[j]);
-      hr[j] = law.dh(r[j]) / r[j];
+      hr[j] = -hv[j] * (1.0 - hv[j]) / law.us / r[j];  // law.dh(r) / r
     }
     if (grad)
       for (int k = 0; k < 3; ++k) grad[3 * j + k] = c * dj[k];
