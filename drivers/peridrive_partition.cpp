@@ -197,6 +197,13 @@ int run(int argc, char** argv) {
   }
   if (scene_path.empty()) throw peri::InputError("no scene file given; see --help");
   const peri::Scene scene = peri::load_scene(scene_path, overrides);
+  // The CSV file is opened before the work, so that a path that cannot be written is refused
+  // at once rather than after every partition.
+  std::ofstream csv_file;
+  if (!csv_path.empty()) {
+    csv_file.open(csv_path);
+    if (!csv_file) throw peri::InputError("--csv " + csv_path + ": cannot write the file");
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const peri::Nodes nodes = peri::discretize(scene);
   if (default_methods && peri::fills_its_box(nodes)) methods.insert(methods.begin(), peri::PartitionMethod::Rcb);
@@ -208,6 +215,17 @@ int run(int argc, char** argv) {
   const std::int64_t n = nodes.size(), bonds = graph.offsets.back();
   std::printf("# %lld nodes, %lld ordered bonds; nodes + bond graph built in %.3g s, peak RSS %.1f MB\n",
               static_cast<long long>(n), static_cast<long long>(bonds), graph_seconds, peak_rss_kb() / 1024.0);
+  // More parts than nodes leave parts empty: those P are skipped, and said so.
+  std::string skipped;
+  for (int P : parts)
+    if (P > n) skipped += (skipped.empty() ? "" : ", ") + std::to_string(P);
+  if (!skipped.empty()) {
+    if (std::all_of(parts.begin(), parts.end(), [n](int P) { return P > n; }))
+      throw peri::InputError("--parts: every value (" + skipped + ") exceeds the scene's " + std::to_string(n) +
+                             " nodes; expected at most " + std::to_string(n) + " parts");
+    std::fprintf(stderr, "peridrive-partition: note: parts beyond the scene's %lld nodes skipped: %s\n",
+                 static_cast<long long>(n), skipped.c_str());
+  }
   std::ostringstream csv;
   csv << "parts,method,nodes,ordered_bonds,max_owned_nodes,max_owned_bonds,mean_owned_bonds,max_ghosts,mean_ghosts,"
          "max_neighbour_parts,mean_neighbour_parts,edge_cut,balance,graph_vertices,metis_seconds,partitioner_peak_mb,"
@@ -277,9 +295,9 @@ int run(int argc, char** argv) {
   }
   std::fputs(csv.str().c_str(), stdout);
   if (!csv_path.empty()) {
-    std::ofstream f(csv_path);
-    f << csv.str();
-    if (!f) throw peri::Error("cannot write " + csv_path);
+    csv_file << csv.str();
+    csv_file.close();
+    if (!csv_file) throw peri::Error("--csv " + csv_path + ": writing the file failed");
   }
   return 0;
 }

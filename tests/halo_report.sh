@@ -39,3 +39,25 @@ sets=(--set bodies.sheet.spacing=0.0005)
 check sheet "$src/drivers/scenes/slit_membrane.yaml" "$@"
 sets=(--set bodies.plate.spacing=0.0005)
 check plate "$src/drivers/scenes/plate_with_hole.yaml" "$@"
+
+# peridrive-partition's refusals: exit status 2 and one message, before any partition is made.
+refused() {  # name expected-message args...
+  local name=$1 want=$2
+  shift 2
+  set +e
+  "$partition" "$@" > "$work/$name.out" 2> "$work/$name.err"
+  local rc=$?
+  set -e
+  if [ "$rc" -ne 2 ] || ! grep -qF -- "$want" "$work/$name.err" || grep -q "^P = " "$work/$name.err"; then
+    echo "FAIL $name: exit status $rc, stderr:"; cat "$work/$name.err"; exit 1
+  fi
+  echo "ok   $name: $(cat "$work/$name.err")"
+}
+plate=("$src/drivers/scenes/plate_with_hole.yaml" --set bodies.plate.spacing=0.001)
+refused too_many_parts "--parts: every value (100000) exceeds the scene's 1516 nodes" "${plate[@]}" --parts 100000
+refused csv_unwritable "--csv $work/none/x.csv: cannot write the file" "${plate[@]}" --parts 2 --csv "$work/none/x.csv"
+# A P beyond the nodes among others is skipped with a note; the others are reported.
+"$partition" "${plate[@]}" --parts 2,100000 --method rcb --csv "$work/some.csv" > /dev/null 2> "$work/some.err"
+grep -qF "parts beyond the scene's 1516 nodes skipped: 100000" "$work/some.err" && [ "$(wc -l < "$work/some.csv")" -eq 2 ] \
+  || { echo "FAIL skipped_parts:"; cat "$work/some.err"; exit 1; }
+echo "ok   skipped_parts"
