@@ -121,6 +121,22 @@ with h5py.File(sys.argv[1] + "/frames.h5", "r") as f:
         and np.all(X[:, 0] <= 0.0025) and last["position"].dtype == np.float32 and last["damage"].shape == ids.shape
     sys.exit(0 if ok else 1)
 PY
+# tools/crack_path.py takes the reference positions from the mesh, not from the frames' fields:
+# frames of damage alone are analysed (spacing 0.5 mm found); frames without damage are refused
+# with exit status 2 and the fields they hold (not a traceback).
+run damage_only "damage body" -- "$src/tests/restart/tiny_sheet.yaml" --set 'output={frames: 2, fields: [damage]}'
+if "$py" "$src/tools/crack_path.py" "$work/damage_only" --json > "$work/cp.json" 2> "$work/cp.err" &&
+  "$py" -c "import json, sys; sys.exit(0 if abs(json.load(open(sys.argv[1]))['spacing'] - 5e-4) < 1e-9 else 1)" "$work/cp.json"; then
+  echo "ok   crack_path_damage_only"; pass=$((pass + 1))
+else
+  echo "FAIL crack_path_damage_only: $(cat "$work/cp.json" "$work/cp.err" | head -c 300)"; fail=$((fail + 1))
+fi
+"$py" "$src/tools/crack_path.py" "$work/no_positions" > /dev/null 2> "$work/cp.err"
+if [ $? -eq 2 ] && grep -qF "crack_path: the frames of $work/no_positions hold no damage" "$work/cp.err"; then
+  echo "ok   crack_path_no_damage: $(cat "$work/cp.err")"; pass=$((pass + 1))
+else
+  echo "FAIL crack_path_no_damage: $(head -c 300 "$work/cp.err")"; fail=$((fail + 1))
+fi
 cp -r "$src/tests/restart/old_layout" "$work/old_layout"
 if "${mpi[@]}" "$peridrive" --resume "$work/old_layout" --quiet > "$work/stdout" 2> "$work/stderr"; then
   check old_layout "$all"

@@ -26,11 +26,15 @@ import peri_view  # noqa: E402
 
 
 def load(run, frame):
-    with peri_view.open_frames(run) as f:
-        names = peri_view.frame_names(f, run)
-        g = f["frames"][names[frame]]
-        X = g["position"][()] - g["displacement"][()]
-        return X, g["damage"][()], float(g.attrs["time"])
+    """Reference positions, damage and time of frame `frame` (negative: from the end)."""
+    r = peri_view.Run(run)
+    r.require("crack_path", "damage")
+    n = len(r.frame_names)
+    if not -n <= frame < n:
+        print(f"crack_path: --frame {frame}: the run holds frames 0 .. {n - 1} (or -{n} .. -1)", file=sys.stderr)
+        sys.exit(2)
+    f = r.frame(frame)
+    return r.reference, f["damage"], f["time"]
 
 
 def path(X, damage, threshold, fork):
