@@ -23,6 +23,7 @@
 #include "peri/io/restart.hpp"
 #include "peri/io/run_dir.hpp"
 #include "peri/scene/describe.hpp"
+#include "peri/core/format.hpp"
 #include "peri/stages/simulation.hpp"
 
 namespace {
@@ -155,10 +156,10 @@ Args parse_args(int argc, char** argv) {
       const std::string kv = s == "--set" ? value(k, s) : checked("--set", s.substr(6));
       const auto eq = kv.find('=');
       if (eq == std::string::npos || eq == 0)
-        throw peri::InputError("--set " + kv + ": expected KEY=VALUE, e.g. --set bodies.sheet.spacing=5e-4");
+        throw peri::InputError("--set " + peri::shown_value(kv) + ": expected KEY=VALUE, e.g. --set bodies.sheet.spacing=5e-4");
       a.overrides.push_back({kv.substr(0, eq), kv.substr(eq + 1)});
     } else if (s.rfind("--", 0) == 0) {
-      throw peri::InputError("unknown option " + s + "; see --help");
+      throw peri::InputError("unknown option " + peri::shown_value(s) + "; see --help");
     } else if (petsc_option(s)) {
       a.petsc.push_back(argv[k]);
       after_petsc_option = true;

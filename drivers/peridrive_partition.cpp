@@ -26,6 +26,7 @@
 
 #include "peri/partition/partition.hpp"
 #include "peri/core/resources.hpp"
+#include "peri/core/format.hpp"
 
 namespace {
 
@@ -178,7 +179,7 @@ int run(int argc, char** argv) {
     else if (a == "--set") {
       const std::string kv = value();
       const auto eq = kv.find('=');
-      if (eq == std::string::npos || eq == 0) throw peri::InputError("--set " + kv + ": expected KEY=VALUE");
+      if (eq == std::string::npos || eq == 0) throw peri::InputError("--set " + peri::shown_value(kv) + ": expected KEY=VALUE");
       overrides.push_back({kv.substr(0, eq), kv.substr(eq + 1)});
     } else if (a == "--help" || a == "-h") {
       std::puts(
@@ -193,7 +194,7 @@ int run(int argc, char** argv) {
           "the partitioner's time and its peak memory.");
       return 0;
     } else if (scene_path.empty() && a[0] != '-') scene_path = a;
-    else throw peri::InputError("unknown argument " + a + "; see --help");
+    else throw peri::InputError("unknown argument " + peri::shown_value(a) + "; see --help");
   }
   if (scene_path.empty()) throw peri::InputError("no scene file given; see --help");
   const peri::Scene scene = peri::load_scene(scene_path, overrides);

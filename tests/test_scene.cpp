@@ -613,6 +613,16 @@ TEST(SceneOverride, BadPaths) {
   EXPECT_THAT(error_of(kBase, {{"bodies..spacing", "1"}}),
               StartsWith("--set bodies..spacing=1: expected a dotted key path"));
   EXPECT_THAT(error_of(kBase, {{"", "1"}}), StartsWith("--set =1: expected a dotted key path"));
+  // Values are shown cut after 60 characters, with their length, and control characters escaped:
+  // one short line whatever the value.
+  const std::string deep = std::string(5000, '[') + std::string(5000, ']');
+  EXPECT_EQ(error_of(kBase, {{"bodies.sheet.spacing", deep}}),
+            "--set bodies.sheet.spacing=" + std::string(60, '[') + "... (10000 characters): cannot read the value as YAML: " +
+                "bad file");
+  EXPECT_EQ(error_of(kBase, {{"bodies.sheet.spacing", std::string(500, '1')}}),
+            "--set: bodies.sheet.spacing: expected a finite number, got " + std::string(60, '1') + "... (500 characters)");
+  EXPECT_EQ(error_of(kBase, {{"bodies.sheet.spacing", "\"a\\tb\\u001b[31m\""}}),
+            "--set: bodies.sheet.spacing: expected a positive number [m], got \"a\\x09b\\x1b[31m\"");
   EXPECT_THAT(error_of(kBase, {{"bodies.sheet.origin", "[1, 2"}}),
               StartsWith("--set bodies.sheet.origin=[1, 2: cannot read the value as YAML"));
 }

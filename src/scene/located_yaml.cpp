@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include "peri/core/format.hpp"
+
 namespace peri::scene_detail {
 
 /// Shortest decimal text that reads back to the same double: the shortest fixed and scientific
@@ -68,8 +70,8 @@ std::string describe(const YAML::Node& node) {
   if (node.IsMap()) return node.size() == 0 ? "an empty map" : "a map";
   if (node.IsSequence())
     return node.size() == 0 ? "an empty list" : "a list of " + std::to_string(node.size());
-  if (node.Tag() == "!") return "\"" + node.Scalar() + "\"";
-  return node.Scalar();
+  auto [part, rest] = shown_parts(node.Scalar());
+  return node.Tag() == "!" ? "\"" + part + "\"" + rest : part + rest;
 }
 
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <functional>
 
+#include "peri/core/format.hpp"
 #include "schema.hpp"
 
 namespace peri::scene_detail {
@@ -47,7 +48,7 @@ std::size_t find_entry(const YAML::Node& list, const std::string& segment, const
 /// entries by index, as validation messages name them).
 void apply_override(YAML::Node& root, const Override& o, Context& ctx) {
   const auto fail = [&](const std::string& why) {
-    throw InputError("--set " + o.path + "=" + o.value + ": " + why);
+    throw InputError("--set " + shown_value(o.path) + "=" + shown_value(o.value) + ": " + why);
   };
   YAML::Node value;
   try {

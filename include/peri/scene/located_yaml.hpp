@@ -46,7 +46,8 @@ std::string child_path(const std::string& parent, const std::string& key);
 enum class NumberText { Ok, NotANumber, NotFinite, Subnormal };
 /// A YAML plain scalar as a double: finite, and 0 or at least the smallest normal double.
 NumberText parse_number(std::string_view s, double& out);
-/// A node as the "got ..." part of a message.
+/// A node as the "got ..." part of a message (a scalar as shown_value, core/format.hpp, shows
+/// it, in quotes where the file quoted it).
 std::string describe(const YAML::Node& node);
 
 /// Names given in a scene (the scene's, materials', bodies', cracks', boundaries', tools' and
