@@ -102,6 +102,12 @@ expect initial_collapse_y "along (0, 1, 0) to 0.005 of their length" -- "${coars
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --dry-run --set 'initial.displacement_gradient=[[-0.5, 0, 0], [0, 0, 0], [0, 0, -1]]' \
   > "$work/stdout" 2> "$work/stderr"
 if [ $? -eq 0 ]; then ok "initial_compression: accepted"; else bad "initial_compression: refused"; fi
+# A quasi-static stage's prescribed motion beyond 100 extents: refused at setup, not a Newton
+# failure at the first increment read as a limit point.
+release=$scenes/slit_release.yaml
+release_line=$(grep -n -m1 -- '^  - name: preload' "$release" | cut -d: -f1)
+expect preload_displacement_huge "$release:$release_line: stages.0.displacements.top: moves boundary nodes by up to 1e+300 m over stage 'preload', more than 100 times the largest body's extent (0.0692965 m)" -- "$release" --set bodies.sheet.spacing=0.001 --set 'stages.preload.displacements={top: [0, 1e300, 0]}'
+expect preload_gradient_huge "stages.0.displacement_gradient: moves boundary nodes by up to 2.45e+08 m over stage 'preload'" -- "$release" --set bodies.sheet.spacing=0.001 --set 'stages.preload.displacement_gradient=[[0, 0, 0], [0, 1e10, 0], [0, 0, 0]]'
 expect seed_huge "<default scene>: initial.seed.amplitude: displaces nodes of body 'sheet' by up to 1e+300 m" -- "${coarse[@]}" --set 'initial.seed={amplitude: 1e300}'
 expect tool_velocity_huge "tools.0.velocity: 1e+300 m/s moves nodes 1.1156e+294 m in one step of stage 'push'" -- "$tool" "${coarse[@]}" --set 'tools.rod.velocity=[1e300, 0]'
 

@@ -249,7 +249,9 @@ void check_initial_state(const Problem& p) {
   // without boundary, and -lo, hi of its reference box (3 each); per tool, the deepest node inside
   // at t = 0; per boundary, the smallest spacing among its nodes' bodies (its negative). Sums: per
   // tool, the nodes inside.
-  const std::size_t n_max = 9 * nb + nt + nc;
+  // Per stage: the largest |H_s (X - center)| of a boundary node (quasi-static stages' gradient).
+  const std::size_t ns = scene.stages.size();
+  const std::size_t n_max = 9 * nb + nt + nc + ns;
   std::vector<double> most(n_max, -INFINITY), count(nt, 0.0);
   double* u_max = most.data();
   double* affine_max = u_max + nb;
@@ -258,6 +260,7 @@ void check_initial_state(const Problem& p) {
   double* hi = lo_neg + 3 * nb;
   double* depth = hi + 3 * nb;
   double* neg_spacing = depth + nt;
+  double* stage_affine = neg_spacing + nc;
   {
     const VecArrayRead u(p.state->displacement()), v(p.state->velocity());
     for (std::int32_t i = 0; i < domain.owned; ++i) {
@@ -273,6 +276,13 @@ void check_initial_state(const Problem& p) {
       const int bc = p.boundaries->of(i);
       if (bc < 0) v_max[b] = std::max(v_max[b], std::hypot(vi[0], vi[1], vi[2]));
       else neg_spacing[bc] = std::max(neg_spacing[bc], -p.bodies[b].spacing);
+      for (std::size_t st = 0; st < ns && bc >= 0; ++st) {
+        const std::array<double, 9>& H = scene.stages[st].displacement_gradient;
+        double a[3] = {0, 0, 0};
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) a[r] += H[3 * r + c] * (X[c] - ic.center[c]);
+        stage_affine[st] = std::max(stage_affine[st], std::hypot(a[0], a[1], a[2]));
+      }
       for (int c = 0; c < 3; ++c) {
         lo_neg[3 * b + c] = std::max(lo_neg[3 * b + c], -X[c]);
         hi[3 * b + c] = std::max(hi[3 * b + c], X[c]);
@@ -303,6 +313,32 @@ void check_initial_state(const Problem& p) {
         << scene.bodies[b].name << "' by up to " << num(u_max[b]) << " m, more than " << num(kLargestStrain)
         << " times its extent (" << num(extent) << " m); expected an initial stretch of at most " << num(kLargestStrain + 1);
     throw InputError(msg.str());
+  }
+  // Quasi-static stages' prescribed motion: at most kLargestStrain times the largest body's
+  // extent, as the initial displacement (beyond it Newton fails at the first increment, read as a
+  // limit point).
+  double largest_extent = 0;
+  for (std::size_t b = 0; b < nb; ++b) {
+    double extent2 = 0;
+    for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
+    largest_extent = std::max({largest_extent, std::sqrt(extent2), p.bodies[b].spacing});
+  }
+  for (std::size_t st = 0; st < ns; ++st) {
+    const Stage& stage = scene.stages[st];
+    if (stage.kind != StageKind::QuasiStatic) continue;
+    const std::string key = stage.where.str() + ": stages." + std::to_string(st);
+    auto refuse = [&](const std::string& what, double by) {
+      std::ostringstream msg;
+      msg << key << what << ": moves boundary nodes by up to " << num(by) << " m over stage '" << stage.name
+          << "', more than " << num(kLargestStrain) << " times the largest body's extent (" << num(largest_extent)
+          << " m)";
+      throw InputError(msg.str());
+    };
+    for (const BoundaryValue& bv : stage.displacements) {
+      const double by = std::hypot(bv.value[0], bv.value[1], bv.value[2]);
+      if (!(by <= kLargestStrain * largest_extent)) refuse(".displacements." + bv.boundary, by);
+    }
+    if (stage_affine[st] > kLargestStrain * largest_extent) refuse(".displacement_gradient", stage_affine[st]);
   }
   // The initial deformation gradient F = I + H collapses no bond: a bond it shortens to nothing
   // puts two nodes on top of each other (H = -I along a direction flattens the body onto a
