@@ -55,6 +55,8 @@ expect bulk_modulus_huge "materials.film.bulk_modulus: 1e+300 Pa in bodies.sheet
 expect micromodulus_huge "materials.film.micromodulus: 1e+300 gives body 'sheet' an energy scale sum m c_l^2 = 3.39292e+281 J" -- "$tool" "${coarse[@]}" --set materials.film.bulk_modulus=~ --set materials.film.micromodulus=1e300
 expect youngs_modulus_huge "(safety_factor 0.35 x the stable bound 3.46555e-127 s) takes 1.07177e+123 steps; expected at most 1000000000 steps per stage" -- "${coarse[@]}" --set materials.rubber.wave_speed=~ --set materials.rubber.youngs_modulus=1e250
 expect pressure_huge "bodies.balloon.pressure: 1e+308 Pa gives the wall a stress p R / (2 h) = inf Pa, more than 100 times its in-plane bulk modulus 8e+08 Pa" -- "$balloon" --set bodies.balloon.spacing=0.01 --set bodies.balloon.pressure=1e308
+# A mesh membrane's pressure, with half its extent for the radius (the tube: 0.166 m).
+expect pressure_mesh "bodies.tube.pressure: 1e+12 Pa gives the wall a stress p R / (2 h) = 1.65831e+14 Pa (R = 0.165831 m, half the body's extent), more than 100 times its in-plane bulk modulus 3e+08 Pa" -- "$scenes/tube_burst.yaml" --set bodies.tube.pressure=1e12
 expect pressure_large "bodies.balloon.pressure: 1e+12 Pa gives the wall a stress p R / (2 h) = 3.33333e+13 Pa, more than 100 times its in-plane bulk modulus" -- "$balloon" --set bodies.balloon.spacing=0.01 --set bodies.balloon.pressure=1e12
 expect membrane_stretch_resolution "materials.rubber.critical_stretch: expected a critical stretch lambda_0 >= 1 + 1e-10" -- "${coarse[@]}" --set materials.rubber.critical_stretch=1.00000000001
 expect pmb_strain_resolution "materials.film.critical_stretch: expected a critical bond strain s_0 >= 1e-10" -- "$tool" "${coarse[@]}" --set materials.film.critical_stretch=1e-300

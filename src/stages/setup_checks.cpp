@@ -433,18 +433,25 @@ void check_initial_state(const Problem& p) {
     first = false;
   }
   // Internal pressure: a wall stress p R / (2 h) beyond kLargestWallStress in-plane bulk moduli
-  // tears any sphere at once (and overflows the forces long before that).
+  // tears any sphere at once (and overflows the forces long before that). R: a sphere's radius;
+  // for a mesh membrane, whose curvature the check does not know, half its extent (a tube's
+  // hoop stress p R / h is within a few times that).
   for (std::size_t b = 0; b < nb; ++b) {
     const Body& body = scene.bodies[b];
-    if (!(body.pressure > 0)) continue;  // (only spheres take a pressure)
-    const double stress = body.pressure * body.radius / (2 * body.thickness);
+    if (!(body.pressure > 0)) continue;  // (spheres and mesh membranes take a pressure)
+    double extent2 = 0;
+    for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
+    const bool sphere = body.radius > 0;
+    const double R = sphere ? body.radius : 0.5 * std::sqrt(extent2);
+    const double stress = body.pressure * R / (2 * body.thickness);
     const double bulk = elastic_constants(p.forces->laws()[b], p.bodies[b], p.density[b]).bulk;
     if (stress <= kLargestWallStress * bulk) continue;  // (a NaN or inf stress is refused)
     std::ostringstream msg;
     msg << body.where.str() << ": bodies." << body.name << ".pressure: " << num(body.pressure)
-        << " Pa gives the wall a stress p R / (2 h) = " << num(stress) << " Pa, more than " << num(kLargestWallStress)
-        << " times its in-plane bulk modulus " << num(bulk) << " Pa; expected at most "
-        << num(kLargestWallStress * bulk * 2 * body.thickness / body.radius) << " Pa";
+        << " Pa gives the wall a stress p R / (2 h) = " << num(stress) << " Pa"
+        << (sphere ? "" : " (R = " + num(R) + " m, half the body's extent)") << ", more than "
+        << num(kLargestWallStress) << " times its in-plane bulk modulus " << num(bulk) << " Pa; expected at most "
+        << num(kLargestWallStress * bulk * 2 * body.thickness / R) << " Pa";
     throw InputError(msg.str());
   }
 }
