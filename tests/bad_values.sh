@@ -110,6 +110,9 @@ release=$scenes/slit_release.yaml
 release_line=$(grep -n -m1 -- '^  - name: preload' "$release" | cut -d: -f1)
 expect preload_displacement_huge "$release:$release_line: stages.0.displacements.top: moves boundary nodes by up to 1e+300 m over stage 'preload', more than 100 times the largest body's extent (0.0692965 m)" -- "$release" --set bodies.sheet.spacing=0.001 --set 'stages.preload.displacements={top: [0, 1e300, 0]}'
 expect preload_gradient_huge "stages.0.displacement_gradient: moves boundary nodes by up to 2.45e+08 m over stage 'preload'" -- "$release" --set bodies.sheet.spacing=0.001 --set 'stages.preload.displacement_gradient=[[0, 0, 0], [0, 1e10, 0], [0, 0, 0]]'
+# Bond dashpots so viscous that the stable step underflows: the viscosity named, not the stiffness.
+kelvin_line=$(grep -n -m1 -- '^  film:' "$tool" | cut -d: -f1)
+expect kelvin_huge "$tool:$((kelvin_line + 1)): materials.film.kelvin_viscosity: 1e+300 m^2/s lowers the stable time step of body 'sheet' from 9.76007e-07 s to 0 s, below 1e-150 s" -- "$tool" --set bodies.sheet.spacing=0.0005 --set materials.film.kelvin_viscosity=1e300
 expect seed_huge "<default scene>: initial.seed.amplitude: displaces nodes of body 'sheet' by up to 1e+300 m" -- "${coarse[@]}" --set 'initial.seed={amplitude: 1e300}'
 expect tool_velocity_huge "tools.0.velocity: 1e+300 m/s moves nodes 1.1156e+294 m in one step of stage 'push'" -- "$tool" "${coarse[@]}" --set 'tools.rod.velocity=[1e300, 0]'
 

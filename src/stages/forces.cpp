@@ -325,18 +325,21 @@ const double* Forces::damage() {
   return damage_.data();
 }
 
-std::vector<double> Forces::stable_time_steps(const std::vector<double>& density) {
+std::vector<double> Forces::stable_time_steps(const std::vector<double>& density, std::vector<double>* undamped) {
   const BondView view = bond_view();
   const std::size_t nb = laws_.size();
   std::vector<double> dt_body(nb, std::numeric_limits<double>::infinity());
+  if (undamped) undamped->clear();
   for (std::size_t b = 0; b < nb; ++b) {
     if (marder_[b]) {
       if (!interior_by_body_[b].empty() || !boundary_by_body_[b].empty())
         dt_body[b] = marder_stable_time_step(*marder_[b]);
+      if (undamped) undamped->push_back(dt_body[b]);  // (its dashpots are the lattice's own)
       continue;
     }
     for (const auto* rows : {&interior_by_body_[b], &boundary_by_body_[b]})
       dt_body[b] = std::min(dt_body[b], stable_time_step(laws_[b], density[b], view, rows->data(), rows->size()));
+    if (undamped) undamped->push_back(dt_body[b]);
     if (!dashpot_tau_.empty() && std::isfinite(dt_body[b]))
       dt_body[b] = dashpot_stable_time_step(dt_body[b], dashpot_tau_[b]);
   }

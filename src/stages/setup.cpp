@@ -413,7 +413,9 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
 
   // Time steps: the bodies' stable bound (collective, per body, then the smallest), which the
   // tools' penalty lowers; then each stage's. The loads in the order their forces add up.
-  const double dt_bodies = check_stable_step(p, p.forces->stable_time_steps(p.density));
+  std::vector<double> dt_undamped;
+  const std::vector<double> dt_body = p.forces->stable_time_steps(p.density, &dt_undamped);
+  const double dt_bodies = check_stable_step(p, dt_body, dt_undamped);
   auto tools = std::make_unique<Tools>(p.scene, dt_bodies, *p.state, p.domain, p.inv_density, comm);
   p.stages = plan_stages(p.scene, tools->stable_step(dt_bodies));
   if (!tools->empty()) {

@@ -187,11 +187,12 @@ void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector
   }
 }
 
-double check_stable_step(const Problem& p, const std::vector<double>& dt_body) {
+double check_stable_step(const Problem& p, const std::vector<double>& dt_body, const std::vector<double>& dt_undamped) {
   const Scene& scene = p.scene;
   const std::size_t nb = dt_body.size();
-  std::vector<double> dt(nb);
+  std::vector<double> dt(nb), dt0(nb);
   MPI_Allreduce(dt_body.data(), dt.data(), static_cast<int>(nb), MPI_DOUBLE, MPI_MIN, p.comm);
+  MPI_Allreduce(dt_undamped.data(), dt0.data(), static_cast<int>(nb), MPI_DOUBLE, MPI_MIN, p.comm);
   double dt_stable = std::numeric_limits<double>::infinity();
   for (std::size_t b = 0; b < nb; ++b) {
     dt_stable = std::min(dt_stable, dt[b]);
@@ -199,6 +200,17 @@ double check_stable_step(const Problem& p, const std::vector<double>& dt_body) {
     const Body& body = scene.bodies[b];
     const Material& mat = scene.material(body.material);
     std::ostringstream msg;
+    // Bond dashpots lower the bound (dashpot_stable_time_step: dt^2 + 2 tau dt = dt0^2, about
+    // dt0^2 / (2 tau) for a large tau, tau growing as the viscosity): where the bound without
+    // them is of ordinary size, the viscosity is at fault.
+    if (mat.kelvin_viscosity > 0 && dt0[b] >= kSmallestStep) {
+      msg << mat.where.str() << ": materials." << mat.name << ".kelvin_viscosity: " << num(mat.kelvin_viscosity)
+          << " m^2/s lowers the stable time step of body '" << body.name << "' from " << num(dt0[b]) << " s to "
+          << num(dt[b]) << " s, below " << num(kSmallestStep)
+          << " s; expected a smaller viscosity (the step falls as 1 / viscosity once the dashpots' time exceeds "
+          << num(dt0[b]) << " s)";
+      throw InputError(msg.str());
+    }
     msg << body.where.str() << ": bodies." << body.name << ": the stable time step is " << num(dt[b])
         << " s, below " << num(kSmallestStep) << " s: " << stiffness_input(mat);
     if (!p.forces->marder(b)) msg << " gives a micromodulus c = " << num(p.forces->laws()[b].derived("micromodulus"));

@@ -102,8 +102,8 @@ class Forces {
   /// Damage of each owned node from the bond flags.
   const double* damage();
   /// The stable time step of each body on this rank (infinity where it has no rows); density:
-  /// per body.
-  std::vector<double> stable_time_steps(const std::vector<double>& density);
+  /// per body. undamped: if given, the same without the bond dashpots.
+  std::vector<double> stable_time_steps(const std::vector<double>& density, std::vector<double>* undamped = nullptr);
   /// The bond loop's plans forget what they keep of the broken flags: after flags are written
   /// other than by the loop (release stage, restart).
   void flags_changed();

@@ -32,9 +32,9 @@ void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
 /// arrays). laws, density: per body.
 void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector<BondLaw>& laws,
                        const std::vector<double>& density);
-/// The run's stable step from each body's on this rank (dt_body), refused when absurdly small or
-/// not finite. Collective.
-double check_stable_step(const Problem& p, const std::vector<double>& dt_body);
+/// The run's stable step from each body's on this rank (dt_body; dt_undamped: without the bond
+/// dashpots), refused when absurdly small or not finite. Collective.
+double check_stable_step(const Problem& p, const std::vector<double>& dt_body, const std::vector<double>& dt_undamped);
 /// Stage s's damping and step count with time steps dt.
 void check_stage(const Scene& scene, std::size_t s, double dt, double dt_stable);
 /// The initial state (initial conditions applied to the problem's state), boundaries and tools:
