@@ -627,6 +627,23 @@ TEST(SceneOverride, BadPaths) {
               StartsWith("--set bodies.sheet.origin=[1, 2: cannot read the value as YAML"));
 }
 
+// A tool's series.csv columns repeat neither a crack tip track's (a tool named tip2) nor another
+// tool's (tools 'a' and 'a_force' both giving a_force_x); 'tip' alone and 'tips' are fine.
+TEST(SceneTools, SeriesColumnsAreUnique) {
+  const std::string cylinder = "{kind: cylinder, radius: 0.001, center: [-0.03, 0]}";
+  auto tools = [&](const std::string& a, const std::string& b) {
+    return std::vector<Override>{{"tools", "[{name: " + a + ", " + cylinder.substr(1, cylinder.size() - 2) + "}, {name: " +
+                                               b + ", kind: cylinder, radius: 0.001, center: [0.03, 0]}]"}};
+  };
+  EXPECT_EQ(error_of(kBase, tools("tip2", "b")),
+            "--set: tools.0: tool 'tip2': its series.csv columns tip2_x, tip2_y would repeat those of crack tip track 2; "
+            "expected another name");
+  EXPECT_EQ(error_of(kBase, tools("a", "a_force")),
+            "--set: tools.1: tool 'a_force': its series.csv column a_force_x would repeat tool 'a''s; expected another "
+            "name");
+  EXPECT_EQ(error_of(kBase, tools("tip", "tips")), "<no error>");
+}
+
 TEST(SceneOverride, ValidationErrorsOfOverriddenValuesReadSet) {
   EXPECT_EQ(error_of(kBase, {{"bodies.sheet.spacing", "-1"}}),
             "--set: bodies.sheet.spacing: expected a positive number [m], got -1");

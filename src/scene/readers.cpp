@@ -552,6 +552,25 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   UniqueNames tool_names("tool");
   const auto tools = optional_list(top, "tools", "a list of tools");
   for (const Value& v : tools) s.tools.push_back(read_tool(v, tool_names));
+  // A tool's series.csv columns (<name>_x, _y, _z, _vx, _vy, _vz, _force_x, _force_y, _force_z)
+  // repeat no other column: a tool named tip0 would give a second tip0_x beside the crack tip
+  // track's, and tools 'a' and 'a_force' would share a_force_x; a reader would take the wrong one.
+  {
+    std::map<std::string, std::string> owner;  // column -> whose
+    for (std::size_t k = 0; k < s.tools.size(); ++k) {
+      const std::string& name = s.tools[k].name;
+      if (name.size() > 3 && name.compare(0, 3, "tip") == 0 &&
+          std::all_of(name.begin() + 3, name.end(), [](char c) { return c >= '0' && c <= '9'; }))
+        tools[k].fail("tool '" + name + "': its series.csv columns " + name + "_x, " + name +
+                      "_y would repeat those of crack tip track " + name.substr(3) + "; expected another name");
+      for (const char* c : {"_x", "_y", "_z", "_vx", "_vy", "_vz", "_force_x", "_force_y", "_force_z"}) {
+        const auto [at, added] = owner.emplace(name + c, name);
+        if (!added)
+          tools[k].fail("tool '" + name + "': its series.csv column " + at->first + " would repeat tool '" + at->second +
+                        "''s; expected another name");
+      }
+    }
+  }
 
   if (auto x = top.get("long_range")) s.long_range = read_long_range(*x, s.bodies);
 
