@@ -232,6 +232,21 @@ if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: w
   ok "origin_distant: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "origin_distant: expected one warning '$want'"; fi
 
+# Two bodies within a horizon of each other (a strip beside the sheet, one spacing from its
+# edge nodes): a warning that bodies do not bond; the run goes on. The two sheets of Fig. 3's
+# scene, 2 mm apart with a 1 mm horizon, give none.
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --dry-run \
+  --set 'bodies.strip={kind: membrane, material: rubber, origin: [0.025, -0.025, 0], size: [0.01, 0.05], thickness: 0.0005, spacing: 0.001}' \
+  > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="bodies 'sheet' and 'strip' come within 0.001 m of each other (nodes at (0.0245, -0.0245, 0) and (0.0255, -0.0245, 0)), inside a horizon (0.003 m): bodies do not bond to each other"
+if [ "$rc" -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "touching_bodies: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "touching_bodies: exit status $rc, expected one warning '$want'"; cat "$work/stderr"; fi
+"${mpi[@]}" "$peridrive" "$scenes/fig3_damage_stress.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "come within" "$work/stderr"; then ok "bodies_apart: no warning"
+else bad "bodies_apart: exit status or warning"; fi
+
 # Pre-cracks that cross no bond (here: beside the sheet) are named in a warning; the run goes on.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}]' --dry-run \
   > "$work/stdout" 2> "$work/stderr"

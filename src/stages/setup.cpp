@@ -375,6 +375,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   double max_reach = 0;
   for (const BodyGeometry& g : nodes.bodies) max_reach = std::max(max_reach, reach(g));
   const CellList cells(nodes, max_reach);
+  warn_touching_bodies(p.scene, nodes, cells, p.rank);
   PetscLogEventEnd(events().nodes, 0, 0, 0, 0);
   mark_memory(summary, "nodes", comm);
   PetscLogEventBegin(events().partition, 0, 0, 0, 0);

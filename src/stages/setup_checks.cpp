@@ -102,6 +102,62 @@ void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vect
     }
 }
 
+void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList& cells, int rank) {
+  const std::size_t nb = nodes.bodies.size();
+  if (rank != 0 || nb < 2) return;
+  // Each body's reference box; a pair is searched only where one box, grown by the pair's reach,
+  // meets the other, and only over the first body's nodes inside it.
+  std::vector<std::array<double, 6>> box(nb, {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY});
+  for (std::int64_t i = 0; i < nodes.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      std::array<double, 6>& bx = box[static_cast<std::size_t>(nodes.body[i])];
+      bx[c] = std::min(bx[c], nodes.X[3 * i + c]);
+      bx[3 + c] = std::max(bx[3 + c], nodes.X[3 * i + c]);
+    }
+  std::vector<std::vector<std::int64_t>> of_body(nb);
+  for (std::int64_t i = 0; i < nodes.size(); ++i) of_body[static_cast<std::size_t>(nodes.body[i])].push_back(i);
+  for (std::size_t a = 0; a < nb; ++a)
+    for (std::size_t b = a + 1; b < nb; ++b) {
+      const BodyGeometry &ga = nodes.bodies[a], &gb = nodes.bodies[b];
+      if (ga.traits.long_range && gb.traits.long_range && scene.long_range) continue;
+      // The larger horizon (a lattice's bond reach): two nodes closer than it would have bonded
+      // in one body.
+      const double r = std::max(ga.horizon > 0 ? ga.horizon : reach(ga), gb.horizon > 0 ? gb.horizon : reach(gb));
+      bool apart = false;
+      for (int c = 0; c < 3; ++c)
+        apart = apart || box[a][c] > box[b][3 + c] + r || box[b][c] > box[a][3 + c] + r;
+      if (apart) continue;
+      double closest = INFINITY;
+      std::int64_t ci = -1, cj = -1;
+      for (const std::int64_t i : of_body[a]) {
+        const double* xi = &nodes.X[3 * i];
+        bool near = true;
+        for (int c = 0; c < 3; ++c) near = near && xi[c] >= box[b][c] - r && xi[c] <= box[b][3 + c] + r;
+        if (!near) continue;
+        cells.for_each_candidate(xi, [&](std::int64_t j) {
+          if (static_cast<std::size_t>(nodes.body[j]) != b) return;
+          const double* xj = &nodes.X[3 * j];
+          const double d = std::hypot(xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]);
+          if (d < closest) {
+            closest = d;
+            ci = i;
+            cj = j;
+          }
+        });
+      }
+      if (!(closest < r)) continue;
+      auto at = [&](std::int64_t i) {
+        return "(" + num(nodes.X[3 * i]) + ", " + num(nodes.X[3 * i + 1]) + ", " + num(nodes.X[3 * i + 2]) + ")";
+      };
+      std::fprintf(stderr,
+                   "peridrive: warning: bodies '%s' and '%s' come within %s m of each other (nodes at %s and %s), "
+                   "inside a horizon (%s m): bodies do not bond to each other, so they meet without a force between "
+                   "them; if they are one piece, make them one body (cutouts shape a grid body)\n",
+                   scene.bodies[a].name.c_str(), scene.bodies[b].name.c_str(), num(closest).c_str(), at(ci).c_str(),
+                   at(cj).c_str(), num(r).c_str());
+    }
+}
+
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank) {
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const BodyGeometry& g = nodes.bodies[b];

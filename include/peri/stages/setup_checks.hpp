@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "peri/bonds/bonds.hpp"
 #include "peri/geometry/discretization.hpp"
 #include "peri/models/law.hpp"
 #include "peri/scene/scene.hpp"
@@ -25,6 +26,10 @@ void warn_large_families(const Scene& scene, const SizeEstimate& e, int rank);
 /// Warns (rank 0) of boundaries that share nodes but move them differently. regions: per
 /// boundary, its nodes (natural ids, ascending).
 void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vector<std::int64_t>>& regions, int rank);
+/// Warns (rank 0) of two bodies whose nodes come within a horizon of each other: bodies do not
+/// bond to each other, so a piece made of two bodies comes apart at their seam. Pairs of fibers
+/// that take part in long-range pairs (which act between bodies) are not warned of.
+void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList& cells, int rank);
 /// Every node within 1e9 spacings of the origin, where positions keep a spacing to 1e-7; a
 /// warning (rank 0) beyond 1e6 spacings.
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
