@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The revision peridrive names (--version, summary.json's git_revision) is the source tree's
-# commit when the binary was built, not when CMake last configured: the test makes a scratch
-# clone of the source's commit, configures it, commits there, builds again without configuring,
-# and expects the new commit in --version. Skipped (exit status 77) outside a git checkout.
+# commit when the binary was built, not when CMake last configured: the test builds a scratch git
+# tree with CMakeLists.txt's revision block and cmake/git_revision.cmake, then edits and commits
+# there, builds again each time without configuring, and expects the revision printed to follow
+# (-dirty after the edit, the new commit after the commit). Skipped (exit status 77) when the
+# source is not a git checkout.
 # usage: revision.sh SOURCE_DIR
 set -u
 src=$1
