@@ -108,14 +108,15 @@ void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList
   // Each body's reference box; a pair is searched only where one box, grown by the pair's reach,
   // meets the other, and only over the first body's nodes inside it.
   std::vector<std::array<double, 6>> box(nb, {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY});
-  for (std::int64_t i = 0; i < nodes.size(); ++i)
-    for (int c = 0; c < 3; ++c) {
-      std::array<double, 6>& bx = box[static_cast<std::size_t>(nodes.body[i])];
-      bx[c] = std::min(bx[c], nodes.X[3 * i + c]);
-      bx[3 + c] = std::max(bx[3 + c], nodes.X[3 * i + c]);
-    }
   std::vector<std::vector<std::int64_t>> of_body(nb);
-  for (std::int64_t i = 0; i < nodes.size(); ++i) of_body[static_cast<std::size_t>(nodes.body[i])].push_back(i);
+  for (std::int64_t i = 0; i < nodes.size(); ++i) {
+    const std::size_t b = static_cast<std::size_t>(nodes.body[i]);
+    of_body[b].push_back(i);
+    for (int c = 0; c < 3; ++c) {
+      box[b][c] = std::min(box[b][c], nodes.X[3 * i + c]);
+      box[b][3 + c] = std::max(box[b][3 + c], nodes.X[3 * i + c]);
+    }
+  }
   for (std::size_t a = 0; a < nb; ++a)
     for (std::size_t b = a + 1; b < nb; ++b) {
       const BodyGeometry &ga = nodes.bodies[a], &gb = nodes.bodies[b];
@@ -368,12 +369,17 @@ void check_initial_state(const Problem& p) {
   MPI_Allreduce(MPI_IN_PLACE, most.data(), static_cast<int>(n_max), MPI_DOUBLE, MPI_MAX, p.comm);
   MPI_Allreduce(MPI_IN_PLACE, count.data(), static_cast<int>(nt), MPI_DOUBLE, MPI_SUM, p.comm);
   const std::string where = scene.file + ": ";
-
-  // Initial displacements: at most kLargestStrain times the body's extent.
+  // Each body's extent: the diagonal of its reference box.
+  std::vector<double> diagonal(nb);
   for (std::size_t b = 0; b < nb; ++b) {
     double extent2 = 0;
     for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
-    const double extent = std::max(std::sqrt(extent2), p.bodies[b].spacing);
+    diagonal[b] = std::sqrt(extent2);
+  }
+
+  // Initial displacements: at most kLargestStrain times the body's extent.
+  for (std::size_t b = 0; b < nb; ++b) {
+    const double extent = std::max(diagonal[b], p.bodies[b].spacing);
     if (u_max[b] <= kLargestStrain * extent) continue;
     const bool affine = !(affine_max[b] <= kLargestStrain * extent);
     std::ostringstream msg;
@@ -386,11 +392,7 @@ void check_initial_state(const Problem& p) {
   // extent, as the initial displacement (beyond it Newton fails at the first increment, read as a
   // limit point).
   double largest_extent = 0;
-  for (std::size_t b = 0; b < nb; ++b) {
-    double extent2 = 0;
-    for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
-    largest_extent = std::max({largest_extent, std::sqrt(extent2), p.bodies[b].spacing});
-  }
+  for (std::size_t b = 0; b < nb; ++b) largest_extent = std::max({largest_extent, diagonal[b], p.bodies[b].spacing});
   for (std::size_t st = 0; st < ns; ++st) {
     const Stage& stage = scene.stages[st];
     if (stage.kind != StageKind::QuasiStatic) continue;
@@ -507,10 +509,8 @@ void check_initial_state(const Problem& p) {
   for (std::size_t b = 0; b < nb; ++b) {
     const Body& body = scene.bodies[b];
     if (!(body.pressure > 0)) continue;  // (spheres and mesh membranes take a pressure)
-    double extent2 = 0;
-    for (int c = 0; c < 3; ++c) extent2 += std::pow(hi[3 * b + c] + lo_neg[3 * b + c], 2);
     const bool sphere = body.radius > 0;
-    const double R = sphere ? body.radius : 0.5 * std::sqrt(extent2);
+    const double R = sphere ? body.radius : 0.5 * diagonal[b];
     const double stress = body.pressure * R / (2 * body.thickness);
     const double bulk = elastic_constants(p.forces->laws()[b], p.bodies[b], p.density[b]).bulk;
     if (stress <= kLargestWallStress * bulk) continue;  // (a NaN or inf stress is refused)
