@@ -280,5 +280,43 @@ if [ "$rc" -eq 2 ] && grep -qF "$want" "$work/stderr" && grep -qF "the scene can
   ok "large_family: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "large_family: exit status $rc, expected 2 with the warning '$want'"; fi
 
+# A resume whose body file changed: a point cloud's node moved by 1 nm keeps the scene's text and
+# its node and bond counts, but not its reference geometry: the resume is refused (exit status 2,
+# one message), the run's outputs untouched; the file restored, the same resume runs.
+$py - "$work/cloud.csv" <<'PY'
+import sys
+with open(sys.argv[1], "w") as f:
+    f.write("x,y,z,volume\n")
+    for i in range(6):
+        for j in range(6):
+            for k in range(6):
+                f.write(f"{i * 0.001},{j * 0.001},{k * 0.001},1e-9\n")
+PY
+cp "$work/cloud.csv" "$work/cloud.orig"
+cat > "$work/cloud.yaml" <<EOF
+name: cloud
+materials:
+  m: {model: pmb, density: 1000, bulk_modulus: 1e9, critical_stretch: 0.01}
+bodies:
+  block: {kind: solid, material: m, points: cloud.csv, spacing: 0.001}
+stages:
+  - {name: s, steps: 6}
+output: {checkpoint_every_steps: 3}
+EOF
+"${mpi[@]}" "$peridrive" "$work/cloud.yaml" --out "$work/cloud-run" --quiet > "$work/stdout" 2> "$work/stderr" || bad "cloud run"
+sed -i 's/^0.002,0.003,0.001,/0.002000000001,0.003,0.001,/' "$work/cloud.csv"
+before=$(cat "$work/cloud-run"/* 2> /dev/null | md5sum)
+"${mpi[@]}" "$peridrive" --resume "$work/cloud-run" --quiet > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="was written with a different reference geometry: the nodes' reference positions or measures differ"
+if ! cmp -s "$work/cloud.csv" "$work/cloud.orig" && [ "$rc" -eq 2 ] && grep -qF "$want" "$work/stderr" &&
+   [ "$(grep -c "peridrive: error:" "$work/stderr")" -eq 1 ] && [ "$before" = "$(cat "$work/cloud-run"/* 2> /dev/null | md5sum)" ]; then
+  ok "resume_moved_node: $(grep "error" "$work/stderr" | cut -c1-160)"
+else bad "resume_moved_node: exit status $rc, expected 2 with '$want' and the outputs kept"; fi
+cp "$work/cloud.orig" "$work/cloud.csv"
+"${mpi[@]}" "$peridrive" --resume "$work/cloud-run" --quiet > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ]; then ok "resume_same_file: resumed"; else bad "resume_same_file: exit status $rc"; fi
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -357,7 +357,9 @@ void write_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm com
   long long counters[8] = {c.format_version, c.nodes, c.ordered_bonds, c.step, c.stage, c.stage_step, c.ranks,
                            static_cast<long long>(c.scene_hash)};
   double reals[2] = {c.time, c.initial_total_energy};
+  unsigned long long reference[2] = {c.has_reference_hash ? 1ull : 0ull, c.reference_hash};
   MPI_Bcast(counters, 8, MPI_LONG_LONG, 0, comm);
+  MPI_Bcast(reference, 2, MPI_UNSIGNED_LONG_LONG, 0, comm);
   MPI_Bcast(reals, 2, MPI_DOUBLE, 0, comm);
   // The history dataset exists when any rank has a part (possibly empty: no bond has one yet).
   int has_history = it != c.extras.end(), any_history = 0;
@@ -410,6 +412,8 @@ void write_checkpoint(const std::string& path, const Checkpoint& c, MPI_Comm com
     w.scalar_attr<long long>(f, "stage_step", H5T_NATIVE_LLONG, counters[5]);
     w.scalar_attr<double>(f, "initial_total_energy", H5T_NATIVE_DOUBLE, reals[1]);
     w.scalar_attr<int>(f, "ranks", H5T_NATIVE_INT, static_cast<int>(counters[6]));
+    if (reference[0])
+      w.scalar_attr<std::uint64_t>(f, "reference_hash", H5T_NATIVE_UINT64, static_cast<std::uint64_t>(reference[1]));
     {
       H5Id g = w.group(f, "/state");
       const auto n = static_cast<hsize_t>(mine[0]), first = static_cast<hsize_t>(before[0]),
@@ -584,6 +588,9 @@ Checkpoint read_checkpoint_metadata(const std::string& path, std::uint64_t size)
   c.stage_step = r.scalar_attr<long long>(f, "stage_step", H5T_NATIVE_LLONG, H5T_INTEGER);
   c.initial_total_energy = r.scalar_attr<double>(f, "initial_total_energy", H5T_NATIVE_DOUBLE, H5T_FLOAT);
   c.ranks = r.scalar_attr<int>(f, "ranks", H5T_NATIVE_INT, H5T_INTEGER);
+  c.has_reference_hash = H5Aexists(f, "reference_hash") > 0;  // (absent in older files)
+  if (c.has_reference_hash)
+    c.reference_hash = r.scalar_attr<std::uint64_t>(f, "reference_hash", H5T_NATIVE_UINT64, H5T_INTEGER);
   if (c.nodes <= 0 || c.ordered_bonds < 0 || c.step < 0 || c.stage < 0 || c.stage_step < 0 ||
       c.stage_step > c.step || !std::isfinite(c.time) || c.time < 0 || c.ranks < 1 ||
       !std::isfinite(c.initial_total_energy))

@@ -42,6 +42,8 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
   c.git_revision = git_revision();
   c.scene = emit_scene(scene);
   c.scene_hash = fnv1a64(c.scene.data(), c.scene.size());
+  c.reference_hash = reference_geometry_hash(domain, comm);
+  c.has_reference_hash = true;
   c.nodes = domain.global_nodes;
   c.ordered_bonds = summary.ordered_bonds;
   c.step = at.step;
@@ -108,7 +110,7 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
 }
 
 void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, std::int64_t ordered_bonds,
-                   const std::vector<std::int64_t>& stage_steps) {
+                   const std::vector<std::int64_t>& stage_steps, std::uint64_t reference_hash) {
   const std::string what = "checkpoint (step " + std::to_string(c.step) + ")";
   // The physics must be the checkpoint's: only progress and checkpoint cadence may differ.
   Scene stored = parse_scene(c.scene, "checkpoint scene");
@@ -134,6 +136,10 @@ void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, 
     throw InputError(what + " holds " + std::to_string(c.nodes) + " nodes and " + std::to_string(c.ordered_bonds) +
                      " ordered bonds; this scene has " + std::to_string(nodes) + " and " +
                      std::to_string(ordered_bonds));
+  if (c.has_reference_hash && c.reference_hash != reference_hash)
+    throw InputError(what + " was written with a different reference geometry: the nodes' reference positions or "
+                     "measures differ from this run's (a body's mesh, points or polyline file changed since), "
+                     "though the scene and the node and bond counts are the same");
   std::int64_t before = 0;
   const bool stage_ok = c.stage >= 0 && static_cast<std::size_t>(c.stage) < stage_steps.size() &&
                         c.stage_step <= stage_steps[c.stage];

@@ -147,8 +147,10 @@ void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList
         });
       }
       if (!(closest < r)) continue;
-      auto at = [&](std::int64_t i) {
-        return "(" + num(nodes.X[3 * i]) + ", " + num(nodes.X[3 * i + 1]) + ", " + num(nodes.X[3 * i + 2]) + ")";
+      auto at = [&](std::int64_t i) {  // (appended piece by piece: GCC 12 warns falsely on "(" + ...)
+        std::string s = "(";
+        for (int k = 0; k < 3; ++k) s += num(nodes.X[3 * i + k]) + (k < 2 ? ", " : ")");
+        return s;
       };
       std::fprintf(stderr,
                    "peridrive: warning: bodies '%s' and '%s' come within %s m of each other (nodes at %s and %s), "

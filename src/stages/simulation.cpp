@@ -56,7 +56,8 @@ Simulation::Simulation(const Scene& scene, MPI_Comm comm, RunOptions options)
       "energy_error_since", [this] { return health_.save(); },
       [this](const std::vector<double>* saved) { health_.restore(saved); });
   if (options_.restart)
-    check_restart(*options_.restart, scene_, domain_.global_nodes, summary_.ordered_bonds, p_->stages.steps);
+    check_restart(*options_.restart, scene_, domain_.global_nodes, summary_.ordered_bonds, p_->stages.steps,
+                  reference_geometry_hash(domain_, comm_));
   tips_ = CrackTipMonitor::create(scene_, forces_.laws(), p_->bodies, p_->density,
                                   scene_.output.series_every * *std::max_element(p_->stages.dt.begin(), p_->stages.dt.end()),
                                   domain_, comm_);

@@ -9,7 +9,8 @@
 //               after the user block, so a truncated, bit-flipped or foreign file is refused
 //               before HDF5 parses any of it.
 //   /           attributes: format_version, peridrive_version, git_revision, scene_hash, nodes,
-//               ordered_bonds, step, time, stage, stage_step, initial_total_energy, ranks
+//               ordered_bonds, step, time, stage, stage_step, initial_total_energy, ranks,
+//               reference_hash (reference_geometry_hash; absent in files written before it)
 //   /scene      the resolved YAML, a scalar string dataset of any length (files written before
 //               it could exceed 64 KB hold it as an attribute `scene` of /, still read)
 //   /state      displacement [N,3], velocity [N,3] (natural node order: rank-independent);
@@ -49,6 +50,10 @@ struct Checkpoint {
   std::string peridrive_version, git_revision;
   std::string scene;               ///< resolved scene YAML (emit_scene, no derived comments)
   std::uint64_t scene_hash = 0;    ///< fnv1a64 of `scene`
+  /// reference_geometry_hash of the run that wrote it (restart.hpp); `has_reference_hash` false
+  /// for files written before it was stored, which a resume then does not compare.
+  std::uint64_t reference_hash = 0;
+  bool has_reference_hash = false;
   std::int64_t nodes = 0;          ///< N
   std::int64_t ordered_bonds = 0;  ///< bonds over all ranks (both directions)
   std::int64_t step = 0;           ///< steps taken in the whole run

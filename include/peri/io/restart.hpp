@@ -67,6 +67,12 @@ std::int64_t apply_history(Domain& d, const std::vector<double>& rows);
 /// fnv1a64 of this rank's owned natural ids: equal on restart means equal ownership.
 std::uint64_t ownership_hash(const Domain& d);
 
+/// A hash of the reference geometry: over every node, its natural id, reference position and
+/// measure (the bits), summed modulo 2^64 over the ranks, so the same on any rank count. A resume
+/// compares it with the checkpoint's: a body read from a file (mesh, points, polyline) whose
+/// nodes moved keeps its scene text and counts, but not this. Collective.
+std::uint64_t reference_geometry_hash(const Domain& d, MPI_Comm comm);
+
 /// Check a checkpoint (header and length on every rank, the hash of the whole file on rank 0,
 /// streamed) and read its metadata on every rank (read_checkpoint_metadata: the node and bond
 /// arrays stay in the file; restore_state reads each rank's rows). A failure on any rank raises

@@ -58,9 +58,10 @@ Checkpoint make_checkpoint(const Scene& scene, const Domain& domain, State& stat
                            MPI_Comm comm, const std::vector<double>* dashpot_velocity = nullptr);
 /// InputError unless `c` continues this scene: the same physics (only output.progress_seconds
 /// and output.checkpoint_every_* may differ), nodes and bonds, and a stage and step that fit
-/// the stages' step counts.
+/// the stages' step counts; and, where the checkpoint stores one, the same reference geometry
+/// (`reference_hash`: reference_geometry_hash of this run).
 void check_restart(const Checkpoint& c, const Scene& scene, std::int64_t nodes, std::int64_t ordered_bonds,
-                   const std::vector<std::int64_t>& stage_steps);
+                   const std::vector<std::int64_t>& stage_steps, std::uint64_t reference_hash);
 /// Displacements, velocities, broken bonds and bond history from the file `c` was read from (each
 /// rank reads its block of natural rows and sends the owners their nodes' values; the broken
 /// pairs and history rows are streamed, each rank keeping those of its nodes). InputError if the
