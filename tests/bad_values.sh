@@ -280,7 +280,7 @@ if [ "$rc" -eq 2 ] && grep -qF "$want" "$work/stderr" && grep -qF "the scene can
   ok "large_family: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "large_family: exit status $rc, expected 2 with the warning '$want'"; fi
 
-# A resume whose body file changed: a point cloud's node moved by 1 nm keeps the scene's text and
+# A resume whose body file changed: a point cloud's node moved by 1e-12 m keeps the scene's text and
 # its node and bond counts, but not its reference geometry: the resume is refused (exit status 2,
 # one message), the run's outputs untouched; the file restored, the same resume runs.
 $py - "$work/cloud.csv" <<'PY'
