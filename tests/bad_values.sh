@@ -318,5 +318,28 @@ cp "$work/cloud.orig" "$work/cloud.csv"
 rc=$?
 if [ "$rc" -eq 0 ]; then ok "resume_same_file: resumed"; else bad "resume_same_file: exit status $rc"; fi
 
+# A long-range rule whose contact is stiffer than the step allows (fiber_attracting_ends.yaml with
+# alpha and beta ten times the paper's): a warning at setup names the rule and the step it
+# expects; the run then stops (status 3) naming the contact as the likely cause; at the safety
+# factor the warning gives, the same nanosecond runs (status 0).
+ends=$scenes/fiber_attracting_ends.yaml
+strong=(--set stages.0.duration=1.0e-9 --set long_range.pairs.0.alpha=2.6e36 --set long_range.pairs.0.beta=5.2e36)
+"$peridrive" "$ends" "${strong[@]}" --out "$work/out-strong" --quiet > "$work/stdout" 2> "$work/stderr"
+rc=$?
+warn="long_range.pairs.0 pulls nodes together, and a pair that falls in from rest comes to the potential's zero"
+if [ "$rc" -eq 3 ] && grep -qF "$warn" "$work/stderr" && grep -qF "likely cause: the contact of long_range.pairs.0" "$work/stderr"; then
+  ok "pair_contact_stiff: $(grep -o "stage 'wind' steps.*" "$work/stderr" | cut -c1-170)"
+else bad "pair_contact_stiff: exit status $rc, expected 3 with the warning and the contact named"; fi
+factor=$(grep -o "or a safety_factor at most [0-9.e+-]*" "$work/stderr" | awk '{print $NF}')
+"$peridrive" "$ends" "${strong[@]}" --set "stages.0.safety_factor=${factor:-1}" --out "$work/out-strong-ok" --quiet \
+  > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ] && [ -n "$factor" ] && ! grep -q "long_range.pairs" "$work/stderr"; then
+  ok "pair_contact_advice: safety_factor $factor runs, no warning"
+else bad "pair_contact_advice: safety_factor '$factor': exit status $rc"; fi
+"$peridrive" "$ends" --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "long_range.pairs" "$work/stderr"; then ok "pair_contact_paper: no warning"
+else bad "pair_contact_paper: a warning for the paper's parameters"; fi
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -268,6 +268,39 @@ TEST(LongRange, ForcesAreTheNegativeGradientAndConserveMomentum) {
 // Which pairs interact and with which coefficients: one segment never; adjacent and distant
 // segments and other fibers by their rule; none closer than the exclusion in the reference
 // configuration; none beyond the cutoff; the energy shifted to zero at the cutoff.
+// The contact step of a rule with a well (pair_contact_steps): with the cutoff between the well's
+// bottom a and hypot(sigma, ds), one partner node counts, at the potential's zero sigma =
+// a 2^(-1/6) (alpha = beta / 2), and dt = sqrt(2 rho / (114 beta^2 / (alpha sigma^2) V)),
+// V = pi d^2 / 4 ds. A repulsive rule and a well beyond its cutoff give none.
+TEST(LongRange, ContactStepOfARuleWithAWell) {
+  const Scene scene = parse_scene(
+      "name: c\nmaterials:\n  p: {model: pmb, density: 3000, youngs_modulus: 1.0e9}\n"
+      "bodies:\n  fiber: {kind: fiber, material: p, path: [[0, 0, 0], [20.0e-9, 0, 0]], diameter: 1.0e-9, "
+      "spacing: 0.5e-9, segment_length: 7.0e-9}\n"
+      "long_range:\n  length: 1.0e-9\n  cutoff: 1.01e-9\n  pairs:\n"
+      "    - {between: adjacent_segments, alpha: 0, beta: -1.0e30}\n"
+      "    - {between: distant_segments, alpha: 1.0e30, beta: 2.0e30, cutoff: 0.99e-9}\n"
+      "    - {between: other_fibers, alpha: 1.0e30, beta: 2.0e30}\n"
+      "stages:\n  - {name: r, steps: 1}\n",
+      "contact");
+  const std::vector<PairContactStep> steps = pair_contact_steps(scene);
+  ASSERT_EQ(steps.size(), 1u);
+  EXPECT_EQ(steps[0].rule, 2);
+  EXPECT_EQ(steps[0].body, "fiber");
+  const double sigma = 1.0e-9 * std::pow(0.5, 1.0 / 6.0), volume = 0.25 * kPi * 1e-18 * 0.5e-9;
+  EXPECT_NEAR(steps[0].sigma, sigma, 1e-12 * sigma);
+  const double k = 114.0 * 2.0e30 * 2.0e30 / (1.0e30 * sigma * sigma);
+  EXPECT_NEAR(k, LennardJonesPair({1.0e30, 2.0e30, 1.0e-9}).stiffness(sigma), 1e-10 * k);
+  const double dt = std::sqrt(2.0 * 3000 / (k * volume));
+  EXPECT_NEAR(steps[0].dt, dt, 1e-12 * dt);
+  // With the bonds' bound equal to it, the two allow dt / sqrt(2); a step of more than half of
+  // that is flagged, and a contact far softer than the bonds never is.
+  EXPECT_NEAR(steps[0].with_bonds(dt), dt / std::sqrt(2.0), 1e-12 * dt);
+  EXPECT_TRUE(steps[0].exceeded_by(0.36 * dt, dt));
+  EXPECT_FALSE(steps[0].exceeded_by(0.35 * dt, dt));
+  EXPECT_FALSE(steps[0].exceeded_by(0.99e-3 * dt, 1e-3 * dt));
+}
+
 TEST(LongRange, PairRules) {
   LongRangeTable t;
   auto add = [&](int body, int segment, double x, double X) {

@@ -16,6 +16,16 @@ HealthCheck::HealthCheck(const Scene& scene, const Domain& domain, const std::ve
     const double limit = scene.stability.motion_per_step * body.spacing;
     motion_limit2_.push_back(limit > 0 ? limit * limit : INFINITY);
   }
+  contact_ = pair_contact_steps(scene);
+}
+
+std::string HealthCheck::contact_note(double dt, double dt_stable) const {
+  std::string out;
+  for (const PairContactStep& c : contact_)
+    if (c.exceeded_by(dt, dt_stable))
+      out += "the contact of long_range.pairs." + std::to_string(c.rule) + " (its stiffness at the potential's zero " +
+             "with the bonds' allows about " + number_text(c.with_bonds(dt_stable)) + " s: see the warning at setup), ";
+  return out;
 }
 
 std::array<double, 3> HealthCheck::reference_position(std::int64_t natural) const {
@@ -58,8 +68,9 @@ void HealthCheck::check(std::int64_t step, double time, const double* u, const d
       msg << "the time step " << number_text(dt) << " s is above the stable bound " << number_text(dt_stable)
           << " s (accepted because of allow_unstable_dt)";
     else
-      msg << "the time step " << number_text(dt) << " s is too large for the current state (stable bound "
-          << number_text(dt_stable) << " s at the reference state; " << law_note(body_any)
+      msg << contact_note(dt, dt_stable) << "the time step " << number_text(dt)
+          << " s is too large for the current state (stable bound " << number_text(dt_stable)
+          << " s at the reference state; " << law_note(body_any)
           << "), or a boundary velocity too violent for the resolution";
     msg << ". Positions and velocities are still finite; nothing non-finite was written";
     throw RuntimeFailure(msg.str());
@@ -87,7 +98,8 @@ void HealthCheck::check_energy(const EnergyRow& row, double error, double e0, do
   msg << "energy balance error " << number_text(error) << " at step " << row.step << " (t = " << number_text(row.time)
       << " s) exceeds stability.energy_error = " << number_text(tolerance) << " since step " << energy_over_since_
       << " (total energy " << number_text(row.total())
-      << " J, " << number_text(e0) << " J at the start); likely cause: an unstable time step (dt = " << number_text(dt)
+      << " J, " << number_text(e0) << " J at the start); likely cause: " << contact_note(dt, dt_stable)
+      << "an unstable time step (dt = " << number_text(dt)
       << " s, stable bound " << number_text(dt_stable) << " s at the reference state; " << law_note(-1)
       << "), or boundary motion too violent for the resolution";
   throw RuntimeFailure(msg.str());

@@ -38,6 +38,35 @@ LongRangeTable long_range_table(const Nodes& nodes) {
   return t;
 }
 
+std::vector<PairContactStep> pair_contact_steps(const Scene& scene) {
+  std::vector<PairContactStep> steps;
+  if (!scene.long_range) return steps;
+  const LongRange& spec = *scene.long_range;
+  for (std::size_t r = 0; r < spec.pairs.size(); ++r) {
+    const PairRule& rule = spec.pairs[r];
+    if (!(rule.alpha > 0 && rule.beta > 0)) continue;  // no well: repulsive only
+    const LennardJonesPair pot{rule.alpha, rule.beta, spec.length};
+    const double ratio = std::pow(rule.alpha / rule.beta, 1.0 / 6.0), cut = rule.cutoff_or(spec.cutoff);
+    const double sigma = spec.length * ratio, bottom = sigma * std::pow(2.0, 1.0 / 6.0);
+    if (!(bottom < cut)) continue;  // the well lies beyond the cutoff: pairs within it repel
+    PairContactStep best{static_cast<int>(r), sigma, INFINITY, ""};
+    for (const Body& b : scene.bodies) {
+      if (!b.kind->traits.long_range || !(b.spacing > 0) || !(b.diameter > 0)) continue;
+      const double ds = b.spacing, volume = 0.25 * M_PI * b.diameter * b.diameter * ds;
+      double sum = 0;
+      for (long k = 0; k <= static_cast<long>(std::min(cut / ds, 1e6)); ++k) {
+        const double y = std::hypot(sigma, static_cast<double>(k) * ds);
+        if (y > cut) break;
+        sum += (k == 0 ? 1.0 : 2.0) * std::max(0.0, pot.stiffness(y)) * volume;
+      }
+      const double dt = std::sqrt(2.0 * scene.material(b.material).density / sum);
+      if (dt < best.dt) best = {static_cast<int>(r), sigma, dt, b.name};
+    }
+    if (std::isfinite(best.dt)) steps.push_back(best);
+  }
+  return steps;
+}
+
 PairLaw::PairLaw(const LongRange& spec)
     : length(spec.length), cutoff(spec.cutoff), exclusion(spec.exclusion) {
   potentials.assign(3, LennardJonesPair{0, 0, length});

@@ -419,6 +419,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   const double dt_bodies = check_stable_step(p, dt_body, dt_undamped);
   auto tools = std::make_unique<Tools>(p.scene, dt_bodies, *p.state, p.domain, p.inv_density, comm);
   p.stages = plan_stages(p.scene, tools->stable_step(dt_bodies));
+  warn_pair_contact(p.scene, p.stages, p.rank);
   if (!tools->empty()) {
     p.tools = tools.get();
     p.loads.push_back(std::move(tools));

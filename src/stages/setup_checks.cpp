@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "peri/io/restart.hpp"
+#include "peri/models/long_range.hpp"
 #include "peri/models/model.hpp"
 #include "peri/stages/problem.hpp"
 
@@ -100,6 +101,27 @@ void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vect
                    scene.boundaries[b].where.str().c_str(), first.c_str(), later.c_str(),
                    static_cast<long long>(shared), later.c_str(), first.c_str());
     }
+}
+
+void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank) {
+  if (rank != 0 || !scene.long_range) return;
+  for (const PairContactStep& c : pair_contact_steps(scene)) {
+    const double allowed = c.with_bonds(plan.dt_stable), expected = PairContactStep::kMargin * allowed;
+    for (std::size_t s = 0; s < scene.stages.size(); ++s) {
+      const Stage& st = scene.stages[s];
+      if (st.kind != StageKind::Dynamic || !c.exceeded_by(plan.dt[s], plan.dt_stable)) continue;
+      std::fprintf(stderr,
+                   "peridrive: warning: %s: long_range.pairs.%d pulls nodes together, and a pair that falls in from "
+                   "rest comes to the potential's zero (sigma = %s m), where its stiffness (a node of fiber body '%s' "
+                   "against a straight fiber) and the bonds' allow an explicit step of about %s s (the bonds alone: "
+                   "%s s); stage '%s' steps %s s, more than %s of it, so the run will likely go unstable once nodes "
+                   "meet: expected stages.%zu.dt at most %s s (or a safety_factor at most %s)\n",
+                   scene.long_range->pairs[c.rule].where.str().c_str(), c.rule, num(c.sigma).c_str(), c.body.c_str(),
+                   num(allowed).c_str(), num(plan.dt_stable).c_str(), st.name.c_str(), num(plan.dt[s]).c_str(),
+                   num(PairContactStep::kMargin).c_str(), s, num(expected).c_str(), num(expected / plan.dt_stable).c_str());
+      break;  // (one warning per rule: its first stage)
+    }
+  }
 }
 
 void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList& cells, int rank) {

@@ -15,6 +15,7 @@
 
 #include "peri/diagnostics/energies.hpp"
 #include "peri/models/law.hpp"
+#include "peri/models/long_range.hpp"
 #include "peri/partition/domain.hpp"
 #include "peri/scene/scene.hpp"
 
@@ -55,6 +56,9 @@ class HealthCheck {
   void restore(const std::vector<double>* saved);
   /// How the laws behave near the stable bound: of body `body`, or of every body (-1).
   std::string law_note(int body) const;
+  /// The long-range rules whose contact a step dt exceeds (PairContactStep::exceeded_by) with the
+  /// bonds' bound dt_stable, as a likely cause; empty when none does.
+  std::string contact_note(double dt, double dt_stable) const;
 
  private:
   std::array<double, 3> reference_position(std::int64_t natural) const;  // of any node (collective)
@@ -64,6 +68,7 @@ class HealthCheck {
   const std::vector<BondLaw>& laws_;
   MPI_Comm comm_;
   std::vector<double> motion_limit2_;  // per body
+  std::vector<PairContactStep> contact_;  // of the long-range rules with a well
   std::int64_t unstable_node_ = -1;    // natural id of a node that moved too far in one step
   double unstable_motion_ = 0;
   std::int64_t energy_over_since_ = -1;  // the first step of the checks above the energy tolerance, -1: none

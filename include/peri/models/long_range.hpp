@@ -19,7 +19,9 @@
 // kernel, free of MPI, builds the Verlet list through a cell list on the current positions of the
 // nodes seen and sums each row's pairs in ascending table order, whatever the rank count.
 #pragma once
+#include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "peri/geometry/discretization.hpp"
@@ -79,6 +81,37 @@ struct PairLaw {
   };
   std::vector<Coefficients> coefficients() const;
 };
+
+/// The explicit step a pair rule's contact allows: a rule with a potential well (alpha, beta > 0,
+/// its bottom at a (2 alpha / beta)^(1/6) inside the cutoff) pulls nodes together, and a pair that
+/// falls in from rest comes as close as the potential's zero, sigma = a (alpha / beta)^(1/6), where
+/// its stiffness k(sigma) = 114 beta^2 / (alpha sigma^2) comes on top of the bonds'. A fiber node
+/// at sigma from a straight fiber of a body's nodes (spacing ds, measure V = pi d^2/4 ds, the
+/// partners at hypot(sigma, k ds) within the cutoff) feels sum max(0, k) V, and the step of that
+/// stiffness alone is sqrt(2 rho / sum) (as the bonds', Silling & Askari 2005). An estimate, not a
+/// bound: more partners (a bundle, a coil) stiffen it further. Per rule of the scene's pairs list
+/// with a well inside its cutoff, the smallest over the fiber bodies.
+struct PairContactStep {
+  int rule = 0;        ///< index in the scene's long_range.pairs
+  double sigma = 0;    ///< the potential's zero [m]
+  double dt = 0;       ///< [s]
+  std::string body;    ///< the fiber body that gives the smallest step
+  /// The step the bonds' stable step dt_bonds and this contact allow together (their stiffnesses
+  /// add): 1 / sqrt(1 / dt_bonds^2 + 1 / dt^2).
+  double with_bonds(double dt_bonds) const { return 1.0 / std::sqrt(1.0 / (dt_bonds * dt_bonds) + 1.0 / (dt * dt)); }
+  /// Whether a step dt_step takes more than kMargin of what the bonds and the contact allow
+  /// (fiber_attracting_ends.yaml, its first nanosecond, alpha and beta both scaled by 10: the
+  /// energy balance holds at 0.5 of it, 0.4% error, and fails at 0.7 and 0.83; the scene as given
+  /// steps 0.42 of it).
+  /// A contact that lowers the bonds' bound by less than a fifth is not counted (the stage's own
+  /// safety_factor covers it: fiber_network.yaml's, 0.04%, at the default 0.7).
+  static constexpr double kMargin = 0.5;
+  bool exceeded_by(double dt_step, double dt_bonds) const {
+    const double allowed = with_bonds(dt_bonds);
+    return allowed < 0.8 * dt_bonds && dt_step > kMargin * allowed;
+  }
+};
+std::vector<PairContactStep> pair_contact_steps(const Scene& scene);
 
 /// Refuses (InputError naming the rule's `segments` key) a segments rule whose index names no
 /// segment of any of the table's fibers.

@@ -18,6 +18,7 @@
 namespace peri {
 
 struct Problem;
+struct StagePlan;
 
 /// StopRequested on every rank when a stop signal reached any rank during the setup. Collective.
 void stop_point(MPI_Comm comm);
@@ -30,6 +31,10 @@ void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vect
 /// bond to each other, so a piece made of two bodies comes apart at their seam. Pairs of fibers
 /// that take part in long-range pairs (which act between bodies) are not warned of.
 void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList& cells, int rank);
+/// Warns (rank 0) of a long-range rule whose contact (pair_contact_steps), with the bonds'
+/// stiffness, leaves a dynamic stage's step less margin than the default safety_factor
+/// (PairContactStep::exceeded_by): the run would likely go unstable once nodes meet.
+void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank);
 /// Every node within 1e9 spacings of the origin, where positions keep a spacing to 1e-7; a
 /// warning (rank 0) beyond 1e6 spacings.
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
