@@ -54,11 +54,15 @@ std::vector<PairContactStep> pair_contact_steps(const Scene& scene) {
       if (!b.kind->traits.long_range || !(b.spacing > 0) || !(b.diameter > 0)) continue;
       const double ds = b.spacing, volume = 0.25 * M_PI * b.diameter * b.diameter * ds;
       double sum = 0;
-      for (long k = 0; k <= static_cast<long>(std::min(cut / ds, 1e6)); ++k) {
-        const double y = std::hypot(sigma, static_cast<double>(k) * ds);
-        if (y > cut) break;
-        sum += (k == 0 ? 1.0 : 2.0) * std::max(0.0, pot.stiffness(y)) * volume;
+      // Partners farther out than the potential's inflection soften the node (k < 0), and k only
+      // falls with y: the sum stops there (and after 10^5 partners a side, a fiber far finer than
+      // the potential's length, where the estimate is low).
+      for (long k = 0; k <= 100000; ++k) {
+        const double y = std::hypot(sigma, static_cast<double>(k) * ds), stiffness = pot.stiffness(y);
+        if (y > cut || !(stiffness > 0)) break;
+        sum += (k == 0 ? 1.0 : 2.0) * stiffness * volume;
       }
+      if (!(sum > 0)) continue;
       const double dt = std::sqrt(2.0 * scene.material(b.material).density / sum);
       if (dt < best.dt) best = {static_cast<int>(r), sigma, dt, b.name};
     }
