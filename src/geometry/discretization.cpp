@@ -16,9 +16,9 @@ SizeEstimate estimate_size(const Scene& scene) {
     const double family = std::min(b.kind->family_estimate(b), std::max(n - 1, 0.0));
     e.nodes += n;
     e.bonds += n * family;
-    // Irregular bodies (meshes, point clouds): a float weight per ordered bond, or the bond
-    // loop's interleaved neighbour lists (RowBlocks::free_lanes), 4 bytes either way.
-    if (!b.mesh.empty() || !b.points.empty()) free_bytes += 4.0 * n * family;
+    // Irregular bodies (meshes, point clouds, geodesic spheres): a float weight per ordered bond,
+    // or the bond loop's interleaved neighbour lists (RowBlocks::free_lanes), 4 bytes either way.
+    if (!b.mesh.empty() || !b.points.empty() || b.kind->name == "sphere") free_bytes += 4.0 * n * family;
     // Bond dashpots (peridynamic laws; the lattice computes its own): per ordered bond a constant
     // and the neighbour once more, in the pass's vector groups (DashpotLanes: 12 bytes a slot, the
     // groups' slots 1.01-1.04 times the bonds in the scenes), and per node the dashpot force and the

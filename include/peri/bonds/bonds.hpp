@@ -115,7 +115,8 @@ bool crosses(const double* a, const double* b, const Crack& crack);
 /// whose families differ only by round-off share a pattern, and both ends of a bond, on any
 /// rank, see the same |xi|^2 bit for bit.
 ///
-/// Rows of irregular node sets (meshes, point clouds: BodyGeometry::irregular) share no family,
+/// Rows of irregular node sets (meshes, point clouds, geodesic spheres: BodyGeometry::irregular)
+/// share few families,
 /// and a pattern of their own would cost 32 bytes per bond. They keep none: *free* rows (of_row
 /// kFree), whose reference slots the loop computes from the reference positions and measures it
 /// loads (|xi|^2 = free_xi2, not rounded, the same bits from either end; 1/|xi| as the loop's 1/y:

@@ -22,8 +22,9 @@ struct BodyGeometry {
   double thickness = 0.0;    ///< h [m] (membranes; 0 for solids)
   double cell_area = 0.0;    ///< in-plane area per node [m^2] (membranes; a mesh's: the mean)
   double mesh_mean_edge = 0.0;  ///< mesh bodies: the mesh's mean edge length [m] (0: no mesh)
-  /// Nodes from a file (mesh, point cloud): no two families alike, so rows keep no family pattern
-  /// where the loop can compute their reference geometry (FamilyPatterns' free rows).
+  /// Nodes from a file (mesh, point cloud) or on a geodesic sphere: few families alike, so rows
+  /// keep no family pattern where the loop can compute their reference geometry (FamilyPatterns'
+  /// free rows).
   bool irregular = false;
   double area = 0.0;         ///< cross-section A [m^2] (fibers; their spacing is the arc step ds)
   double segment_length = 0.0;  ///< fibers: length of the segments long-range rules tell apart (0: one)

@@ -1,4 +1,4 @@
-// The SIMD accelerator's free rows: the rows of irregular bodies (meshes, point clouds), which
+// The SIMD accelerator's free rows: the rows of irregular bodies (meshes, point clouds, spheres), which
 // keep no family pattern (FamilyPatterns' free rows). Up to W rows at a time, one per lane: per
 // slot each lane's neighbour's node record is loaded as one cache line, the W lines are transposed
 // into vectors, the bond's reference slot is computed from them (free_slot, bond_loop.hpp) and the

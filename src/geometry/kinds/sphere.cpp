@@ -129,6 +129,7 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
   const double scale = 4.0 * 3.14159265358979323846 * R * R / total;
   g.thickness = b.thickness;
   g.quadrature = Quadrature::Full;
+  g.irregular = true;  // (its families differ node to node: free rows, computed by the loop)
   g.center = b.origin;
   g.radius = R;
   g.spacing = edges / (3.0 * static_cast<double>(tris.size()));  // mean edge length
