@@ -99,17 +99,20 @@ void Pressure::add_forces(double t, const LoadTarget& target, bool book, EnergyL
   auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
   for (Sphere& load : loads_) {
     const double p = current(load, t);
+    // p times a triangle's area vector (1/2 e1 x e2), a third to each corner. (The division
+    // outside the loop: the compiler keeps it inside, past the intact tests' branch.)
+    const double k = p / 6.0;
     double work = 0;
     for (std::size_t m = 0; m < load.node.size(); ++m) {
       const std::int32_t i = load.node[m];
+      // A row without a broken bond (BondFamilies::row_broken) has every triangle whole.
+      const bool whole = domain_.bonds.row_broken[i] == 0;
       double f[3] = {0, 0, 0};
       for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
-        if (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1])) continue;
+        if (!whole && (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1]))) continue;
         const std::int32_t a = load.others[e][0], c = load.others[e][1];
         const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
         const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
-        // p times the triangle's area vector (1/2 e1 x e2), a third to this corner.
-        const double k = p / 6.0;
         f[0] += k * (e1[1] * e2[2] - e1[2] * e2[1]);
         f[1] += k * (e1[2] * e2[0] - e1[0] * e2[2]);
         f[2] += k * (e1[0] * e2[1] - e1[1] * e2[0]);
