@@ -98,7 +98,9 @@ struct PairContactStep {
   std::string body;    ///< the fiber body that gives the smallest step
   /// The step the bonds' stable step dt_bonds and this contact allow together (their stiffnesses
   /// add): 1 / sqrt(1 / dt_bonds^2 + 1 / dt^2).
-  double with_bonds(double dt_bonds) const { return 1.0 / std::sqrt(1.0 / (dt_bonds * dt_bonds) + 1.0 / (dt * dt)); }
+  double with_bonds(double dt_bonds) const {
+    return 1.0 / std::sqrt(1.0 / (dt_bonds * dt_bonds) + 1.0 / (dt * dt));
+  }
   /// Whether a step dt_step takes more than kMargin of what the bonds and the contact allow
   /// (fiber_attracting_ends.yaml, its first nanosecond, alpha and beta both scaled by 10: the
   /// energy balance holds at 0.5 of it, 0.4% error, and fails at 0.7 and 0.83; the scene as given

@@ -69,7 +69,8 @@ PartitionSettings partition_settings_from_options();
 
 /// The order nodes are stored in on their rank (natural ids): natural order, except that the nodes
 /// of an irregular body (a mesh, a point cloud or a geodesic sphere: BodyGeometry::irregular,
-/// whose node order need not follow space) follow a Morton curve through their reference positions, in the body's place.
+/// whose node order need not follow space) follow a Morton curve through their reference
+/// positions, in the body's place.
 /// The bond loop walks rows in storage order, so consecutive rows share most neighbours in cache
 /// and their neighbour lists and flags are read as one stream. A permutation of 0 .. N-1.
 std::vector<std::int64_t> storage_order(const Nodes& nodes);
