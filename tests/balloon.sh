@@ -5,7 +5,8 @@
 # 3 and 5 spacings (full weights): lambda - 1 within 6% and 2%, the error falling with the
 # horizon; 1 and 2 ranks give the same positions bit for bit (the follower load is evaluated per
 # owned node from local positions). Then the impact on 2 ranks: the fragment perforates the
-# balloon where it hits (+x), the energy balance holds, and series.csv follows the fragment's centre.
+# balloon where it hits (+x), the energy balance holds, series.csv follows the fragment's centre, and
+# the bond arrays keep at most 10 bytes per ordered bond (the sphere's rows are free rows).
 # The same inflation by SNES (drivers/scenes/balloon_preload.yaml, the follower pressure in a
 # quasi-static stage) reaches the damped run's state to 1e-8 (the damped run settles for 5 ms after
 # its 1 ms ramp: 3e-12 measured), on 1 and 2 ranks to 1e-9 of each other, with the pressure's work
@@ -68,6 +69,9 @@ near = np.degrees(np.arccos(np.clip(X[:, 0] / R, -1, 1))) < 15
 check("perforated at the impact point", (dmg[near] > 0.3).sum() >= 5 and s["broken_bonds"] > 100,
       f'{(dmg[near] > 0.3).sum()} nodes within 15 degrees of +x over 30% damaged, {s["broken_bonds"]} bonds broken')
 check("energy balance", s["energy_balance_error"] < 1e-2, s["energy_balance_error"])
+# The sphere's rows are free rows (no family pattern per row, which took 31 bytes per bond): the
+# bond arrays within the 10 bytes per ordered bond of irregular bodies (9.75 measured).
+check("bytes per bond", s["bytes_per_bond"] <= 10.0, f'{s["bytes_per_bond"]:.2f} bytes per ordered bond')
 import csv
 rows = list(csv.DictReader(open(f"{tmp}/impact/series.csv")))
 # The sphere's centre in the series: [1.0607, 0, 0] + (-500, 0, 0) t (the scene's fragment).
