@@ -66,15 +66,17 @@ expect tool_stiffness_huge "--set: tools.0.stiffness: expected a number in (0, 1
 expect origin_far "<default scene>:$(($(line_of '^  sheet:') + 1)): bodies.sheet: a node at (1e+20, -0.0245, 0) m lies 1e+23 spacings (0.001 m) from the origin, where a position is rounded to 1.11022e+07 spacings; expected every node within 1e+09 spacings of the origin: move the body (origin) toward it" -- "${coarse[@]}" --set 'bodies.sheet.origin=[1e20, -0.025, 0]'
 expect origin_overflow "bodies.sheet: a node at (1e+308, -0.0245, 0) m lies more than 1.8e+308 spacings (0.001 m) from the origin" -- "${coarse[@]}" --set 'bodies.sheet.origin=[1e308, -0.025, 0]'
 printf 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n1e308,1e308,0,1e-9\n-1e308,-1e308,-1e308,1e-9\n' > "$work/far.csv"
-cat > "$work/far.yaml" <<EOF
-name: far
-materials:
-  m: {model: pmb, density: 1000, bulk_modulus: 1e9, critical_stretch: 0.01}
-bodies:
-  block: {kind: solid, material: m, points: far.csv, spacing: 0.001}
-stages:
-  - {name: s, steps: 5}
-EOF
+# cloud_scene NAME STEPS [LINE]: $work/NAME.yaml, a PMB solid from the point cloud NAME.csv (its
+# body on line 5), STEPS dynamic steps, and LINE (e.g. an output section) at the end.
+cloud_scene() {
+  {
+    printf 'name: %s\nmaterials:\n  m: {model: pmb, density: 1000, bulk_modulus: 1e9, critical_stretch: 0.01}\n' "$1"
+    printf 'bodies:\n  block: {kind: solid, material: m, points: %s.csv, spacing: 0.001}\n' "$1"
+    printf 'stages:\n  - {name: s, steps: %s}\n' "$2"
+    if [ -n "${3:-}" ]; then printf '%s\n' "$3"; fi
+  } > "$work/$1.yaml"
+}
+cloud_scene far 5
 expect points_far "$work/far.yaml:5: bodies.block: a node at (1e+308, 1e+308, 0) m lies more than 1.8e+308 spacings (0.001 m) from the origin; expected every node within 1e+09 spacings of the origin: move the body (the file's coordinates) toward it" -- "$work/far.yaml"
 
 # --- Step counts and damping: refused with the key, the time step it came from and the figure ------
@@ -293,16 +295,7 @@ with open(sys.argv[1], "w") as f:
                 f.write(f"{i * 0.001},{j * 0.001},{k * 0.001},1e-9\n")
 PY
 cp "$work/cloud.csv" "$work/cloud.orig"
-cat > "$work/cloud.yaml" <<EOF
-name: cloud
-materials:
-  m: {model: pmb, density: 1000, bulk_modulus: 1e9, critical_stretch: 0.01}
-bodies:
-  block: {kind: solid, material: m, points: cloud.csv, spacing: 0.001}
-stages:
-  - {name: s, steps: 6}
-output: {checkpoint_every_steps: 3}
-EOF
+cloud_scene cloud 6 'output: {checkpoint_every_steps: 3}'
 "${mpi[@]}" "$peridrive" "$work/cloud.yaml" --out "$work/cloud-run" --quiet > "$work/stdout" 2> "$work/stderr" || bad "cloud run"
 sed -i 's/^0.002,0.003,0.001,/0.002000000001,0.003,0.001,/' "$work/cloud.csv"
 before=$(cat "$work/cloud-run"/* 2> /dev/null | md5sum)
