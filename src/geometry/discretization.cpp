@@ -18,7 +18,7 @@ SizeEstimate estimate_size(const Scene& scene) {
     e.bonds += n * family;
     // Irregular bodies (meshes, point clouds, geodesic spheres): a float weight per ordered bond,
     // or the bond loop's interleaved neighbour lists (RowBlocks::free_lanes), 4 bytes either way.
-    if (!b.mesh.empty() || !b.points.empty() || b.kind->name == "sphere") free_bytes += 4.0 * n * family;
+    if (!b.mesh.empty() || !b.points.empty() || b.kind->traits.irregular) free_bytes += 4.0 * n * family;
     // Bond dashpots (peridynamic laws; the lattice computes its own): per ordered bond a constant
     // and the neighbour once more, in the pass's vector groups (DashpotLanes: 12 bytes a slot, the
     // groups' slots 1.01-1.04 times the bonds in the scenes), and per node the dashpot force and the
@@ -53,6 +53,7 @@ Nodes discretize(const Scene& scene) {
     BodyGeometry g;
     g.material = scene.material_index(b.material);
     g.traits = b.kind->traits;
+    g.irregular = g.traits.irregular;
     g.grid = b.grid;
     g.spacing = b.spacing;
     g.horizon = b.horizon_value();

@@ -41,6 +41,9 @@ struct BodyTraits {
   bool lattice = false;
   /// Its nodes take part in long-range pairs (the `long_range` section, eqs. 32-36).
   bool long_range = false;
+  /// Its nodes are always an irregular set (a geodesic sphere): BodyGeometry::irregular whatever
+  /// the body's keys. (A membrane or solid from a mesh or points file is irregular per body.)
+  bool irregular = false;
   /// Pre-cracks (straight segments) cut its bonds: sheets and fibers, not volumes.
   bool cut_by_cracks() const { return dimension < 3; }
 };

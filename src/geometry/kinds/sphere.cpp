@@ -129,7 +129,6 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
   const double scale = 4.0 * 3.14159265358979323846 * R * R / total;
   g.thickness = b.thickness;
   g.quadrature = Quadrature::Full;
-  g.irregular = true;  // (its families differ node to node: free rows, computed by the loop)
   g.center = b.origin;
   g.radius = R;
   g.spacing = edges / (3.0 * static_cast<double>(tris.size()));  // mean edge length
@@ -147,7 +146,7 @@ BodyKind sphere_kind() {
   BodyKind k;
   k.name = "sphere";
   k.summary = "geodesic nodes on a sphere, full weights within the horizon";
-  k.traits = {.dimension = 2, .grid = false};
+  k.traits = {.dimension = 2, .grid = false, .irregular = true};  // (families differ node to node)
   k.keys = {
       {.name = "center", .required = true, .what = "center of the sphere [x, y, z], m", .unit = "m",
        .doc = "the centre [x, y, z]"},
