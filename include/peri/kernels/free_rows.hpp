@@ -187,6 +187,8 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
         r[l] = rec + lanes[k * W + l];
         __asm__("" : "+r"(r[l]));
       }
+      // The node lines kLineAhead slots on (the stream is padded past its last group).
+      for (int l = 0; l < W; ++l) __builtin_prefetch(rec + lanes[(k + RowBlocks::kLineAhead) * W + l]);
       if (k >= nmin) [[unlikely]]
         for (int l = 0; l < W; ++l) dead |= static_cast<unsigned>(k >= n[l]) << l;
     } else if (k < nmin) [[likely]] {
@@ -195,6 +197,8 @@ void free_records(const Law& law_of, const C& L, const BondView& v, const double
         __asm__("" : "+r"(r[l]));
         if constexpr (Weighted) wk[l] = weight[l][k];
       }
+      if (k + RowBlocks::kLineAhead < nmin)
+        for (int l = 0; l < W; ++l) __builtin_prefetch(rec + 8 * static_cast<std::int64_t>(nbr[l][k + RowBlocks::kLineAhead]));
     } else {  // a lane past its row's end repeats its last bond (without bonds, its own record)
       for (int l = 0; l < W; ++l) {
         dead |= static_cast<unsigned>(k >= n[l]) << l;
