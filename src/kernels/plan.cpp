@@ -161,7 +161,9 @@ void plan_mirror(const BondView& v, RowBlocks& plan) {
 void interleave_free_lanes(const BondView& v, RowBlocks& plan, int W) {
   const std::size_t nfree = plan.free.size();
   plan.free_lanes_at = lane_group_starts(v, plan.free.data(), nfree, static_cast<std::size_t>(W));
-  plan.free_lanes.assign(static_cast<std::size_t>(plan.free_lanes_at.back() + RowBlocks::kLineAhead * W), 0);
+  // (kLineAhead W entries more: the loop's requests for the lines ahead read past the last group.)
+  const std::int64_t pad = nfree > 0 ? RowBlocks::kLineAhead * W : 0;
+  plan.free_lanes.assign(static_cast<std::size_t>(plan.free_lanes_at.back() + pad), 0);
   for (std::size_t r = 0, g = 0; r < nfree; r += W, ++g) {
     std::int32_t* at = plan.free_lanes.data() + plan.free_lanes_at[g];
     const std::int64_t slots = (plan.free_lanes_at[g + 1] - plan.free_lanes_at[g]) / W;
