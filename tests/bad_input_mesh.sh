@@ -89,6 +89,15 @@ expect inverted_tet "$m: element 9: bodies.m.mesh: inverted tetrahedron (negativ
 m=$(msh duplicate "$square;6 1 0 0" '1 2 2 0 1 1 2 5;2 2 2 0 1 6 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 4 1 5')
 f=$(scene duplicate membrane data/duplicate.msh)
 expect duplicate_node "$m: node 6: bodies.m.mesh: at (1, 0, 0), the position of node 2 too (within 1e-8 mean edge lengths); expected each point once" -- "$f"
+m=$(msh twice "$square" '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 4 1 5;7 2 2 0 1 5 2 1')
+f=$(scene twice membrane data/twice.msh)
+expect triangle_twice "$m: element 7: bodies.m.mesh: the same nodes as element 1; expected each triangle once" -- "$f"
+m=$(msh tet_twice "$tet;5 1 1 1" '1 4 2 0 1 1 2 3 4;2 4 2 0 1 2 3 4 5;3 4 2 0 1 2 1 4 3')
+f=$(scene tet_twice solid data/tet_twice.msh)
+expect tetrahedron_twice "$m: element 3: bodies.m.mesh: the same nodes as element 1; expected each tetrahedron once" -- "$f"
+m=$(msh not_a_number '1 0 0 0;2 1 0 0;3 1 nan 0;4 0 1 0;5 0.5 0.5 0' '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 4 1 5')
+f=$(scene not_a_number membrane data/not_a_number.msh)
+expect node_not_a_number "$m: node 3: bodies.m.mesh: at (1, nan, 0); expected finite coordinates below 1e100 m (after scale)" -- "$f"
 # A pressure on triangles oriented unlike.
 m=$(msh unlike "$square" '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 2 2 0 1 1 4 5')
 f=$(scene unlike membrane data/unlike.msh ', pressure: 100')

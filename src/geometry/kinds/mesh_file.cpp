@@ -246,8 +246,13 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
     const auto it = position.find(tag);
     if (it == position.end()) throw InputError(path + ": node " + std::to_string(tag) + ": " + key + ": an element uses it but the file gives no position");
     const double* x = &coords[3 * it->second];
+    const Vec3 p{x[0] * b.scale, x[1] * b.scale, x[2] * b.scale};
+    // (NaN corners would otherwise be reported as a degenerate element, huge ones too.)
+    if (!std::all_of(p.begin(), p.end(), [](double c) { return std::isfinite(c) && std::fabs(c) < 1e100; }))
+      throw InputError(path + ": node " + std::to_string(tag) + ": " + key + ": at " + point_text(p) +
+                       "; expected finite coordinates below 1e100 m (after scale)");
     index.emplace(tag, static_cast<std::int64_t>(m.nodes.size()));
-    m.nodes.push_back({x[0] * b.scale, x[1] * b.scale, x[2] * b.scale});
+    m.nodes.push_back(p);
   }
   // The cells: corners as body nodes; areas and volumes; each edge once.
   const std::size_t n_cells = cell_tags.size();
@@ -295,6 +300,24 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
       m.total += volume;
       m.tets.push_back(c);
     }
+  }
+  // One cell given twice (the same corners in any order) would count its area or volume twice.
+  {
+    std::vector<std::pair<std::array<std::int64_t, 4>, std::size_t>> sorted(n_cells);
+    for (std::size_t e = 0; e < n_cells; ++e) {
+      std::array<std::int64_t, 4> c{};
+      for (std::size_t k = 0; k < corners; ++k) c[k] = index.at(cell_nodes[corners * e + k]);
+      std::sort(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(corners));
+      sorted[e] = {c, e};
+    }
+    std::sort(sorted.begin(), sorted.end());
+    for (std::size_t q = 1; q < n_cells; ++q)
+      if (sorted[q].first == sorted[q - 1].first) {
+        const std::size_t first = std::min(sorted[q].second, sorted[q - 1].second);
+        const std::size_t again = std::max(sorted[q].second, sorted[q - 1].second);
+        at_element(cell_tags[again], "the same nodes as element " + std::to_string(cell_tags[first]) + "; expected each " +
+                                         (dimension == 2 ? "triangle" : "tetrahedron") + " once");
+      }
   }
   std::sort(edges.begin(), edges.end());
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
