@@ -306,7 +306,8 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
     std::vector<std::pair<std::array<std::int64_t, 4>, std::size_t>> sorted(n_cells);
     for (std::size_t e = 0; e < n_cells; ++e) {
       std::array<std::int64_t, 4> c{};
-      for (std::size_t k = 0; k < corners; ++k) c[k] = index.at(cell_nodes[corners * e + k]);
+      if (dimension == 2) std::copy(m.triangles[e].begin(), m.triangles[e].end(), c.begin());
+      else c = m.tets[e];
       std::sort(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(corners));
       sorted[e] = {c, e};
     }
