@@ -112,7 +112,16 @@ cracks:
 stages:
   - {name: run, steps: 5}
 YAML
-expect solid_crack "$work/solid_crack.yaml:7: cracks.0: a pre-crack is a straight segment, which cuts the bonds of sheets and fibers; every body of this scene is a volume (kind: solid)" -- "$work/solid_crack.yaml"
+expect solid_crack "$work/solid_crack.yaml:7: cracks.0: a slit (from, to) is a straight segment, which cuts the bonds of sheets and fibers; every body of this scene is a volume (kind: solid), where a segment cuts no bond; a volume is cut by a polygon" -- "$work/solid_crack.yaml"
+# Polygon cracks (they cut volumes): at least 3 corners, each unlike the one before, in one plane,
+# convex, enclosing an area, and not with from and to.
+expect polygon_two_corners "cracks.0.polygon: expected a list of at least 3 corners [[x, y, z], ...] [m] of a convex plane polygon, got a list of 2" -- "$work/solid_crack.yaml" --set 'cracks.0={polygon: [[0.005, 0, 0], [0.005, 1, 0]]}'
+expect polygon_repeated_corner "cracks.0.polygon.2: expected a corner different from the one before it" -- "$work/solid_crack.yaml" --set 'cracks.0={polygon: [[0, 0, 0], [1, 0, 0], [1, 0, 0], [0, 1, 0]]}'
+expect polygon_not_plane "cracks.0.polygon.0: expected the corners in one plane (to 1e-9 of the polygon's size), got this corner 0.00024999993750" -- "$work/solid_crack.yaml" --set 'cracks.0={polygon: [[0.005, 0, 0], [0.005, 1, 0], [0.005, 1, 1], [0.006, 0, 1]]}'
+expect polygon_not_convex "cracks.0.polygon: expected a convex polygon with its corners in order (corner 4 lies outside the edge from corner 2 to corner 3); give a non-convex cut as several convex polygons" -- "$work/solid_crack.yaml" --set 'cracks.0={polygon: [[0, 0, 0], [1, 0, 0], [0.2, 0.2, 0], [0, 1, 0]]}'
+expect polygon_bow_tie "cracks.0.polygon: expected a polygon that encloses an area, its corners in order, got corners on one line or edges that cross" -- "$work/solid_crack.yaml" --set 'cracks.0={polygon: [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]}'
+expect polygon_with_from "cracks.0.from: not with polygon: a crack is a slit (from, to) or a polygon" -- "$work/solid_crack.yaml" --set 'cracks.0.polygon=[[0, 0, 0], [1, 0, 0], [0, 1, 0]]'
+expect polygon_nan "cracks.0.polygon.1.2: expected a finite number" -- "$work/solid_crack.yaml" --set 'cracks.0={polygon: [[0, 0, 0], [1, 0, .nan], [0, 1, 0]]}'
 expect solid_thickness "bodies.block.thickness: not used by a solid body (a box of simple-cubic points, a point cloud or a tetrahedral mesh from a file); expected one of: kind, material, origin, size, points, mesh, scale, spacing, grid, horizon_factor, horizon, quadrature, cutouts" -- "$work/solid_crack.yaml" --set bodies.block.thickness=0.001
 expect network_and_path "bodies.net.network: give either path (one fiber) or network (many), not both" -- "$network" --set 'bodies.net.path=[[0,0,0],[1e-8,0,0]]'
 

@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <vector>
 
 namespace crossing_reference {
@@ -178,6 +179,72 @@ inline bool segments_cross(const double* a, const double* b, const double* c, co
   const Int& from = compare(lo, zero) >= 0 ? lo : zero;
   const Int& to = compare(hi, len2) <= 0 ? hi : len2;
   return compare(from, to) <= 0;
+}
+
+struct Point3 {
+  Int x, y, z;
+};
+
+inline Point3 minus3(const Point3& p, const Point3& q) { return {sub(p.x, q.x), sub(p.y, q.y), sub(p.z, q.z)}; }
+
+// det [u; v; w] by the rule of Sarrus.
+inline Int det3(const Point3& u, const Point3& v, const Point3& w) {
+  Int d = mul(u.x, sub(mul(v.y, w.z), mul(v.z, w.y)));
+  d = sub(d, mul(u.y, sub(mul(v.x, w.z), mul(v.z, w.x))));
+  return add(d, mul(u.z, sub(mul(v.x, w.y), mul(v.y, w.x))));
+}
+
+// The points as integers at their common scale.
+inline std::vector<Point3> to_points(std::initializer_list<const double*> pts) {
+  std::vector<double> v;
+  for (const double* p : pts) v.insert(v.end(), p, p + 3);
+  const int s = common_scale(v.data(), static_cast<int>(v.size()));
+  std::vector<Point3> out;
+  for (const double* p : pts) out.push_back({to_int(p[0], s), to_int(p[1], s), to_int(p[2], s)});
+  return out;
+}
+
+/// Exact sign of det [a - d; b - d; c - d] (finite 3-vectors).
+inline int orientation3d(const double* a, const double* b, const double* c, const double* d) {
+  const std::vector<Point3> p = to_points({a, b, c, d});
+  return det3(minus3(p[0], p[3]), minus3(p[1], p[3]), minus3(p[2], p[3])).sign;
+}
+
+/// Whether the closed segment [p, q] and the closed triangle a b c share a point: p + t (q - p) =
+/// a + u (b - a) + v (c - a) solved by Cramer's rule in exact integers (t in [0, 1], u, v >= 0,
+/// u + v <= 1); a segment parallel to the plane meets the triangle only in that plane, where the
+/// test is 2D (an end inside, or an edge crossed). Zero-length segments and degenerate triangles
+/// meet nothing. Finite coordinates.
+inline bool segment_meets_triangle(const double* p, const double* q, const double* a, const double* b,
+                                   const double* c) {
+  const std::vector<Point3> P = to_points({p, q, a, b, c});
+  const Point3 dir = minus3(P[1], P[0]), ab = minus3(P[2], P[3]), ac = minus3(P[2], P[4]), r = minus3(P[2], P[0]);
+  if (dir.x.sign == 0 && dir.y.sign == 0 && dir.z.sign == 0) return false;
+  const Point3 e1 = minus3(P[3], P[2]), e2 = minus3(P[4], P[2]);
+  const Point3 normal{sub(mul(e1.y, e2.z), mul(e1.z, e2.y)), sub(mul(e1.z, e2.x), mul(e1.x, e2.z)),
+                      sub(mul(e1.x, e2.y), mul(e1.y, e2.x))};
+  if (normal.x.sign == 0 && normal.y.sign == 0 && normal.z.sign == 0) return false;  // degenerate triangle
+  Int D = det3(dir, ab, ac);
+  if (D.sign != 0) {
+    Int t = det3(r, ab, ac), u = det3(dir, r, ac), v = det3(dir, ab, r);
+    if (D.sign < 0) D = negate(D), t = negate(t), u = negate(u), v = negate(v);
+    return t.sign >= 0 && compare(t, D) <= 0 && u.sign >= 0 && v.sign >= 0 && compare(add(u, v), D) <= 0;
+  }
+  if (det3(e1, e2, minus3(P[0], P[2])).sign != 0) return false;  // parallel, off the plane
+  // In the plane: drop an axis along which the normal has a component.
+  const int drop = normal.z.sign != 0 ? 2 : (normal.x.sign != 0 ? 0 : 1);
+  auto flat = [&](const double* x, double* out) {
+    int n = 0;
+    for (int k = 0; k < 3; ++k)
+      if (k != drop) out[n++] = x[k];
+  };
+  double fp[2], fq[2], fa[2], fb[2], fc[2];
+  flat(p, fp), flat(q, fq), flat(a, fa), flat(b, fb), flat(c, fc);
+  const int turn = orientation(fa, fb, fc);
+  for (const double* x : {fp, fq})
+    if (orientation(fa, fb, x) * turn >= 0 && orientation(fb, fc, x) * turn >= 0 && orientation(fc, fa, x) * turn >= 0)
+      return true;
+  return segments_cross(fp, fq, fa, fb) || segments_cross(fp, fq, fb, fc) || segments_cross(fp, fq, fc, fa);
 }
 
 }  // namespace crossing_reference

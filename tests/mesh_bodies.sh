@@ -13,6 +13,8 @@
 #  - a physical group as a boundary region: the tube's "bottom" ring clamped (its 32 nodes, those at
 #    z = 0, never move) while a follower pressure on the file's triangles inflates it (the radius
 #    grows), on 1 and 2 ranks with the same positions bit for bit; a tet solid likewise;
+#  - polygon pre-cracks: a rectangle in the plane y = 0 cuts the tube's +x wall only, and half of the
+#    tet box, with the same damage on 1 and 2 ranks;
 #  - a fiber's path read from a file (`polyline`, with a comment, a blank line, commas and blanks)
 #    gives the nodes and the motion of the same path given inline, bit for bit;
 #  - frames_surface.xdmf holds the tube's frames over its triangles (meshio reads them), and a tet
@@ -67,6 +69,10 @@ sed -i 's/steps: 1}/steps: 40}/' inflate.yaml
 solid box box.msh
 solid box2 box.msh ', scale: 2'
 solid rod rod.msh '' 'boundaries:\n  - {name: base, region: {body: block, group: base}, velocity: [0, 0, 1]}'
+# Polygon pre-cracks: a 40 mm axial cut in the tube's +x wall (a rectangle in the plane y = 0
+# that the -x wall never meets), and half of the tet box cut at x = 10.1 mm.
+membrane tubecut tube.msh '' 'cracks:\n  - {name: side, polygon: [[0.04, 0, 0.08], [0.06, 0, 0.08], [0.06, 0, 0.12], [0.04, 0, 0.12]]}'
+solid boxcut box.msh '' 'cracks:\n  - {name: half, polygon: [[0.0101, -1, -1], [0.0101, 0.005, -1], [0.0101, 0.005, 1], [0.0101, -1, 1]]}'
 sed -i 's/steps: 1}/steps: 20}/' rod.yaml
 # A fiber's path from a file (`polyline`) and inline: the same nodes.
 printf '# a bent fiber\n0, 0, 0\n\n0.01 0 0\n0.01,0.01,0.002\n' > bent.xyz
@@ -75,14 +81,15 @@ fiber() {  # NAME PATH_KEY
 }
 fiber inline 'path: [[0, 0, 0], [0.01, 0, 0], [0.01, 0.01, 0.002]]'
 fiber polyline 'polyline: bent.xyz'
-for s in area stl strain box box2 inline polyline; do "$peridrive" $s.yaml --out out-$s --quiet; done
-for s in inflate rod; do
+for s in area stl strain box box2 inline polyline tubecut; do "$peridrive" $s.yaml --out out-$s --quiet; done
+for s in inflate rod boxcut; do
   "$peridrive" $s.yaml --out out-$s --quiet
   "$mpiexec" -n 2 "$@" "$peridrive" $s.yaml --out out-$s-np2 --quiet
 done
 "$peridrive" inflate.yaml --print-scene > printed.yaml
 "$peridrive" printed.yaml --print-scene > printed2.yaml
 "$peridrive" inflate.yaml --dry-run > dry.txt
+"$peridrive" boxcut.yaml --dry-run > dry-box.txt
 /usr/bin/python3 - "$tmp" <<'PY'
 import sys, h5py, numpy as np
 tmp = sys.argv[1]
@@ -139,6 +146,27 @@ fb, Xb, Vb = frames("polyline")
 xa, xb = fa[sorted(fa)[-1]]["position"], fb[sorted(fb)[-1]]["position"]
 check("polyline file", np.array_equal(Xa, Xb) and np.array_equal(Va, Vb) and np.array_equal(xa, xb) and len(Va) == 40 and np.abs(xb - Xb).max() > 0,
       f"{len(Vb)} nodes, reference and final positions as the inline path's bit for bit")
+# Polygon pre-cracks: on the tube the damage lies in the +x wall along the cut alone; in the box on
+# the cut's side of y = 5 mm, the same bits on 1 and 2 ranks.
+import json
+fr, X, _ = frames("tubecut")
+D = fr[sorted(fr)[0]]["damage"]
+hit = D > 0
+pre = json.load(open(f"{tmp}/out-tubecut/summary.json"))["precrack_bonds"]
+# (A bond meets the plane y = 0 at 0.04 < x < 0.06 only if both its ends lie within a horizon of
+# that strip: x > sqrt(R^2 - delta^2) on the circle.)
+near = (X[:, 0] >= np.sqrt(R ** 2 - delta ** 2) - 1e-3) & (X[:, 2] > 0.08 - delta) & (X[:, 2] < 0.12 + delta)
+check("polygon cut on a curved membrane", hit.sum() > 10 and near[hit].all() and pre > 20,
+      f"{pre} bonds cut, {hit.sum()} nodes damaged, all in the +x wall within a horizon of the cut (x >= {np.sqrt(R ** 2 - delta ** 2):.4f} m)")
+fr, X, _ = frames("boxcut")
+fr2, _, _ = frames("boxcut-np2")
+D, D2 = fr[sorted(fr)[0]]["damage"], fr2[sorted(fr2)[0]]["damage"]
+pre = [json.load(open(f"{tmp}/out-{r}/summary.json"))["precrack_bonds"] for r in ("boxcut", "boxcut-np2")]
+hit = D > 0
+dbox = float([l.split("=")[1] for l in open(f"{tmp}/dry-box.txt") if l.startswith("block.horizon")][0])
+near = (np.abs(X[:, 0] - 0.0101) <= dbox) & (X[:, 1] <= 0.005 + dbox)
+check("polygon cut in a tet solid", hit.sum() > 10 and near[hit].all() and np.array_equal(D, D2) and pre[0] == pre[1] and pre[0] > 50,
+      f"{pre[0]} bonds cut, {hit.sum()} nodes damaged, all within a horizon ({dbox:.4g} m) of the cut; damage on 2 ranks the same bits ({pre[1]} bonds)")
 # frames_surface.xdmf: the same frames over the file's triangles, as meshio reads it (a rod of
 # tetrahedra has no surface file).
 import os, meshio

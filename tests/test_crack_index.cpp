@@ -51,7 +51,7 @@ TEST(CrackIndex, FindsExactlyTheCrossingsOfEveryCrack) {
     const double b[3] = {a[0] + r * std::cos(t), a[1] + r * std::sin(t), 0};
     const bool expected = brute_force(cracks, a, b);
     crossing += expected;
-    ASSERT_EQ(index.crosses_any(a, b), expected) << "bond (" << a[0] << ", " << a[1] << ") - (" << b[0] << ", " << b[1] << ")";
+    ASSERT_EQ(index.crosses_any(a, b, 2), expected) << "bond (" << a[0] << ", " << a[1] << ") - (" << b[0] << ", " << b[1] << ")";
   }
   std::printf("3000 cracks, 200000 bonds: %lld cross a crack, the index agrees on every one\n",
               static_cast<long long>(crossing));
@@ -63,15 +63,15 @@ TEST(CrackIndex, BondsEndingOnACrackAndCoordinatesBeyondAGrid) {
   const std::vector<Crack> cracks = {Crack{"c", {}, {0, 0, 0}, {1, 0, 0}}};
   const CrackIndex index(pointers(cracks), 0.1);
   const double on[3] = {0.5, 0, 0}, above[3] = {0.5, 0.05, 0}, end[3] = {1, 0, 0}, beyond[3] = {1.05, 0.05, 0};
-  EXPECT_EQ(index.crosses_any(on, above), brute_force(cracks, on, above));
-  EXPECT_EQ(index.crosses_any(end, beyond), brute_force(cracks, end, beyond));
+  EXPECT_EQ(index.crosses_any(on, above, 2), brute_force(cracks, on, above));
+  EXPECT_EQ(index.crosses_any(end, beyond, 2), brute_force(cracks, end, beyond));
   // Cracks spanning 1e300 m: one cell holding every crack, the same answers.
   const std::vector<Crack> wide = {Crack{"w", {}, {-1e300, -1, 0}, {1e300, 1, 0}}, Crack{"s", {}, {0, 5, 0}, {1, 5, 0}}};
   const CrackIndex all(pointers(wide), 0.1);
   const double a[3] = {0.5, -0.05, 0}, b[3] = {0.5, 0.05, 0}, c[3] = {0.5, 4.95, 0}, d[3] = {0.5, 5.05, 0};
-  EXPECT_EQ(all.crosses_any(a, b), brute_force(wide, a, b));
-  EXPECT_EQ(all.crosses_any(c, d), brute_force(wide, c, d));
-  EXPECT_TRUE(all.crosses_any(c, d));
+  EXPECT_EQ(all.crosses_any(a, b, 2), brute_force(wide, a, b));
+  EXPECT_EQ(all.crosses_any(c, d, 2), brute_force(wide, c, d));
+  EXPECT_TRUE(all.crosses_any(c, d, 2));
 }
 
 TEST(CrackIndex, ManyCracksOnASheetBreakTheSameBonds) {

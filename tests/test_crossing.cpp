@@ -5,6 +5,7 @@
 // must be exactly those whose segment meets the crack.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -294,7 +295,22 @@ TEST(Crossing, MatchesExactReferenceOnRandomAndAdversarialSegments) {
 
 namespace {
 
-// One sheet discretized once; each crack set builds a one-rank domain over it.
+// Whether the reference says the bond x y meets one of the cracks: a slit in xy, a polygon as its
+// fan of triangles in space.
+bool reference_meets(const std::vector<Crack>& cracks, const double* x, const double* y) {
+  for (const Crack& c : cracks) {
+    if (!c.is_polygon()) {
+      if (ref::segments_cross(x, y, c.from.data(), c.to.data())) return true;
+      continue;
+    }
+    for (std::size_t k = 1; k + 1 < c.polygon.size(); ++k)
+      if (ref::segment_meets_triangle(x, y, c.polygon[0].data(), c.polygon[k].data(), c.polygon[k + 1].data()))
+        return true;
+  }
+  return false;
+}
+
+// One sheet (or block) discretized once; each crack set builds a one-rank domain over it.
 struct Sheet {
   Scene scene;
   Nodes nodes;
@@ -317,17 +333,12 @@ struct Sheet {
         const auto key = std::minmax(i, j);
         if (d.bonds.broken[b]) flagged.insert(key);
         if (!seen.insert(key).second) continue;
-        bool meets = false;
-        for (const Crack& c : cracks)
-          meets = meets || ref::segments_cross(&nodes.X[3 * i], &nodes.X[3 * j], c.from.data(), c.to.data());
-        expected += meets;
+        expected += reference_meets(cracks, &nodes.X[3 * i], &nodes.X[3 * j]);
       }
     for (std::int32_t r = 0; r < d.owned; ++r)
       for (std::int64_t b = d.bonds.offsets[r]; b < d.bonds.offsets[r + 1]; ++b) {
         const std::int64_t i = d.natural[r], j = d.natural[d.bonds.neighbor[b]];
-        bool meets = false;
-        for (const Crack& c : cracks)
-          meets = meets || ref::segments_cross(&nodes.X[3 * i], &nodes.X[3 * j], c.from.data(), c.to.data());
+        const bool meets = reference_meets(cracks, &nodes.X[3 * i], &nodes.X[3 * j]);
         wrong += (d.bonds.broken[b] != 0) != meets;
         asymmetric += (d.bonds.broken[b] != 0) != (flagged.count(std::minmax(i, j)) != 0);
       }
@@ -409,4 +420,190 @@ TEST(Crossing, SlitsBreakExactlyTheBondsTheyMeet) {
     total += broken;
   }
   EXPECT_GT(total, 500);
+}
+
+namespace {
+
+// Checks orient3d against the reference and its symmetries (even permutations keep the sign, odd
+// ones flip it).
+int check_orientation3d(const double* a, const double* b, const double* c, const double* d) {
+  const int want = ref::orientation3d(a, b, c, d);
+  const int got[6] = {orient3d(a, b, c, d),  orient3d(b, c, a, d),  orient3d(c, a, b, d),
+                      -orient3d(b, a, c, d), -orient3d(a, b, d, c), orient3d(a, d, b, c)};
+  int bad = 0;
+  for (int g : got) bad += g != want;
+  if (bad)
+    std::printf("orient3d disagreement: (%a %a %a) (%a %a %a) (%a %a %a) (%a %a %a): reference %d, orient3d %d\n",
+                a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2], want, got[0]);
+  return bad;
+}
+
+}  // namespace
+
+TEST(Orientation3d, MatchesExactReference) {
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::uniform_int_distribution<int> small(-2, 2), ulp(-3, 3);
+  int bad = 0, zero = 0;
+  for (int n = 0; n < 12000; ++n) {
+    double p[4][3];
+    switch (n % 6) {
+      case 0:  // uniform
+        for (auto& q : p)
+          for (double& x : q) x = U(rng);
+        break;
+      case 1:  // small integers scaled by an inexact spacing: many exactly coplanar quadruples
+        for (auto& q : p)
+          for (double& x : q) x = small(rng) * 1.0e-3;
+        break;
+      case 2: {  // d in the plane a b c, rounded, then moved by a few ulps
+        for (int k = 0; k < 3; ++k)
+          for (double& x : p[k]) x = U(rng);
+        const double s = 2 * U(rng), t = 2 * U(rng);
+        for (int c = 0; c < 3; ++c) p[3][c] = ulps(p[0][c] + s * (p[1][c] - p[0][c]) + t * (p[2][c] - p[0][c]), ulp(rng));
+        break;
+      }
+      case 3:  // every magnitude, subnormals included (fewer: the reference is slow there)
+        if (n % 30 != 3) continue;
+        for (auto& q : p)
+          for (double& x : q) x = any_finite(rng);
+        break;
+      case 4: {  // large offsets, tiny differences
+        const double base = std::ldexp(1.0, std::uniform_int_distribution<int>(-300, 300)(rng));
+        for (auto& q : p)
+          for (int c = 0; c < 3; ++c) q[c] = ulps(c == 1 ? -base : base, small(rng));
+        break;
+      }
+      default: {  // a lattice plane x = 0.0045 of a 1 mm grid and points on, next to and off it
+        for (auto& q : p) {
+          q[0] = small(rng) == 0 ? 0.0045 : (small(rng) + 0.5) * 1.0e-3;
+          q[1] = (small(rng) + 0.5) * 1.0e-3;
+          q[2] = (small(rng) + 0.5) * 1.0e-3;
+        }
+      }
+    }
+    bad += check_orientation3d(p[0], p[1], p[2], p[3]);
+    zero += ref::orientation3d(p[0], p[1], p[2], p[3]) == 0;
+  }
+  EXPECT_EQ(bad, 0);
+  EXPECT_GT(zero, 400) << "too few exactly coplanar quadruples to test the degenerate answers";
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double o[3] = {0, 0, 0}, x[3] = {1, 0, 0}, y[3] = {0, 1, 0}, z[3] = {0, 0, 1}, bad_z[3] = {0, 0, nan};
+  EXPECT_EQ(orient3d(x, y, z, o), -orient3d(y, x, z, o));
+  EXPECT_NE(orient3d(x, y, z, o), 0);
+  EXPECT_EQ(orient3d(x, y, bad_z, o), 0);
+}
+
+TEST(PolygonCrack, SegmentTriangleMatchesReference) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::uniform_int_distribution<int> small(-2, 2), ulp(-2, 2);
+  int bad = 0, meets = 0, coplanar_meets = 0, touching = 0;
+  for (int n = 0; n < 30000; ++n) {
+    double p[5][3];  // p, q, a, b, c
+    switch (n % 4) {
+      case 0:
+        for (auto& v : p)
+          for (double& x : v) x = U(rng);
+        break;
+      case 3:  // all five in the plane z = 2 mm: the test in the plane
+        for (auto& v : p) v[0] = small(rng) * 1.0e-3, v[1] = small(rng) * 1.0e-3, v[2] = 2.0e-3;
+        break;
+      case 1:  // small integers: segments through corners and edges, in the plane, degenerate triangles
+        for (auto& v : p)
+          for (double& x : v) x = small(rng) * 1.0e-3;
+        break;
+      default: {  // the segment's ends near the triangle's plane (rounded, moved by ulps)
+        for (int k = 2; k < 5; ++k)
+          for (double& x : p[k]) x = U(rng);
+        for (int k = 0; k < 2; ++k) {
+          const double s = U(rng), t = U(rng);
+          for (int c = 0; c < 3; ++c) p[k][c] = ulps(p[2][c] + s * (p[3][c] - p[2][c]) + t * (p[4][c] - p[2][c]), ulp(rng));
+        }
+      }
+    }
+    const bool want = ref::segment_meets_triangle(p[0], p[1], p[2], p[3], p[4]);
+    meets += want;
+    const int sp = ref::orientation3d(p[2], p[3], p[4], p[0]), sq = ref::orientation3d(p[2], p[3], p[4], p[1]);
+    coplanar_meets += want && sp == 0 && sq == 0 && !triangle_degenerate(p[2], p[3], p[4]);
+    touching += want && (sp == 0) != (sq == 0);
+    // Both directions of the segment, the triangle's three rotations and its mirror.
+    const int orders[6][3] = {{2, 3, 4}, {3, 4, 2}, {4, 2, 3}, {2, 4, 3}, {4, 3, 2}, {3, 2, 4}};
+    for (const auto& o : orders)
+      for (int flip = 0; flip < 2; ++flip) {
+        const bool got = segment_meets_triangle(p[flip], p[1 - flip], p[o[0]], p[o[1]], p[o[2]]);
+        if (got != want) {
+          ++bad;
+          std::printf("segment-triangle disagreement in case %d: reference %d\n", n, int(want));
+        }
+      }
+  }
+  std::printf("%d of 30000 meet; %d in the triangle's plane, %d with one end on it\n", meets, coplanar_meets, touching);
+  EXPECT_EQ(bad, 0);
+  EXPECT_GT(meets, 3000);
+  EXPECT_GT(coplanar_meets, 200);
+  EXPECT_GT(touching, 300);
+}
+
+namespace {
+
+Crack polygon(std::vector<Vec3> corners) {
+  Crack c;
+  c.polygon = std::move(corners);
+  return c;
+}
+
+// A 10 mm cube of 1 mm nodes at the origin (nodes at (i + 1/2) mm), horizon 3 mm.
+const char* kBlock =
+    "name: b\nmaterials:\n  m: {model: pmb, density: 2200, micromodulus: 1.0e19, critical_stretch: 0.05}\n"
+    "bodies:\n  block: {kind: solid, material: m, origin: [0, 0, 0], size: [0.01, 0.01, 0.01], spacing: 0.001,\n"
+    "          horizon: 0.003015}\nstages:\n  - {name: r, steps: 1}\n";
+
+}  // namespace
+
+// Polygon cracks in a block break exactly the bonds whose reference segment meets them: between
+// node layers, through a layer of nodes (every bond of those nodes that meets it), tilted, and
+// ending inside the block (the bonds past its edges stay intact).
+TEST(PolygonCrack, BlockBreaksExactlyTheBondsThePolygonsMeet) {
+  const Sheet block(kBlock);
+  struct Case {
+    const char* what;
+    std::vector<Crack> cracks;
+    std::int64_t at_least;
+  };
+  const std::vector<Case> cases = {
+      {"plane between layers", {polygon({{0.005, -1, -1}, {0.005, 1, -1}, {0.005, 1, 1}, {0.005, -1, 1}})}, 5000},
+      {"plane through a layer", {polygon({{0.0045, -1, -1}, {0.0045, 1, -1}, {0.0045, 1, 1}, {0.0045, -1, 1}})}, 5000},
+      {"half plane ending at y = 5 mm", {polygon({{0.005, -1, -1}, {0.005, 0.005, -1}, {0.005, 0.005, 1}, {0.005, -1, 1}})}, 2000},
+      {"tilted quadrilateral inside", {polygon({{0.002, 0.002, 0.003}, {0.008, 0.002, 0.006}, {0.008, 0.007, 0.0065}, {0.002, 0.007, 0.0035}})}, 1000},
+      {"triangle with corners on nodes", {polygon({{0.0015, 0.0015, 0.0045}, {0.0085, 0.0015, 0.0045}, {0.0015, 0.0085, 0.0045}})}, 1000},
+      {"hexagon and a crossing plane", {polygon({{0.003, 0.005, 0.001}, {0.007, 0.005, 0.001}, {0.009, 0.005, 0.005}, {0.007, 0.005, 0.009}, {0.003, 0.005, 0.009}, {0.001, 0.005, 0.005}}),
+                                        polygon({{-1, -1, 0.0052}, {1, -1, 0.0052}, {1, 1, 0.0052}, {-1, 1, 0.0052}})}, 3000},
+  };
+  for (const Case& c : cases) {
+    std::int64_t broken, expected, wrong, asymmetric;
+    block.compare(c.cracks, broken, expected, wrong, asymmetric);
+    std::printf("%-32s %5lld bonds broken, %5lld meet the polygons\n", c.what, static_cast<long long>(broken),
+                static_cast<long long>(expected));
+    EXPECT_GT(expected, c.at_least) << c.what;
+    EXPECT_EQ(broken, expected) << c.what;
+    EXPECT_EQ(wrong, 0) << c.what << ": bonds broken that do not meet the polygon, or the reverse";
+    EXPECT_EQ(asymmetric, 0) << c.what << ": the two ends of a bond disagree";
+  }
+}
+
+// On a flat sheet at z = 0, a vertical rectangle through the slit's segment breaks the same bonds
+// as the slit.
+TEST(PolygonCrack, VerticalRectangleCutsASheetAsItsSlitDoes) {
+  const Sheet sheet(kSheet);
+  const std::vector<std::array<double, 4>> slits = {
+      {0.0025, 0.0025, 0.006, 0.006}, {0.0021, 0.0033, 0.0063, 0.0075}, {0.001, 0.005, 0.005, 0.005}, {-1, 0.0051, 0.0043, 0.0051}};
+  for (const auto& e : slits) {
+    std::int64_t b1, e1, w1, a1, b2, e2, w2, a2;
+    sheet.compare({crack(e[0], e[1], e[2], e[3])}, b1, e1, w1, a1);
+    sheet.compare({polygon({{e[0], e[1], -0.001}, {e[2], e[3], -0.001}, {e[2], e[3], 0.001}, {e[0], e[1], 0.001}})}, b2, e2, w2, a2);
+    EXPECT_GT(b1, 20);
+    EXPECT_EQ(b1, b2);
+    EXPECT_EQ(w1 + w2 + a1 + a2, 0);
+  }
 }

@@ -25,8 +25,9 @@ out, so that holes and cracks show as gaps; a triangle is dropped when
   - an edge is stretched, in the current configuration, beyond the critical stretch of the body's
     material (pmb: 1 + s_0, membrane: lambda_0; --gap-stretch S overrides it: current / reference
     length > S): that edge's bond is broken,
-  - an edge meets a scene crack in the xy plane (the pre-crack rule of docs/user/precracks.md;
-    a crack a release stage breaks only where both ends of the edge are damaged).
+  - an edge meets a scene crack, a slit in the xy plane or a polygon in space (the pre-crack rule
+    of docs/user/precracks.md; a crack a release stage breaks only where both ends of the edge
+    are damaged).
 --no-gaps draws every triangle. Fiber segments follow the same rules (a segment is one edge).
 Tools (a cylinder's axis along z, a sphere) are drawn in grey at their position at the frame's
 time (series.csv, else centre + velocity x time); --no-tools leaves them out.
@@ -185,6 +186,32 @@ def segments_meet(p, q, a, b):
     return meet
 
 
+def segments_meet_polygon(p, q, corners):
+    """Whether the 3D segments p-q (arrays [E, 3]) meet a convex plane polygon (corners [K, 3]),
+    end points and edges included to round-off: the fan of triangles from its first corner, each
+    by the side of its plane the ends lie on and the crossing point's barycentric coordinates."""
+    meet = np.zeros(len(p), dtype=bool)
+    for k in range(1, len(corners) - 1):
+        a, b, c = corners[0], corners[k], corners[k + 1]
+        n = np.cross(b - a, c - a)
+        if not np.any(n):
+            continue
+        sp, sq = (p - a) @ n, (q - a) @ n
+        cross = (sp * sq <= 0) & (sp != sq)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(cross, sp / (sp - sq), 0.0)
+        x = p + t[:, None] * (q - p)
+        # Barycentric coordinates of x in a b c (with a relative tolerance for its edges).
+        e1, e2, w = b - a, c - a, x - a
+        d11, d12, d22 = e1 @ e1, e1 @ e2, e2 @ e2
+        den = d11 * d22 - d12 * d12
+        u = ((w @ e1) * d22 - (w @ e2) * d12) / den
+        v = ((w @ e2) * d11 - (w @ e1) * d12) / den
+        tol = 1e-12
+        meet |= cross & (u >= -tol) & (v >= -tol) & (u + v <= 1 + tol)
+    return meet
+
+
 def released_cracks(scene):
     """Names of the cracks a release stage breaks (not broken at the start)."""
     names = set()
@@ -216,7 +243,8 @@ def drop_rules(edges_ref, edges_cur, ends, damage, scene, body, gap_damage, gap_
 
 
 def crack_rule(rule, ref, ends, scene, damage):
-    """Marks CRACK the kept elements with an edge meeting a scene crack in the xy plane."""
+    """Marks CRACK the kept elements with an edge meeting a scene crack: a slit in the xy plane,
+    a polygon in space."""
     cracks = scene.get("cracks") or []
     if not cracks:
         return rule
@@ -224,10 +252,13 @@ def crack_rule(rule, ref, ends, scene, damage):
     i, j = ends
     p, q = ref[i.ravel(), :2], ref[j.ravel(), :2]
     for k, c in enumerate(cracks):
-        a, b = np.asarray(c["from"], float)[:2], np.asarray(c["to"], float)[:2]
-        if np.allclose(a, b):
-            continue
-        hit = segments_meet(p, q, a, b)
+        if "polygon" in c:
+            hit = segments_meet_polygon(ref[i.ravel()], ref[j.ravel()], np.asarray(c["polygon"], float))
+        else:
+            a, b = np.asarray(c["from"], float)[:2], np.asarray(c["to"], float)[:2]
+            if np.allclose(a, b):
+                continue
+            hit = segments_meet(p, q, a, b)
         if c.get("name", f"crack{k}") in released:
             hit &= (damage[i.ravel()] > 0) & (damage[j.ravel()] > 0) if damage is not None else False
         hit = hit.reshape(i.shape).any(axis=1)

@@ -299,7 +299,13 @@ std::int64_t family_class(const Nodes& nodes, const CellList& cells, std::int64_
 }
 
 bool crosses(const double* a, const double* b, const Crack& crack) {
-  return segments_cross(a, b, crack.from.data(), crack.to.data());
+  if (!crack.is_polygon()) return segments_cross(a, b, crack.from.data(), crack.to.data());
+  // A convex polygon as the fan of triangles from its first corner (degenerate ones meet nothing);
+  // neighbouring triangles share their closed edge, so a bond through it meets one of them.
+  const std::vector<Vec3>& c = crack.polygon;
+  for (std::size_t k = 1; k + 1 < c.size(); ++k)
+    if (segment_meets_triangle(a, b, c[0].data(), c[k].data(), c[k + 1].data())) return true;
+  return false;
 }
 
 double rounded_xi2(double xi2, double horizon) {

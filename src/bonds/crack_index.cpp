@@ -8,6 +8,26 @@
 
 namespace peri {
 
+namespace {
+
+struct Box {
+  double lo[2], hi[2];
+};
+
+// A crack's extent in x and y.
+Box xy_box(const Crack& c) {
+  Box box{{std::min(c.from[0], c.to[0]), std::min(c.from[1], c.to[1])},
+          {std::max(c.from[0], c.to[0]), std::max(c.from[1], c.to[1])}};
+  if (c.is_polygon()) {
+    box = {{INFINITY, INFINITY}, {-INFINITY, -INFINITY}};
+    for (const Vec3& x : c.polygon)
+      for (int d = 0; d < 2; ++d) box.lo[d] = std::min(box.lo[d], x[d]), box.hi[d] = std::max(box.hi[d], x[d]);
+  }
+  return box;
+}
+
+}  // namespace
+
 CrackIndex::CrackIndex(std::vector<const Crack*> cracks, double reach) : cracks_(std::move(cracks)) {
   if (cracks_.empty()) return;
   // 1% wider than the longest bond: rounding in the cell arithmetic may only list a crack in more
@@ -15,11 +35,12 @@ CrackIndex::CrackIndex(std::vector<const Crack*> cracks, double reach) : cracks_
   const double m = 1.01 * reach;
   double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY}, length = 0;
   for (const Crack* c : cracks_) {
+    const Box box = xy_box(*c);
     for (int d = 0; d < 2; ++d) {
-      lo[d] = std::min({lo[d], c->from[d], c->to[d]});
-      hi[d] = std::max({hi[d], c->from[d], c->to[d]});
+      lo[d] = std::min(lo[d], box.lo[d]);
+      hi[d] = std::max(hi[d], box.hi[d]);
     }
-    length += std::hypot(c->to[0] - c->from[0], c->to[1] - c->from[1]);
+    length += std::hypot(box.hi[0] - box.lo[0], box.hi[1] - box.lo[1]);
   }
   x0_ = lo[0] - m;
   y0_ = lo[1] - m;
@@ -43,8 +64,15 @@ CrackIndex::CrackIndex(std::vector<const Crack*> cracks, double reach) : cracks_
   auto row = [&](double y) { return std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((y - y0_) / size_)), 0, ny_ - 1); };
   // Every cell with a point within m (Chebyshev) of crack k: per row of cells, the part of the
   // crack within m of the row (its y range grown by m), grown by m along x.
+  // A polygon: every cell within m of its xy bounding box.
   auto visit = [&](std::size_t k, auto&& list) {
     const Crack& c = *cracks_[k];
+    if (c.is_polygon()) {
+      const Box box = xy_box(c);
+      for (std::int64_t j = row(box.lo[1] - m), j1 = row(box.hi[1] + m); j <= j1; ++j)
+        for (std::int64_t i = column(box.lo[0] - m), i1 = column(box.hi[0] + m); i <= i1; ++i) list(j * nx_ + i);
+      return;
+    }
     const double cx = c.from[0], cy = c.from[1], ex = c.to[0] - cx, ey = c.to[1] - cy;
     for (std::int64_t j = row(std::min(cy, cy + ey) - m), j1 = row(std::max(cy, cy + ey) + m); j <= j1; ++j) {
       double t0 = 0, t1 = 1;
@@ -70,7 +98,7 @@ CrackIndex::CrackIndex(std::vector<const Crack*> cracks, double reach) : cracks_
     visit(k, [&](std::int64_t cell) { listed_[next[cell]++] = static_cast<std::int32_t>(k); });
 }
 
-bool CrackIndex::crosses_any(const double* a, const double* b) const {
+bool CrackIndex::crosses_any(const double* a, const double* b, int dimension) const {
   if (cracks_.empty()) return false;
   std::int64_t cell = 0;
   if (std::isfinite(size_)) {
@@ -80,7 +108,7 @@ bool CrackIndex::crosses_any(const double* a, const double* b) const {
     cell = static_cast<std::int64_t>(j) * nx_ + static_cast<std::int64_t>(i);
   }
   for (std::int64_t p = start_[cell]; p < start_[cell + 1]; ++p)
-    if (crosses(a, b, *cracks_[listed_[p]])) return true;
+    if (cracks_[listed_[p]]->cuts_dimension(dimension) && crosses(a, b, *cracks_[listed_[p]])) return true;
   return false;
 }
 

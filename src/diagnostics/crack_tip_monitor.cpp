@@ -39,8 +39,15 @@ std::unique_ptr<CrackTipMonitor> CrackTipMonitor::create(const Scene& scene, con
   std::unique_ptr<CrackTipMonitor> m(
       new CrackTipMonitor(s, 10 * delta / c_l, s.tip_separation + 2 * c_l * sample_interval, domain, comm));
   m->tip_bodies_ = std::move(tip_bodies);
-  for (const Crack& c : scene.cracks)
-    for (int k = 0; k < 3; ++k) m->seeds_.push_back(0.5 * (c.from[k] + c.to[k]));
+  for (const Crack& c : scene.cracks) {
+    Vec3 centre{0.5 * (c.from[0] + c.to[0]), 0.5 * (c.from[1] + c.to[1]), 0.5 * (c.from[2] + c.to[2])};
+    if (c.is_polygon()) {  // the corners' mean
+      centre = {0, 0, 0};
+      for (const Vec3& x : c.polygon)
+        for (int k = 0; k < 3; ++k) centre[k] += x[k] / static_cast<double>(c.polygon.size());
+    }
+    for (int k = 0; k < 3; ++k) m->seeds_.push_back(centre[k]);
+  }
   m->rayleigh_ = c_r;
   return m;
 }

@@ -75,11 +75,15 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   PatternBuilder patterns;
   std::vector<double> xi2, measure;
   std::unordered_map<std::int64_t, std::int32_t> pattern_of_class;  // family_class -> pattern
-  double longest = 0;  // bond of a body that cracks cut (not solids)
-  for (const BodyGeometry& g : nodes.bodies)
-    if (g.traits.cut_by_cracks()) longest = std::max(longest, reach(g));
+  double longest = 0;  // bond of a body that some crack cuts
   std::vector<const Crack*> crack_list;
   for (const Crack& c : scene.cracks) crack_list.push_back(&c);
+  auto cut = [&](int dimension) {
+    return std::any_of(scene.cracks.begin(), scene.cracks.end(), [&](const Crack& c) { return c.cuts_dimension(dimension); });
+  };
+  for (const BodyGeometry& g : nodes.bodies)
+    if (cut(g.traits.dimension)) longest = std::max(longest, reach(g));
+  const bool crack_list_empty = crack_list.empty();
   const CrackIndex cracks(std::move(crack_list), longest);
   for (std::int32_t r = 0; r < d.owned; ++r) {
     if (r % kPollRows == 0 && stop && stop()) return d;
@@ -107,11 +111,11 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
       // Weights are kept to float precision, as the per-bond weights they replace were.
       if (new_pattern)
         measure.push_back(static_cast<double>(static_cast<float>(w[k])) * nodes.volume[j]);
-      if (nodes.bodies[nodes.body[i]].traits.cut_by_cracks()) {
+      if (!crack_list_empty) {
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
         const double* c = &nodes.X[3 * std::max(i, j)];
-        if (cracks.crosses_any(a, c)) {
+        if (cracks.crosses_any(a, c, g.traits.dimension)) {
           d.bonds.broken[b] = 1;
           d.bonds.row_broken[r] = 1;
           ++d.initially_broken;

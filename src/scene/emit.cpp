@@ -216,6 +216,12 @@ std::string emit_scene(const Scene& s, const std::vector<std::string>& derived) 
     w.key(0, "cracks", "");
     for (const Crack& c : s.cracks) {
       w.key(2, "- name", yaml_string(c.name));
+      if (c.is_polygon()) {
+        std::string corners;
+        for (const Vec3& x : c.polygon) corners += (corners.empty() ? "" : ", ") + flow(x);
+        w.key(4, "polygon", "[" + corners + "]");
+        continue;
+      }
       w.key(4, "from", flow(c.from));
       w.key(4, "to", flow(c.to));
     }

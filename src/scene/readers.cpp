@@ -155,11 +155,70 @@ Material read_material(const std::string& name, const Value& v) {
   return mat;
 }
 
+// A polygon crack's corners: at least three, each different from the one before, in one plane
+// (to 1e-9 of the polygon's size) and convex (every corner on one side of every edge's line, or
+// on it), enclosing an area.
+void read_crack_polygon(const Value& list, Crack& c) {
+  const std::string expected = "a list of at least 3 corners [[x, y, z], ...] [m] of a convex plane polygon";
+  const std::vector<Value> items = list.list(expected);
+  if (items.size() < 3) list.fail("expected " + expected + ", got " + list.got());
+  for (std::size_t k = 0; k < items.size(); ++k) {
+    c.polygon.push_back(items[k].vec3("m"));
+    if (k > 0 && c.polygon[k] == c.polygon[k - 1])
+      items[k].fail("expected a corner different from the one before it, got " + items[k].got());
+  }
+  const std::vector<Vec3>& p = c.polygon;
+  const std::size_t n = p.size();
+  auto minus = [](const Vec3& a, const Vec3& b) { return Vec3{a[0] - b[0], a[1] - b[1], a[2] - b[2]}; };
+  auto cross = [](const Vec3& a, const Vec3& b) {
+    return Vec3{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  };
+  auto dot = [](const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  // Newell's normal (twice the vector area) and the size of the polygon.
+  Vec3 normal{0, 0, 0}, centre{0, 0, 0};
+  double size = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 e = cross(p[i], p[(i + 1) % n]);
+    for (int d = 0; d < 3; ++d) normal[d] += e[d], centre[d] += p[i][d] / static_cast<double>(n);
+    for (std::size_t j = 0; j < i; ++j) size = std::max(size, std::sqrt(dot(minus(p[i], p[j]), minus(p[i], p[j]))));
+  }
+  const double area2 = std::sqrt(dot(normal, normal));
+  if (!(area2 > 1e-12 * size * size) || !std::isfinite(area2))
+    list.fail("expected a polygon that encloses an area, its corners in order, got corners on one line or edges that "
+              "cross (" + list.got() + ")");
+  for (double& x : normal) x /= area2;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double off = dot(minus(p[i], centre), normal);
+    if (!(std::fabs(off) <= 1e-9 * size))
+      items[i].fail("expected the corners in one plane (to 1e-9 of the polygon's size), got this corner " +
+                    format_number(std::fabs(off)) + " m off the corners' mean plane");
+  }
+  for (std::size_t i = 0; i < n; ++i) {  // convex: every corner on the inner side of edge i
+    const Vec3 edge = minus(p[(i + 1) % n], p[i]);
+    const double length = std::sqrt(dot(edge, edge));
+    for (std::size_t j = 0; j < n; ++j) {
+      if (dot(cross(edge, minus(p[j], p[i])), normal) < -1e-9 * length * size)
+        list.fail("expected a convex polygon with its corners in order (corner " + std::to_string(j + 1) +
+                  " lies outside the edge from corner " + std::to_string(i + 1) + " to corner " +
+                  std::to_string((i + 1) % n + 1) + "); give a non-convex cut as several convex polygons");
+    }
+  }
+}
+
 Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {
-  const Map m(v, &kCrackKeys, "a map {name, from: [x, y, z], to: [x, y, z]}");
+  const Map m(v, &kCrackKeys,
+              "a map {name, from: [x, y, z], to: [x, y, z]} (a slit) or {name, polygon: [[x, y, z], ...]}");
   Crack c;
   c.name = entry_name(m, "crack", index, names);
   c.where = m.where();
+  if (auto polygon = m.get("polygon")) {
+    for (const char* key : {"from", "to"})
+      if (auto y = m.get(key)) y->fail("not with polygon: a crack is a slit (from, to) or a polygon");
+    read_crack_polygon(*polygon, c);
+    return c;
+  }
+  if (!m.given("from")) m.missing("from", "one end [x, y, z], m; or polygon");
+  if (!m.given("to")) m.missing("to", "the other end [x, y, z], m; or polygon");
   c.from = m.at("from").vec3("m");
   const Value to = m.at("to");
   c.to = to.vec3("m");
@@ -532,17 +591,19 @@ Scene read_scene(const Context& ctx, const YAML::Node& root, const std::string& 
   UniqueNames crack_names("crack");
   const auto cracks = optional_list(top, "cracks", "a list of cracks");
   for (std::size_t i = 0; i < cracks.size(); ++i) s.cracks.push_back(read_crack(cracks[i], i, crack_names));
-  // A straight segment cuts the bonds of sheets and fibers; in a volume it cuts nothing.
-  if (!cracks.empty() && std::none_of(s.bodies.begin(), s.bodies.end(),
-                                      [](const Body& b) { return b.kind->traits.cut_by_cracks(); })) {
+  // A slit cuts the bonds of sheets and fibers; in a volume it cuts nothing.
+  const bool only_volumes = std::none_of(s.bodies.begin(), s.bodies.end(),
+                                         [](const Body& b) { return b.kind->traits.cut_by_cracks(); });
+  for (std::size_t i = 0; i < cracks.size() && only_volumes; ++i) {
+    if (s.cracks[i].is_polygon()) continue;
     std::vector<std::string> kinds;
     for (const Body& b : s.bodies)
       if (std::find(kinds.begin(), kinds.end(), b.kind->name) == kinds.end()) kinds.push_back(b.kind->name);
-    std::string why = "a pre-crack is a straight segment, which cuts the bonds of sheets and fibers; every body of "
-                      "this scene is a volume (kind: ";
+    std::string why = "a slit (from, to) is a straight segment, which cuts the bonds of sheets and fibers; every "
+                      "body of this scene is a volume (kind: ";
     why += join(kinds);
-    why += "), where a segment cuts no bond";
-    cracks[0].fail(why);
+    why += "), where a segment cuts no bond; a volume is cut by a polygon: {name, polygon: [[x, y, z], ...]}";
+    cracks[i].fail(why);
   }
 
   UniqueNames boundary_names("boundary");

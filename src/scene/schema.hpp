@@ -34,8 +34,8 @@ inline const Keys kSceneKeys = {
     {.name = "bodies", .required = true, .what = "map of body name to body",
      .doc = "map of body name to body (`bodies.<name>`); at least one"},
     {.name = "cracks", .fallback = "none",
-     .doc = "list of straight pre-cracks (`cracks[i]`); they cut sheets and fibers, so a scene whose bodies are all "
-            "solids refuses them"},
+     .doc = "list of pre-cracks (`cracks[i]`): slits, which cut sheets and fibers (a scene whose bodies are all "
+            "solids refuses them), and plane polygons, which cut every body"},
     {.name = "boundaries", .fallback = "none",
      .doc = "list of regions with prescribed velocity components, clamps included (`boundaries[i]`)"},
     {.name = "tools", .fallback = "none", .doc = "list of rigid tools acting by contact (`tools[i]`)"},
@@ -169,11 +169,17 @@ inline const Keys kPairRuleKeys = {
 
 inline const Keys kCrackKeys = {
     {.name = "name", .fallback = "crack<i>", .doc = "the crack's name, which release stages use"},
-    {.name = "from", .required = true, .what = "start point [x, y, z], m", .unit = "m", .doc = "one end [x, y, z]"},
-    {.name = "to", .required = true, .what = "end point [x, y, z], m", .unit = "m",
-     .doc = "the other end [x, y, z], different from from. At the start every bond of a membrane, lattice, fiber "
-            "or sphere whose reference segment meets the slit in the xy plane is broken (solids are not cut), "
+    {.name = "from", .what = "start point [x, y, z], m", .unit = "m", .fallback = "required unless polygon",
+     .doc = "a slit's one end [x, y, z]"},
+    {.name = "to", .what = "end point [x, y, z], m", .unit = "m", .fallback = "required unless polygon",
+     .doc = "the slit's other end [x, y, z], different from from. At the start every bond of a membrane, lattice, "
+            "fiber or sphere whose reference segment meets the slit in the xy plane is broken (solids are not cut), "
             "unless a release stage names the crack"},
+    {.name = "polygon", .what = "corners [[x, y, z], ...], m", .unit = "m", .fallback = "- (a slit)",
+     .doc = "instead of from and to: at least 3 corners, in order, of a convex polygon in one plane (to 1e-9 of its "
+            "size), anywhere in space. At the start every bond of any body (solids and curved sheets included) "
+            "whose reference segment meets the closed polygon in space is broken, unless a release stage names "
+            "the crack"},
 };
 
 inline const Keys kBoundaryKeys = {

@@ -21,12 +21,13 @@ std::int64_t release_cracks(Problem& p, const Stage& stage, EnergyLedger& ledger
   for (std::int32_t i = 0; i < domain.owned; ++i) {
     const BondLaw& law = p.forces->laws()[domain.body[i]];
     const double* Xi = &domain.X[3 * static_cast<std::size_t>(i)];
+    const int dimension = p.bodies[domain.body[i]].traits.dimension;  // a slit cuts no volume
     for (std::int64_t b = domain.bonds.offsets[i]; b < domain.bonds.offsets[i + 1]; ++b) {
       if (domain.bonds.broken[b]) continue;
       const std::int32_t j = domain.bonds.neighbor[b];
       const double* Xj = &domain.X[3 * static_cast<std::size_t>(j)];
       bool cut = false;
-      for (const Crack* c : cracks) cut = cut || crosses(Xi, Xj, *c);
+      for (const Crack* c : cracks) cut = cut || (c->cuts_dimension(dimension) && crosses(Xi, Xj, *c));
       if (!cut) continue;
       double y2 = 0;
       for (int c = 0; c < 3; ++c) {

@@ -210,13 +210,13 @@ void setup_figures(const Problem& p, const Partition& partition, PartitionMethod
   MPI_Allreduce(&local_bonds, &summary.ordered_bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
   MPI_Allreduce(&local_pre, &summary.precrack_bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
   summary.precrack_bonds /= 2;
-  // Pre-cracks broken at the start that cut nothing are misplaced (outside every sheet or fiber).
+  // Pre-cracks broken at the start that cut nothing are misplaced (outside every body they cut).
   const auto at_start = std::find_if(p.scene.cracks.begin(), p.scene.cracks.end(),
                                      [&](const Crack& c) { return !p.scene.released_later(c.name); });
   if (p.rank == 0 && summary.precrack_bonds == 0 && at_start != p.scene.cracks.end())
     std::fprintf(stderr,
                  "peridrive: warning: %s: cracks: the pre-cracks broken at the start ('%s'%s) cut no bond: none "
-                 "of them crosses a bond of a membrane, lattice, fiber or sphere body\n",
+                 "of them crosses a bond of a body it cuts (a slit: membrane, lattice, fiber or sphere; a polygon: any)\n",
                  at_start->where.str().c_str(), at_start->name.c_str(),
                  p.scene.cracks.size() > 1 ? " and the others" : "");
   summary.nodes = d.global_nodes;

@@ -104,9 +104,10 @@ std::int64_t family_class(const Nodes& nodes, const CellList& cells, std::int64_
 /// Largest distance at which a body may have a bond (horizon + cell half-diagonal).
 double reach(const BodyGeometry& g);
 
-/// True when the reference segment a-b meets the crack segment, end points included (xy
-/// projection; membranes): segments_cross in exact arithmetic (crossing.hpp has the rule and its
-/// degenerate cases). Symmetric in (a, b): both ends of a bond see the same answer.
+/// True when the reference segment a-b meets the crack, end points included: a slit in the xy
+/// projection (segments_cross), a polygon in space (segment_meets_triangle on its fan), both in
+/// exact arithmetic (crossing.hpp has the rules and their degenerate cases). Symmetric in (a, b):
+/// both ends of a bond see the same answer. Which bodies a crack cuts: Crack::cuts_dimension.
 bool crosses(const double* a, const double* b, const Crack& crack);
 
 /// Reference geometry of bond families, one copy per distinct family. Row r's bond b (CSR

@@ -4,7 +4,7 @@
 //
 // A uniform grid of square cells over the cracks' xy bounding box: each crack is listed in every
 // cell that has a point within `reach` of it (Chebyshev distance, a superset of the Euclidean
-// one). A bond no longer than `reach` can only meet cracks that pass within `reach` of its first
+// one; a polygon, of its xy bounding box). A bond no longer than `reach` can only meet cracks that pass within `reach` of its first
 // end, all listed in that end's cell. Cells are at least `reach` wide, about one crack's share of
 // the box, and wide enough that the lists hold O(cracks + 4M) entries whatever the cracks' lengths.
 #pragma once
@@ -19,8 +19,9 @@ class CrackIndex {
  public:
   /// `reach` [m]: the longest bond that will be asked about.
   CrackIndex(std::vector<const Crack*> cracks, double reach);
-  /// crosses(a, b, crack) for some indexed crack; a-b no longer than the reach.
-  bool crosses_any(const double* a, const double* b) const;
+  /// crosses(a, b, crack) for some indexed crack that cuts bodies of this dimension
+  /// (Crack::cuts_dimension); a-b no longer than the reach.
+  bool crosses_any(const double* a, const double* b, int dimension) const;
 
  private:
   std::vector<const Crack*> cracks_;

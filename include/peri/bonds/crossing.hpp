@@ -1,5 +1,6 @@
-// Exact segment crossing for pre-cracks and release stages: the sign of the 2D orientation
-// determinant of doubles, exact for every finite input, and the closed-segment test built on it.
+// Exact segment crossing for pre-cracks and release stages: the signs of the 2D and 3D orientation
+// determinants of doubles, exact for every finite input, the closed-segment test in the xy plane
+// (slits) and the closed segment-triangle test in space (polygon cracks) built on them.
 // Pure (no MPI, no scene types): tested against a brute-force rational reference and fuzzed alone.
 #pragma once
 
@@ -18,5 +19,19 @@ int orient2d(const double* a, const double* b, const double* c);
 /// nor does a segment with a non-finite coordinate. Symmetric: swapping a and b, c and d, or the
 /// two segments gives the same answer bit for bit.
 bool segments_cross(const double* a, const double* b, const double* c, const double* d);
+
+/// Exact sign of det [a - d; b - d; c - d] (3-vectors): +1 or -1 by the side of the plane a b c
+/// that d lies on, 0 when the four points lie in one plane. Exact for every finite double; 0 when
+/// any coordinate is NaN or infinite. Antisymmetric: swapping two arguments flips the sign.
+int orient3d(const double* a, const double* b, const double* c, const double* d);
+
+/// True when a, b and c lie on one line (or coincide), exactly.
+bool triangle_degenerate(const double* a, const double* b, const double* c);
+
+/// True when the closed segment [p, q] and the closed triangle a b c (3-vectors) have at least one
+/// point in common: an end on the triangle or its edges counts, and a segment in the triangle's
+/// plane meets it when it touches or overlaps it there. A zero-length segment, a degenerate
+/// triangle or a non-finite coordinate meets nothing. Symmetric in p and q, exact.
+bool segment_meets_triangle(const double* p, const double* q, const double* a, const double* b, const double* c);
 
 }  // namespace peri

@@ -230,13 +230,19 @@ struct Region {
   }
 };
 
-/// Pre-crack: every bond whose reference segment crosses the segment [from, to] is broken at
-/// the start (Silling & Bobaru 7.1: "breaking all the peridynamic bonds that intersect the slit").
+/// Pre-crack: every bond whose reference segment meets it is broken at the start (Silling &
+/// Bobaru 7.1: "breaking all the peridynamic bonds that intersect the slit"). A slit, the segment
+/// [from, to] taken in the xy plane, cuts sheets and fibers; a polygon, a convex plane polygon in
+/// space, cuts every body's bonds, volumes and curved sheets included.
 struct Crack {
   std::string name;
   SourceLoc where;
   Vec3 from{0, 0, 0};
   Vec3 to{0, 0, 0};
+  std::vector<Vec3> polygon;  ///< corners in order; empty for a slit
+  bool is_polygon() const { return !polygon.empty(); }
+  /// Whether it cuts the bonds of a body of this dimension (1 fibers, 2 sheets, 3 volumes).
+  bool cuts_dimension(int dimension) const { return is_polygon() || dimension < 3; }
 };
 
 /// Prescribed-velocity (or clamped: velocity 0) region.
