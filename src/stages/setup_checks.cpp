@@ -183,6 +183,27 @@ void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList
     }
 }
 
+void check_polygon_cracks(const Scene& scene, const Nodes& nodes) {
+  for (const Crack& c : scene.cracks) {
+    if (!c.is_polygon()) continue;
+    double size = 0;
+    for (const Vec3& p : c.polygon)
+      for (const Vec3& q : c.polygon) size = std::max(size, std::hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]));
+    for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
+      const BodyGeometry& g = nodes.bodies[b];
+      if (!g.traits.flat || g.count == 0) continue;
+      const double z = nodes.X[3 * g.first + 2];  // a flat sheet's plane
+      const bool in_plane = std::all_of(c.polygon.begin(), c.polygon.end(),
+                                        [&](const Vec3& p) { return std::fabs(p[2] - z) <= 1e-9 * size; });
+      if (in_plane)
+        throw InputError(c.where.str() + ": cracks." + c.name + ".polygon: lies in the plane of the flat sheet '" +
+                         scene.bodies[b].name + "' (z = " + num(z) + " m), where it would break every bond within "
+                         "its area and leave the nodes there loose; expected a polygon across the sheet's plane (a cut "
+                         "through the sheet), a slit {from, to}, or a cutout to remove the area");
+    }
+  }
+}
+
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank) {
   for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
     const BodyGeometry& g = nodes.bodies[b];

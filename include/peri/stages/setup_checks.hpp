@@ -38,6 +38,9 @@ void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank);
 /// Every node within 1e9 spacings of the origin, where positions keep a spacing to 1e-7; a
 /// warning (rank 0) beyond 1e6 spacings.
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
+/// A polygon crack lying in the plane of a flat sheet (which would break every bond within its
+/// area, not cut along a line): InputError naming the crack and the sheet.
+void check_polygon_cracks(const Scene& scene, const Nodes& nodes);
 /// Node measures, masses and each body's energy scale within the doubles' range (global node
 /// arrays). laws, density: per body.
 void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector<BondLaw>& laws,
