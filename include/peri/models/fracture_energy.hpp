@@ -29,6 +29,20 @@ struct CrackAdvanceEnergy {
 CrackAdvanceEnergy crack_advance_energy(const Nodes& nodes, const CellList& cells, const BondLaw& law, int body,
                                         const Crack& advance);
 
+/// The same work for a volume (solid bodies): the bonds crossing the polygon crack `advance` (at
+/// least a horizon inside the body), per unit of its area,
+///   G_h = sum of w_0(|xi_ij|) w_ij V_i V_j over them / area.
+/// Its continuum limit is pmb_release_rate_3d.
+CrackAdvanceEnergy crack_advance_energy_3d(const Nodes& nodes, const CellList& cells, const BondLaw& law, int body,
+                                           const Crack& advance);
+
+/// The energy release rate of a peridynamic volume: the energy of the bonds crossing a unit area
+/// of a plane, G = pi int_0^delta w_0(xi) xi^3 dxi (a bond of length xi at angle phi to the normal
+/// crosses the plane from within xi cos(phi) of it: int_0^xi (1 - z/xi) dz = xi/2 over the
+/// sphere's 2 pi); pi c s_0^2 delta^5 / 10 for the PMB bond's w_0 = c s_0^2 xi / 2 (Silling and
+/// Askari 2005).
+double release_rate_3d(const BondLaw& law);
+
 /// Eq. (30): G = 2 h int_0^delta w_0(xi) xi^2 dxi for the law's influence function and critical
 /// stretch (closed form 2 h w_0 delta^3 / 3 for g = 1 and constant lambda_0).
 double eq30_release_rate(const BondLaw& law, double thickness);
