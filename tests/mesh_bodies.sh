@@ -14,7 +14,7 @@
 #    z = 0, never move) while a follower pressure on the file's triangles inflates it (the radius
 #    grows), on 1 and 2 ranks with the same positions bit for bit; a tet solid likewise;
 #  - polygon pre-cracks: a rectangle in the plane y = 0 cuts the tube's +x wall only, and half of the
-#    tet box, with the same damage on 1 and 2 ranks;
+#    tet box, with the same damage on 1 and 2 ranks and when a release stage breaks it;
 #  - a fiber's path read from a file (`polyline`, with a comment, a blank line, commas and blanks)
 #    gives the nodes and the motion of the same path given inline, bit for bit;
 #  - frames_surface.xdmf holds the tube's frames over its triangles (meshio reads them), and a tet
@@ -73,6 +73,8 @@ solid rod rod.msh '' 'boundaries:\n  - {name: base, region: {body: block, group:
 # that the -x wall never meets), and half of the tet box cut at x = 10.1 mm.
 membrane tubecut tube.msh '' 'cracks:\n  - {name: side, polygon: [[0.04, 0, 0.08], [0.06, 0, 0.08], [0.06, 0, 0.12], [0.04, 0, 0.12]]}'
 solid boxcut box.msh '' 'cracks:\n  - {name: half, polygon: [[0.0101, -1, -1], [0.0101, 0.005, -1], [0.0101, 0.005, 1], [0.0101, -1, 1]]}'
+# The same polygon broken by a release stage instead (on 2 ranks).
+sed 's/^stages:$/stages:\n  - {name: cut, kind: release, cracks: [half]}/' boxcut.yaml > boxrelease.yaml
 sed -i 's/steps: 1}/steps: 20}/' rod.yaml
 # A fiber's path from a file (`polyline`) and inline: the same nodes.
 printf '# a bent fiber\n0, 0, 0\n\n0.01 0 0\n0.01,0.01,0.002\n' > bent.xyz
@@ -90,6 +92,7 @@ done
 "$peridrive" printed.yaml --print-scene > printed2.yaml
 "$peridrive" inflate.yaml --dry-run > dry.txt
 "$peridrive" boxcut.yaml --dry-run > dry-box.txt
+"$mpiexec" -n 2 "$@" "$peridrive" boxrelease.yaml --out out-boxrelease > boxrelease.txt
 /usr/bin/python3 - "$tmp" <<'PY'
 import sys, h5py, numpy as np
 tmp = sys.argv[1]
@@ -167,6 +170,10 @@ dbox = float([l.split("=")[1] for l in open(f"{tmp}/dry-box.txt") if l.startswit
 near = (np.abs(X[:, 0] - 0.0101) <= dbox) & (X[:, 1] <= 0.005 + dbox)
 check("polygon cut in a tet solid", hit.sum() > 10 and near[hit].all() and np.array_equal(D, D2) and pre[0] == pre[1] and pre[0] > 50,
       f"{pre[0]} bonds cut, {hit.sum()} nodes damaged, all within a horizon ({dbox:.4g} m) of the cut; damage on 2 ranks the same bits ({pre[1]} bonds)")
+released = [int(l.split(":")[1].split()[0]) for l in open(f"{tmp}/boxrelease.txt") if "release 'cut'" in l]
+fr3, _, _ = frames("boxrelease")
+check("polygon released by a stage", released == [pre[0]] and np.array_equal(fr3[sorted(fr3)[-1]]["damage"], fr[sorted(fr)[-1]]["damage"]),
+      f"release stage 'cut': {released} bonds broken against {pre[0]} at the start; the same damage")
 # frames_surface.xdmf: the same frames over the file's triangles, as meshio reads it (a rod of
 # tetrahedra has no surface file).
 import os, meshio

@@ -10,14 +10,14 @@ src=$(cd "$(dirname "$0")/../.." && pwd)
 out=${2:-$src/build-fuzz}
 "$src/tests/fuzz/build.sh" "$out" || exit 1
 targets=("${@:3}")
-[ ${#targets[@]} -gt 0 ] || targets=(scene checkpoint crossing override)
+[ ${#targets[@]} -gt 0 ] || targets=(scene checkpoint crossing polygon override)
 status=0
 for target in "${targets[@]}"; do
   work=$(mktemp -d)
   cp -r "$src/tests/fuzz/corpus/$target/." "$work/"
   crashes=$src/tests/fuzz/crashes/$target
   mkdir -p "$crashes"
-  case $target in scene) max_len=8192 ;; checkpoint) max_len=16384 ;; crossing) max_len=65 ;; *) max_len=4096 ;; esac
+  case $target in scene) max_len=8192 ;; checkpoint) max_len=16384 ;; crossing) max_len=65 ;; polygon) max_len=121 ;; *) max_len=4096 ;; esac
   echo "== fuzz_$target for $seconds s"
   "$out/fuzz_$target" "$work" -max_total_time="$seconds" -max_len="$max_len" -timeout=10 -rss_limit_mb=2048 \
     -artifact_prefix="$crashes/" -print_final_stats=1 > "$out/fuzz_$target.log" 2>&1
