@@ -13,6 +13,7 @@
 #include <limits>
 #include <random>
 #include <set>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -547,17 +548,24 @@ TEST(PolygonCrack, SegmentTriangleMatchesReference) {
 
 namespace {
 
-Crack polygon(std::vector<Vec3> corners) {
-  Crack c;
-  c.polygon = std::move(corners);
-  return c;
-}
-
 // A 10 mm cube of 1 mm nodes at the origin (nodes at (i + 1/2) mm), horizon 3 mm.
 const char* kBlock =
     "name: b\nmaterials:\n  m: {model: pmb, density: 2200, micromodulus: 1.0e19, critical_stretch: 0.05}\n"
     "bodies:\n  block: {kind: solid, material: m, origin: [0, 0, 0], size: [0.01, 0.01, 0.01], spacing: 0.001,\n"
     "          horizon: 0.003015}\nstages:\n  - {name: r, steps: 1}\n";
+
+// A polygon crack as the scene reader makes it (checked, with its plane's filter).
+Crack polygon(const std::vector<Vec3>& corners) {
+  std::string text = std::string(kBlock) + "cracks:\n  - {polygon: [";
+  char corner[128];
+  for (std::size_t k = 0; k < corners.size(); ++k) {
+    std::snprintf(corner, sizeof corner, "%s[%.17g, %.17g, %.17g]", k ? ", " : "", corners[k][0], corners[k][1], corners[k][2]);
+    text += corner;
+  }
+  const Scene scene = parse_scene(text + "]}\n", "polygon-test");
+  EXPECT_TRUE(std::isfinite(scene.cracks.at(0).plane_tolerance));
+  return scene.cracks.at(0);
+}
 
 }  // namespace
 
@@ -571,7 +579,7 @@ TEST(PolygonCrack, BlockBreaksExactlyTheBondsThePolygonsMeet) {
     std::vector<Crack> cracks;
     std::int64_t at_least;
   };
-  const std::vector<Case> cases = {
+  std::vector<Case> cases = {
       {"plane between layers", {polygon({{0.005, -1, -1}, {0.005, 1, -1}, {0.005, 1, 1}, {0.005, -1, 1}})}, 5000},
       {"plane through a layer", {polygon({{0.0045, -1, -1}, {0.0045, 1, -1}, {0.0045, 1, 1}, {0.0045, -1, 1}})}, 5000},
       {"half plane ending at y = 5 mm", {polygon({{0.005, -1, -1}, {0.005, 0.005, -1}, {0.005, 0.005, 1}, {0.005, -1, 1}})}, 2000},
@@ -580,6 +588,10 @@ TEST(PolygonCrack, BlockBreaksExactlyTheBondsThePolygonsMeet) {
       {"hexagon and a crossing plane", {polygon({{0.003, 0.005, 0.001}, {0.007, 0.005, 0.001}, {0.009, 0.005, 0.005}, {0.007, 0.005, 0.009}, {0.003, 0.005, 0.009}, {0.001, 0.005, 0.005}}),
                                         polygon({{-1, -1, 0.0052}, {1, -1, 0.0052}, {1, 1, 0.0052}, {-1, 1, 0.0052}})}, 3000},
   };
+  std::vector<Vec3> penny;  // 12 corners in the layer of nodes z = 4.5 mm
+  for (int k = 0; k < 12; ++k)
+    penny.push_back({0.005 + 0.0037 * std::cos(k * M_PI / 6), 0.005 + 0.0037 * std::sin(k * M_PI / 6), 0.0045});
+  cases.push_back({"penny of 12 corners in a layer", {polygon(penny)}, 2000});
   for (const Case& c : cases) {
     std::int64_t broken, expected, wrong, asymmetric;
     block.compare(c.cracks, broken, expected, wrong, asymmetric);

@@ -303,6 +303,15 @@ bool crosses(const double* a, const double* b, const Crack& crack) {
   // A convex polygon as the fan of triangles from its first corner (degenerate ones meet nothing);
   // neighbouring triangles share their closed edge, so a bond through it meets one of them.
   const std::vector<Vec3>& c = crack.polygon;
+  // Both ends beyond the polygon's reach from its plane, on one side: nothing to meet. (The
+  // distances' round-off is below 8e-16 of the magnitudes in them.)
+  const double* n = crack.plane_normal.data();
+  const double da = n[0] * a[0] + n[1] * a[1] + n[2] * a[2] - crack.plane_offset;
+  const double db = n[0] * b[0] + n[1] * b[1] + n[2] * b[2] - crack.plane_offset;
+  double scale = std::fabs(crack.plane_offset);
+  for (int d = 0; d < 3; ++d) scale += std::fabs(a[d]) + std::fabs(b[d]);
+  const double tolerance = crack.plane_tolerance + 8e-16 * scale;
+  if ((da > tolerance && db > tolerance) || (da < -tolerance && db < -tolerance)) return false;
   for (std::size_t k = 1; k + 1 < c.size(); ++k)
     if (segment_meets_triangle(a, b, c[0].data(), c[k].data(), c[k + 1].data())) return true;
   return false;

@@ -167,42 +167,57 @@ void read_crack_polygon(const Value& list, Crack& c) {
     if (k > 0 && c.polygon[k] == c.polygon[k - 1])
       items[k].fail("expected a corner different from the one before it, got " + items[k].got());
   }
-  const std::vector<Vec3>& p = c.polygon;
-  const std::size_t n = p.size();
+  const std::size_t n = c.polygon.size();
+  for (std::size_t k = 0; k < n; ++k)
+    for (double x : c.polygon[k])
+      if (!(std::fabs(x) < 1e100)) items[k].fail("expected a corner within 1e100 m of the origin, got " + items[k].got());
   auto minus = [](const Vec3& a, const Vec3& b) { return Vec3{a[0] - b[0], a[1] - b[1], a[2] - b[2]}; };
   auto cross = [](const Vec3& a, const Vec3& b) {
     return Vec3{a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
   };
   auto dot = [](const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
-  // Newell's normal (twice the vector area) and the size of the polygon.
+  // The corners relative to the first, in units of the bounding box's diagonal: O(1) numbers at
+  // any scale.
+  Vec3 lo = c.polygon[0], hi = c.polygon[0];
+  for (const Vec3& x : c.polygon)
+    for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], x[d]), hi[d] = std::max(hi[d], x[d]);
+  const double size = std::hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  std::vector<Vec3> p(n);
+  for (std::size_t k = 0; k < n; ++k)
+    for (int d = 0; d < 3; ++d) p[k][d] = (c.polygon[k][d] - c.polygon[0][d]) / size;
+  // Newell's normal (twice the vector area) and the corners' mean.
   Vec3 normal{0, 0, 0}, centre{0, 0, 0};
-  double size = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3 e = cross(p[i], p[(i + 1) % n]);
     for (int d = 0; d < 3; ++d) normal[d] += e[d], centre[d] += p[i][d] / static_cast<double>(n);
-    for (std::size_t j = 0; j < i; ++j) size = std::max(size, std::sqrt(dot(minus(p[i], p[j]), minus(p[i], p[j]))));
   }
+  const std::string crossing = "expected a polygon that encloses an area, its corners in order, got corners on one "
+                               "line or edges that cross (" + list.got() + ")";
   const double area2 = std::sqrt(dot(normal, normal));
-  if (!(area2 > 1e-12 * size * size) || !std::isfinite(area2))
-    list.fail("expected a polygon that encloses an area, its corners in order, got corners on one line or edges that "
-              "cross (" + list.got() + ")");
+  if (!(area2 > 1e-12)) list.fail(crossing);
   for (double& x : normal) x /= area2;
   for (std::size_t i = 0; i < n; ++i) {
     const double off = dot(minus(p[i], centre), normal);
-    if (!(std::fabs(off) <= 1e-9 * size))
+    if (!(std::fabs(off) <= 1e-9))
       items[i].fail("expected the corners in one plane (to 1e-9 of the polygon's size), got this corner " +
-                    format_number(std::fabs(off)) + " m off the corners' mean plane");
+                    format_number(std::fabs(off) * size) + " m off the corners' mean plane");
   }
-  for (std::size_t i = 0; i < n; ++i) {  // convex: every corner on the inner side of edge i
-    const Vec3 edge = minus(p[(i + 1) % n], p[i]);
-    const double length = std::sqrt(dot(edge, edge));
-    for (std::size_t j = 0; j < n; ++j) {
-      if (dot(cross(edge, minus(p[j], p[i])), normal) < -1e-9 * length * size)
-        list.fail("expected a convex polygon with its corners in order (corner " + std::to_string(j + 1) +
-                  " lies outside the edge from corner " + std::to_string(i + 1) + " to corner " +
-                  std::to_string((i + 1) % n + 1) + "); give a non-convex cut as several convex polygons");
-    }
+  // Convex and simple: it turns one way (about the normal) at every corner, and once around.
+  double turning = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 e0 = minus(p[(i + 1) % n], p[i]), e1 = minus(p[(i + 2) % n], p[(i + 1) % n]);
+    const double turn = dot(cross(e0, e1), normal);
+    if (turn < -1e-9 * std::sqrt(dot(e0, e0) * dot(e1, e1)))
+      list.fail("expected a convex polygon with its corners in order (it turns the other way at corner " +
+                std::to_string((i + 1) % n + 1) + "); give a non-convex cut as several convex polygons");
+    turning += std::atan2(turn, dot(e0, e1));
   }
+  if (!(std::fabs(turning - 2 * M_PI) < 1e-6)) list.fail(crossing);
+  // The mean plane: every corner within 1e-9 size of it (above), so every point of the fan too.
+  c.plane_normal = normal;
+  c.plane_offset = 0;
+  for (int d = 0; d < 3; ++d) c.plane_offset += normal[d] * (c.polygon[0][d] + centre[d] * size);
+  c.plane_tolerance = 2e-9 * size;
 }
 
 Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {

@@ -4,6 +4,7 @@
 #pragma once
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -240,6 +241,11 @@ struct Crack {
   Vec3 from{0, 0, 0};
   Vec3 to{0, 0, 0};
   std::vector<Vec3> polygon;  ///< corners in order; empty for a slit
+  /// A polygon's mean plane n . x = offset (unit n) and a distance beyond which no point of its
+  /// fan lies, round-off included: a bond with both ends farther on one side meets nothing (a
+  /// filter before the exact test; infinite where not computed, filtering nothing).
+  Vec3 plane_normal{0, 0, 0};
+  double plane_offset = 0, plane_tolerance = INFINITY;
   bool is_polygon() const { return !polygon.empty(); }
   /// Whether it cuts the bonds of a body of this dimension (1 fibers, 2 sheets, 3 volumes).
   bool cuts_dimension(int dimension) const { return is_polygon() || dimension < 3; }
