@@ -155,9 +155,9 @@ Material read_material(const std::string& name, const Value& v) {
   return mat;
 }
 
-// A polygon crack's corners: at least three, each different from the one before, in one plane
-// (to 1e-9 of the polygon's size) and convex (every corner on one side of every edge's line, or
-// on it), enclosing an area.
+// A polygon crack's corners: at least three, each different from the one before, within 1e100 m,
+// in one plane (to 1e-9 of the polygon's size), convex and simple (one turn direction at every
+// corner, once around), enclosing an area. Sets the crack's mean plane for crosses()' filter.
 void read_crack_polygon(const Value& list, Crack& c) {
   const std::string expected = "a list of at least 3 corners [[x, y, z], ...] [m] of a convex plane polygon";
   const std::vector<Value> items = list.list(expected);

@@ -186,9 +186,10 @@ void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList
 void check_polygon_cracks(const Scene& scene, const Nodes& nodes) {
   for (const Crack& c : scene.cracks) {
     if (!c.is_polygon()) continue;
-    double size = 0;
+    Vec3 lo = c.polygon[0], hi = c.polygon[0];
     for (const Vec3& p : c.polygon)
-      for (const Vec3& q : c.polygon) size = std::max(size, std::hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]));
+      for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], p[d]), hi[d] = std::max(hi[d], p[d]);
+    const double size = std::hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
     for (std::size_t b = 0; b < scene.bodies.size(); ++b) {
       const BodyGeometry& g = nodes.bodies[b];
       if (!g.traits.flat || g.count == 0) continue;
