@@ -252,12 +252,19 @@ else bad "bodies_apart: exit status or warning"; fi
 # Pre-cracks that cross no bond (here: beside the sheet) are named in a warning; the run goes on.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}]' --dry-run \
   > "$work/stdout" 2> "$work/stderr"
-want="cracks: the pre-cracks broken at the start ('astray') cut no bond"
+want="cracks: the pre-crack broken at the start ('astray') cuts no bond"
 if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "crack_cuts_nothing: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "crack_cuts_nothing: expected one warning '$want'"; cat "$work/stderr"; fi
+# Beside a slit that cuts, a misplaced slit and a polygon above the sheet are named (not the slit).
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: slit, from: [-0.005, 0, 0], to: [0.005, 0, 0]}, {name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}, {name: high, polygon: [[0, 0, 0.01], [0.01, 0, 0.01], [0.01, 0, 0.02]]}]' \
+  --dry-run > "$work/stdout" 2> "$work/stderr"
+want="cracks: the pre-cracks broken at the start ('astray', 'high') cut no bond: none of them meets a bond"
+if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "cracks_cut_nothing_beside_one_that_cuts: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "cracks_cut_nothing_beside_one_that_cuts: expected one warning '$want'"; cat "$work/stderr"; fi
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --dry-run > "$work/stdout" 2> "$work/stderr"
-if [ $? -eq 0 ] && ! grep -q "cut no bond" "$work/stderr"; then ok "crack_cuts_bonds: no warning"
+if [ $? -eq 0 ] && ! grep -q "no bond" "$work/stderr"; then ok "crack_cuts_bonds: no warning"
 else bad "crack_cuts_bonds: exit status or warning"; fi
 
 # A horizon that covers the whole sheet: the estimate counts every other node, not pi m^2 (which

@@ -98,7 +98,7 @@ CrackIndex::CrackIndex(std::vector<const Crack*> cracks, double reach) : cracks_
     visit(k, [&](std::int64_t cell) { listed_[next[cell]++] = static_cast<std::int32_t>(k); });
 }
 
-bool CrackIndex::crosses_any(const double* a, const double* b, int dimension) const {
+bool CrackIndex::crosses_any(const double* a, const double* b, int dimension, std::vector<char>* met) const {
   if (cracks_.empty()) return false;
   std::int64_t cell = 0;
   if (std::isfinite(size_)) {
@@ -107,9 +107,16 @@ bool CrackIndex::crosses_any(const double* a, const double* b, int dimension) co
     if (!(i >= 0 && i < static_cast<double>(nx_) && j >= 0 && j < static_cast<double>(ny_))) return false;
     cell = static_cast<std::int64_t>(j) * nx_ + static_cast<std::int64_t>(i);
   }
-  for (std::int64_t p = start_[cell]; p < start_[cell + 1]; ++p)
-    if (cracks_[listed_[p]]->cuts_dimension(dimension) && crosses(a, b, *cracks_[listed_[p]])) return true;
-  return false;
+  bool any = false;
+  for (std::int64_t p = start_[cell]; p < start_[cell + 1]; ++p) {
+    const std::int32_t k = listed_[p];
+    if (any && (*met)[k]) continue;
+    if (!cracks_[k]->cuts_dimension(dimension) || !crosses(a, b, *cracks_[k])) continue;
+    if (!met) return true;
+    (*met)[k] = 1;
+    any = true;
+  }
+  return any;
 }
 
 }  // namespace peri

@@ -84,6 +84,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
   for (const BodyGeometry& g : nodes.bodies)
     if (cut(g.traits.dimension)) longest = std::max(longest, reach(g));
   const bool crack_list_empty = crack_list.empty();
+  d.crack_met.assign(crack_list.size(), 0);
   const CrackIndex cracks(std::move(crack_list), longest);
   for (std::int32_t r = 0; r < d.owned; ++r) {
     if (r % kPollRows == 0 && stop && stop()) return d;
@@ -115,7 +116,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
         // Canonical orientation (lower natural id first) so both ends decide alike.
         const double* a = &nodes.X[3 * std::min(i, j)];
         const double* c = &nodes.X[3 * std::max(i, j)];
-        if (cracks.crosses_any(a, c, g.traits.dimension)) {
+        if (cracks.crosses_any(a, c, g.traits.dimension, &d.crack_met)) {
           d.bonds.broken[b] = 1;
           d.bonds.row_broken[r] = 1;
           ++d.initially_broken;

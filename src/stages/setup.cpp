@@ -211,15 +211,23 @@ void setup_figures(const Problem& p, const Partition& partition, PartitionMethod
   MPI_Allreduce(&local_bonds, &summary.ordered_bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
   MPI_Allreduce(&local_pre, &summary.precrack_bonds, 1, MPI_INT64_T, MPI_SUM, p.comm);
   summary.precrack_bonds /= 2;
-  // Pre-cracks broken at the start that cut nothing are misplaced (outside every body they cut).
-  const auto at_start = std::find_if(p.scene.cracks.begin(), p.scene.cracks.end(),
-                                     [&](const Crack& c) { return !p.scene.released_later(c.name); });
-  if (p.rank == 0 && summary.precrack_bonds == 0 && at_start != p.scene.cracks.end())
+  // Pre-cracks broken at the start that cut nothing are misplaced (outside every body they cut),
+  // each named, also beside others that cut.
+  std::vector<int> met(d.crack_met.begin(), d.crack_met.end());
+  if (!met.empty()) MPI_Allreduce(MPI_IN_PLACE, met.data(), static_cast<int>(met.size()), MPI_INT, MPI_MAX, p.comm);
+  std::vector<const Crack*> idle;
+  std::size_t k = 0;
+  for (const Crack& c : p.scene.cracks)
+    if (!p.scene.released_later(c.name) && k < met.size() && !met[k++]) idle.push_back(&c);
+  if (p.rank == 0 && !idle.empty()) {
+    std::string names;
+    for (const Crack* c : idle) names += (names.empty() ? "'" : ", '") + c->name + "'";
     std::fprintf(stderr,
-                 "peridrive: warning: %s: cracks: the pre-cracks broken at the start ('%s'%s) cut no bond: none "
-                 "of them crosses a bond of a body it cuts (a slit: membrane, lattice, fiber or sphere; a polygon: any)\n",
-                 at_start->where.str().c_str(), at_start->name.c_str(),
-                 p.scene.cracks.size() > 1 ? " and the others" : "");
+                 "peridrive: warning: %s: cracks: %s broken at the start (%s) %s no bond: %s of a body it cuts "
+                 "(a slit: membrane, lattice, fiber or sphere; a polygon: any)\n",
+                 idle[0]->where.str().c_str(), idle.size() > 1 ? "the pre-cracks" : "the pre-crack", names.c_str(),
+                 idle.size() > 1 ? "cut" : "cuts", idle.size() > 1 ? "none of them meets a bond" : "it meets no bond");
+  }
   summary.nodes = d.global_nodes;
   summary.ranks = p.ranks;
   summary.steps = p.stages.total;

@@ -20,8 +20,9 @@ class CrackIndex {
   /// `reach` [m]: the longest bond that will be asked about.
   CrackIndex(std::vector<const Crack*> cracks, double reach);
   /// crosses(a, b, crack) for some indexed crack that cuts bodies of this dimension
-  /// (Crack::cuts_dimension); a-b no longer than the reach.
-  bool crosses_any(const double* a, const double* b, int dimension) const;
+  /// (Crack::cuts_dimension); a-b no longer than the reach. With `met` (one flag per crack, in
+  /// the order given), every crack not yet flagged that the bond meets is flagged too.
+  bool crosses_any(const double* a, const double* b, int dimension, std::vector<char>* met = nullptr) const;
 
  private:
   std::vector<const Crack*> cracks_;

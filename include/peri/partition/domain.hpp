@@ -25,6 +25,7 @@ struct Domain {
   std::vector<std::int32_t> interior_rows;  ///< owned rows whose neighbours are all owned
   std::vector<std::int32_t> boundary_rows;  ///< owned rows with at least one ghost neighbour
   std::int64_t initially_broken = 0;  ///< owned ordered bonds broken by pre-cracks
+  std::vector<char> crack_met;        ///< per scene crack broken at the start: it met an owned bond
   std::int32_t local() const { return owned + ghosts; }
 };
 
