@@ -17,30 +17,21 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <limits>
 #include <utility>
 
 #include "../crossing_reference.hpp"
+#include "fuzz_numbers.hpp"
 #include "peri/bonds/crossing.hpp"
 
 namespace {
+
+using fuzz_numbers::finite;
+using fuzz_numbers::nudge;
 
 [[noreturn]] void finding(const char* what, const double* p) {
   std::fprintf(stderr, "fuzz_crossing finding: %s\n  a (%a, %a) b (%a, %a) c (%a, %a) d (%a, %a)\n", what, p[0],
                p[1], p[2], p[3], p[4], p[5], p[6], p[7]);
   std::abort();
-}
-
-double nudge(double x, int k) {
-  for (; k > 0; --k) x = std::nextafter(x, std::numeric_limits<double>::infinity());
-  for (; k < 0; ++k) x = std::nextafter(x, -std::numeric_limits<double>::infinity());
-  return x;
-}
-
-bool finite(const double* p, int n) {
-  for (int k = 0; k < n; ++k)
-    if (!std::isfinite(p[k])) return false;
-  return true;
 }
 
 void check_orientation(const double* a, const double* b, const double* c, const double* all) {

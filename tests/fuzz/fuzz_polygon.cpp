@@ -18,29 +18,20 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <limits>
 
 #include "../crossing_reference.hpp"
+#include "fuzz_numbers.hpp"
 #include "peri/bonds/crossing.hpp"
 
 namespace {
+
+using fuzz_numbers::finite;
+using fuzz_numbers::nudge;
 
 [[noreturn]] void finding(const char* what, const double* v) {
   std::fprintf(stderr, "fuzz_polygon finding: %s\n", what);
   for (int k = 0; k < 5; ++k) std::fprintf(stderr, "  %c (%a, %a, %a)\n", "pqabc"[k], v[3 * k], v[3 * k + 1], v[3 * k + 2]);
   std::abort();
-}
-
-double nudge(double x, int k) {
-  for (; k > 0; --k) x = std::nextafter(x, std::numeric_limits<double>::infinity());
-  for (; k < 0; ++k) x = std::nextafter(x, -std::numeric_limits<double>::infinity());
-  return x;
-}
-
-bool finite(const double* p, int n) {
-  for (int k = 0; k < n; ++k)
-    if (!std::isfinite(p[k])) return false;
-  return true;
 }
 
 void check_orientation(const double* a, const double* b, const double* c, const double* d, const double* all) {
