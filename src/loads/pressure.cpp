@@ -15,16 +15,23 @@ Pressure::Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, 
     if (local.empty())
       for (std::int32_t l = 0; l < domain.local(); ++l) local.emplace(domain.natural[l], l);
     const BodyGeometry& g = bodies[b];
-    std::vector<std::vector<std::pair<std::int32_t, std::int32_t>>> corners(domain.owned);
-    for (const auto& t : g.triangles)
-      for (int k = 0; k < 3; ++k) {
-        const auto i = local.find(t[k]);
-        if (i == local.end() || i->second >= domain.owned) continue;
-        const auto a = local.find(t[(k + 1) % 3]), c = local.find(t[(k + 2) % 3]);
-        if (a == local.end() || c == local.end()) continue;  // a corner beyond the halo: no share
-        corners[i->second].push_back({a->second, c->second});
-      }
     Sphere load;
+    // Per owned corner, its triangles' other corners and the triangle (in the file's order of the
+    // triangles, the same on any number of ranks).
+    std::vector<std::vector<std::array<std::int32_t, 3>>> shares(domain.owned);
+    for (const auto& t : g.triangles) {
+      std::int32_t at[3] = {-1, -1, -1};
+      for (int k = 0; k < 3; ++k)
+        if (const auto i = local.find(t[k]); i != local.end()) at[k] = i->second;
+      if (at[0] < 0 || at[1] < 0 || at[2] < 0) continue;  // a corner beyond the halo: no share
+      bool met = false;
+      for (int k = 0; k < 3; ++k) {
+        if (at[k] >= domain.owned) continue;
+        shares[at[k]].push_back({at[(k + 1) % 3], at[(k + 2) % 3], static_cast<std::int32_t>(load.corners.size())});
+        met = true;
+      }
+      if (met) load.corners.push_back({at[0], at[1], at[2]});
+    }
     load.pressure = body.pressure;
     load.ramp = body.pressure_ramp_time;
     auto bond_to = [&](std::int32_t i, std::int32_t j) -> std::int64_t {
@@ -33,14 +40,17 @@ Pressure::Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, 
       return -1;
     };
     for (std::int32_t i = 0; i < domain.owned; ++i) {
-      if (corners[i].empty()) continue;
+      if (shares[i].empty()) continue;
       load.node.push_back(i);
-      for (const auto& [a, c] : corners[i]) {
+      load.inv_volume.push_back(1.0 / domain.volume[i]);
+      for (const auto& [a, c, t] : shares[i]) {
         load.others.push_back({a, c});
+        load.triangle.push_back(t);
         load.bonds.push_back({bond_to(i, a), bond_to(i, c)});
       }
       load.begin.push_back(static_cast<std::int64_t>(load.others.size()));
     }
+    load.area.assign(3 * load.corners.size(), 0.0);
     load.force_prev.assign(3 * load.node.size(), 0.0);
     load.x_prev.assign(3 * load.node.size(), 0.0);
     loads_.push_back(std::move(load));
@@ -99,9 +109,20 @@ void Pressure::add_forces(double t, const LoadTarget& target, bool book, EnergyL
   auto pos = [&](std::int32_t i, int c) { return x[c * s + i]; };
   for (Sphere& load : loads_) {
     const double p = current(load, t);
-    // p times a triangle's area vector (1/2 e1 x e2), a third to each corner. (The division
-    // outside the loop: the compiler keeps it inside, past the intact tests' branch.)
+    // p times a triangle's area vector (1/2 (b - a) x (c - a), formed once per triangle from its
+    // corners in the file's order, so its three corners take the same bits on any number of
+    // ranks), a third to each corner. (The division outside the loop: the compiler keeps it
+    // inside, past the intact tests' branch.)
     const double k = p / 6.0;
+    const std::size_t n_triangles = load.corners.size();
+    for (std::size_t q = 0; q < n_triangles; ++q) {
+      const auto [a, b, c] = load.corners[q];
+      const double e1[3] = {pos(b, 0) - pos(a, 0), pos(b, 1) - pos(a, 1), pos(b, 2) - pos(a, 2)};
+      const double e2[3] = {pos(c, 0) - pos(a, 0), pos(c, 1) - pos(a, 1), pos(c, 2) - pos(a, 2)};
+      load.area[3 * q] = e1[1] * e2[2] - e1[2] * e2[1];
+      load.area[3 * q + 1] = e1[2] * e2[0] - e1[0] * e2[2];
+      load.area[3 * q + 2] = e1[0] * e2[1] - e1[1] * e2[0];
+    }
     double work = 0;
     for (std::size_t m = 0; m < load.node.size(); ++m) {
       const std::int32_t i = load.node[m];
@@ -110,14 +131,12 @@ void Pressure::add_forces(double t, const LoadTarget& target, bool book, EnergyL
       double f[3] = {0, 0, 0};
       for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
         if (!whole && (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1]))) continue;
-        const std::int32_t a = load.others[e][0], c = load.others[e][1];
-        const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
-        const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
-        f[0] += k * (e1[1] * e2[2] - e1[2] * e2[1]);
-        f[1] += k * (e1[2] * e2[0] - e1[0] * e2[2]);
-        f[2] += k * (e1[0] * e2[1] - e1[1] * e2[0]);
+        const double* area = load.area.data() + 3 * static_cast<std::size_t>(load.triangle[e]);
+        f[0] += k * area[0];
+        f[1] += k * area[1];
+        f[2] += k * area[2];
       }
-      const double inv_volume = 1.0 / domain_.volume[i];
+      const double inv_volume = load.inv_volume[m];
       for (int c = 0; c < 3; ++c) {
         force[3 * static_cast<std::size_t>(i) + c] += f[c] * inv_volume;
         const double xc = pos(i, c);

@@ -37,8 +37,12 @@ class Pressure final : public Load {
     double pressure = 0, ramp = 0;
     double held = -1, held_from = 0;  // quasi-static: p held at `held` (< 0: p(t)), level 0 at held_from
     std::vector<std::int32_t> node;                   // owned loaded nodes (local)
+    std::vector<double> inv_volume;                   // per loaded node, 1 / its measure
     std::vector<std::int64_t> begin{0};               // per loaded node, into the lists below
     std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
+    std::vector<std::int32_t> triangle;               // and the triangle, into `corners`
+    std::vector<std::array<std::int32_t, 3>> corners;  // the triangles met (local corners, the file's order)
+    std::vector<double> area;                          // per triangle, its current 2 x area vector
     std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to them (-1: none)
     std::vector<double> force_prev, x_prev;           // per loaded node: last force [N], position
     bool started = false;
