@@ -209,13 +209,35 @@ else bad "set_steps_replaces_duration"; fi
 awk '{print} /^    velocity: \[0, -12.5, 0\]/ {print "  - {name: grip, region: {min: [-1, 0.02, -1], max: [0, 1, 1]}, velocity: [0, 5, 0]}"}' \
   "$sheet" > "$work/overlap.yaml"
 "${mpi[@]}" "$peridrive" "$work/overlap.yaml" "${coarse[@]}" --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
 want="boundaries.top.region and boundaries.grip.region share 25 nodes, which they move differently; those follow 'grip', the later one"
-if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "overlapping_boundaries: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "overlapping_boundaries: expected one warning '$want'"; fi
 "${mpi[@]}" "$peridrive" "$scenes/membrane_tearing.yaml" --set bodies.sheet.spacing=0.001 --dry-run > "$work/stdout" 2> "$work/stderr"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "clamps_sharing_corners: no warning"
 else bad "clamps_sharing_corners: exit status or warning"; fi
+
+# A point cloud whose points' volumes do not fit its spacing (cube root of the median volume 2
+# spacings: the body 8 times too stiff) runs with one warning naming the ratio; one that fits, none.
+cloud_rows() {  # cloud_rows VOLUME: a 4 x 4 x 4 cloud 1 mm apart, each point of VOLUME
+  printf 'x,y,z,volume\n'
+  for i in 0 1 2 3; do for j in 0 1 2 3; do for k in 0 1 2 3; do printf '0.00%d,0.00%d,0.00%d,%s\n' "$i" "$j" "$k" "$1"; done; done; done
+}
+cloud_rows 8e-9 > "$work/loose.csv"
+cloud_scene loose 2 "output: {frames: 2}"
+"${mpi[@]}" "$peridrive" "$work/loose.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="loose.yaml:5: bodies.block.spacing: 0.001 m, but the cube root of the median volume of the points of '$work/loose.csv' is 0.002 m (2 spacings)"
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && grep -qF "off by about the ratio of the volumes (8)" "$work/stderr" &&
+   [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "cloud_volumes_off_spacing: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "cloud_volumes_off_spacing: expected one warning '$want'"; fi
+cloud_rows 1.2e-9 > "$work/fits.csv"
+cloud_scene fits 2 "output: {frames: 2}"
+"${mpi[@]}" "$peridrive" "$work/fits.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "cloud_volumes_fit_spacing: no warning"
+else bad "cloud_volumes_fit_spacing: exit status or warning"; fi
 
 # A body 2e6 spacings from the origin runs, with a warning of the round-off in its positions.
 cat > "$work/distant.yaml" <<EOF
@@ -229,8 +251,9 @@ stages:
 output: {frames: 2}
 EOF
 "${mpi[@]}" "$peridrive" "$work/distant.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
 want="distant.yaml:5: bodies.sheet: a node at (2000.01, 0.0005, 0) m lies 2.00001e+06 spacings (0.001 m) from the origin, where a position is rounded to 2.22046e-10 of a spacing: stretches that small are round-off"
-if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "origin_distant: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "origin_distant: expected one warning '$want'"; fi
 

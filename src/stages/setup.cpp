@@ -34,6 +34,7 @@ namespace {
 /// The nodes of every body, after the checks that need only the scene (family sizes, memory).
 Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, MPI_Comm comm, int rank) {
   warn_large_families(scene, estimate_size(scene), rank);
+  warn_cloud_spacing(scene, rank);
   check_fits(scene, comm, settings.method == PartitionMethod::Bonds);
   stop_point(comm);
   Nodes nodes = discretize(scene);

@@ -30,6 +30,8 @@ constexpr double kLargestWallStress = 100;  // sphere: p R / (2 h) / in-plane bu
 // below about 1e-6 are round-off; refused), at 1e6 spacings to 1.1e-10 (warned).
 constexpr double kFarthestNode = 1e9;
 constexpr double kFarNodeWarning = 1e6;
+// A point cloud whose points' median volume^(1/3) is beyond this factor of the spacing (either way).
+constexpr double kCloudSpacingRatio = 1.5;
 
 std::string num(double v) {
   std::ostringstream s;
@@ -121,6 +123,26 @@ void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank) {
                    num(PairContactStep::kMargin).c_str(), s, num(expected).c_str(), num(expected / plan.dt_stable).c_str());
       break;  // (one warning per rule: its first stage)
     }
+  }
+}
+
+void warn_cloud_spacing(const Scene& scene, int rank) {
+  if (rank != 0) return;
+  for (const Body& b : scene.bodies) {
+    if (b.points.empty() || b.cloud.empty()) continue;
+    std::vector<double> side(b.cloud.size());
+    for (std::size_t k = 0; k < side.size(); ++k) side[k] = std::cbrt(b.cloud[k].volume);
+    const auto middle = side.begin() + static_cast<std::ptrdiff_t>(side.size() / 2);
+    std::nth_element(side.begin(), middle, side.end());
+    const double typical = *middle, ratio = typical / b.spacing;
+    if (ratio >= 1.0 / kCloudSpacingRatio && ratio <= kCloudSpacingRatio) continue;
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: bodies.%s.spacing: %s m, but the cube root of the median volume of the "
+                 "points of '%s' is %s m (%s spacings): the horizon (%s m) and the micromodulus assume points "
+                 "about a spacing apart, each of volume spacing^3, so the body's stiffness is off by about "
+                 "the ratio of the volumes (%s); give as spacing the points' typical distance\n",
+                 b.where.str().c_str(), b.name.c_str(), num(b.spacing).c_str(), b.points.c_str(), num(typical).c_str(),
+                 num(ratio).c_str(), num(b.horizon_value()).c_str(), num(ratio * ratio * ratio).c_str());
   }
 }
 

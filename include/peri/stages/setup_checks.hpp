@@ -27,6 +27,10 @@ void warn_large_families(const Scene& scene, const SizeEstimate& e, int rank);
 /// Warns (rank 0) of boundaries that share nodes but move them differently. regions: per
 /// boundary, its nodes (natural ids, ascending).
 void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vector<std::int64_t>>& regions, int rank);
+/// Warns (rank 0) of a point-cloud body whose points' median volume^(1/3) is more than 1.5 times
+/// its spacing or less than 1/1.5 of it: the horizon and the calibration take the spacing as the
+/// points' distance, so such a body is far stiffer or softer than its material.
+void warn_cloud_spacing(const Scene& scene, int rank);
 /// Warns (rank 0) of two bodies whose nodes come within a horizon of each other: bodies do not
 /// bond to each other, so a piece made of two bodies comes apart at their seam. Pairs of fibers
 /// that take part in long-range pairs (which act between bodies) are not warned of.
