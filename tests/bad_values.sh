@@ -275,15 +275,17 @@ else bad "bodies_apart: exit status or warning"; fi
 # Pre-cracks that cross no bond (here: beside the sheet) are named in a warning; the run goes on.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}]' --dry-run \
   > "$work/stdout" 2> "$work/stderr"
+rc=$?
 want="cracks: the pre-crack broken at the start ('astray') cuts no bond"
-if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "crack_cuts_nothing: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "crack_cuts_nothing: expected one warning '$want'"; cat "$work/stderr"; fi
 # Beside a slit that cuts, a misplaced slit and a polygon above the sheet are named (not the slit).
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'cracks=[{name: slit, from: [-0.005, 0, 0], to: [0.005, 0, 0]}, {name: astray, from: [0.1, 0, 0], to: [0.2, 0, 0]}, {name: high, polygon: [[0, 0, 0.01], [0.01, 0, 0.01], [0.01, 0, 0.02]]}]' \
   --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
 want="cracks: the pre-cracks broken at the start ('astray', 'high') cut no bond: none of them meets a bond"
-if [ $? -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "cracks_cut_nothing_beside_one_that_cuts: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "cracks_cut_nothing_beside_one_that_cuts: expected one warning '$want'"; cat "$work/stderr"; fi
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --dry-run > "$work/stdout" 2> "$work/stderr"
