@@ -27,10 +27,10 @@ constexpr bool reads_inverse_length() {
 /// The reference slot of a free row's bond (FamilyPatterns) on the lanes of pack P, from its
 /// reference vector e = X_j - X_i and its measure w_ij V_j (FamilyPatterns::free_measure):
 /// |xi|^2 = free_length2(e), 1/|xi| by simd::Root (as the laws' 1/y: on AVX-512 the estimate
-/// and its correction, no division), and w V / |xi|^2 = (w V / |xi|) / |xi|; without AVX-512,
-/// for laws that do not read 1/|xi| (`InverseLength` false), w V / |xi|^2 by one division
-/// instead, so that their loop takes no square root of |xi|^2. The vector loop's lanes and the
-/// portable walk compute the same bits.
+/// and its correction, no division), and w V / |xi|^2 = (w V / |xi|) / |xi|; for laws that do
+/// not read 1/|xi| (`InverseLength` false), w V / |xi|^2 by one division instead, so that their
+/// loop takes no square root of |xi|^2 (on every instruction set). The vector loop's lanes and
+/// the portable walk compute the same bits.
 template <class P, bool InverseLength = true, class B>
 __attribute__((always_inline)) inline void free_slot(const simd::Root<P>& root, typename P::V e0, typename P::V e1,
                                                      typename P::V e2, typename P::V measure, B& b) {
@@ -38,12 +38,10 @@ __attribute__((always_inline)) inline void free_slot(const simd::Root<P>& root, 
   typename P::V xi;
   root.finish(b.xi2, root.front(b.xi2), xi, b.inv_xi);
   b.measure = measure;
-#if !defined(PERI_AVX512VL)
   if constexpr (!InverseLength) {
     b.measure_per_xi2 = P::div(measure, b.xi2);
     return;
   }
-#endif
   b.measure_per_xi2 = P::mul(P::mul(measure, b.inv_xi), b.inv_xi);
 }
 
