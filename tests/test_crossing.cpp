@@ -619,3 +619,103 @@ TEST(PolygonCrack, VerticalRectangleCutsASheetAsItsSlitDoes) {
     EXPECT_EQ(w1 + w2 + a1 + a2, 0);
   }
 }
+
+// Polygons of many corners test only the fan triangles about a bond's crossing of their plane
+// (Crack::fan_low, crosses): the same answer as testing every triangle, on segments that pass
+// through corners, along the fan's diagonals, in the plane, near the first corner, nearly
+// parallel to the plane and far off, for polygons of 8 to 2000 corners at several scales,
+// orientations and with corners nearly in line; and in either order of the ends.
+TEST(PolygonCrack, FanSearchGivesTheAnswerOfEveryTriangle) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  std::int64_t tested = 0, meets = 0, near_corner = 0, in_plane = 0, bad = 0;
+  const int sizes[] = {8, 9, 13, 64, 300, 2000};
+  for (int trial = 0; trial < 24; ++trial) {
+    const int n = sizes[trial % 6];
+    const double scale = std::pow(10.0, -4 + (trial % 5)), stretch = 1.0 + 2.0 * (trial % 3);
+    // An ellipse's points at increasing angles (some nearly in line: a short arc crowded with
+    // corners), rotated into a random plane about a random centre.
+    std::vector<double> theta(n);
+    for (int k = 0; k < n; ++k)
+      theta[k] = trial % 4 == 3 ? (k < n / 2 ? 1e-4 * k / n : M_PI + M_PI * (k - n / 2) / (n - n / 2)) : 2 * M_PI * k / n;
+    Vec3 e1{U(rng), U(rng), U(rng)}, e2{U(rng), U(rng), U(rng)};
+    auto norm = [](Vec3& x) {
+      const double l = std::hypot(x[0], x[1], x[2]);
+      for (double& c : x) c /= l;
+    };
+    norm(e1);
+    const double d12 = e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2];
+    for (int d = 0; d < 3; ++d) e2[d] -= d12 * e1[d];
+    norm(e2);
+    const Vec3 centre{scale * U(rng), scale * U(rng), scale * U(rng)};
+    std::vector<Vec3> corners(n);
+    for (int k = 0; k < n; ++k)
+      for (int d = 0; d < 3; ++d)
+        corners[k][d] = centre[d] + scale * (stretch * std::cos(theta[k]) * e1[d] + std::sin(theta[k]) * e2[d]);
+    const Crack fast = polygon(corners);
+    ASSERT_EQ(fast.fan_low.size(), static_cast<std::size_t>(n - 2));
+    Crack every = fast;
+    every.fan_low.clear();
+    every.fan_high.clear();
+    const Vec3 normal = fast.plane_normal;
+    auto on = [&](double s, double t) {  // a point of the polygon's plane, in its ellipse's frame
+      Vec3 p;
+      for (int d = 0; d < 3; ++d) p[d] = centre[d] + scale * (stretch * s * e1[d] + t * e2[d]);
+      return p;
+    };
+    auto lerp = [](const Vec3& a, const Vec3& b, double t) {
+      return Vec3{a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])};
+    };
+    auto lift = [&](const Vec3& p, double h) { return Vec3{p[0] + h * normal[0], p[1] + h * normal[1], p[2] + h * normal[2]}; };
+    for (int s = 0; s < 4000; ++s) {
+      Vec3 a, b;
+      const int kind = s % 8;
+      const Vec3 corner = corners[rng() % n], other = corners[rng() % n];
+      const double h = scale * 0.1 * U(rng);
+      switch (kind) {
+        case 0:  // across the plane at a random point of it, maybe outside the polygon
+          a = lift(on(1.3 * U(rng), 1.3 * U(rng)), h), b = lift(on(1.3 * U(rng), 1.3 * U(rng)), -h - 1e-3 * scale);
+          break;
+        case 1:  // through a corner (an end on it, or passing it)
+          a = lift(corner, h), b = rng() % 2 ? corner : lift(corner, -h);
+          break;
+        case 2:  // through a point of a fan diagonal (first corner to another)
+          a = lerp(corners[0], corner, 0.5 + 0.5 * U(rng)), b = lift(a, -h), a = lift(a, h);
+          break;
+        case 3:  // in the plane, from a corner to another or across the polygon
+          a = corner, b = rng() % 2 ? other : on(1.5 * U(rng), 1.5 * U(rng));
+          ++in_plane;
+          break;
+        case 4:  // near the first corner
+          a = lift(lerp(corners[0], on(U(rng), U(rng)), 1e-6 * std::fabs(U(rng))), h), b = lift(corners[0], -h);
+          ++near_corner;
+          break;
+        case 5:  // nearly parallel to the plane, within its tolerance
+          a = lift(on(U(rng), U(rng)), 1e-12 * scale * U(rng)), b = lift(on(U(rng), U(rng)), 1e-12 * scale * U(rng));
+          break;
+        case 6:  // an edge's point, through it
+          a = lerp(corner, corners[(&corner - &corners[0] + 1) % n], 0.5 * (1 + U(rng)));
+          b = lift(a, -h), a = lift(a, h);
+          break;
+        default:  // short bonds about the polygon's rim
+          a = lift(on(std::cos(6.3 * U(rng)), std::sin(6.3 * U(rng))), h);
+          b = lift(a, -2 * h);
+          for (int d = 0; d < 3; ++d) b[d] += 0.01 * scale * U(rng);
+      }
+      const bool want = crosses(a.data(), b.data(), every);
+      const bool got = crosses(a.data(), b.data(), fast), back = crosses(b.data(), a.data(), fast);
+      ++tested;
+      meets += want;
+      if (got != want || back != want) {
+        ++bad;
+        if (bad < 5)
+          ADD_FAILURE() << "trial " << trial << " (" << n << " corners), kind " << kind << ": every triangle says " << want
+                        << ", the search " << got << " and " << back;
+      }
+    }
+  }
+  std::printf("%lld segments, %lld meet (%lld in the plane, %lld near the first corner)\n", static_cast<long long>(tested),
+              static_cast<long long>(meets), static_cast<long long>(in_plane), static_cast<long long>(near_corner));
+  EXPECT_EQ(bad, 0);
+  EXPECT_GT(meets, tested / 5);
+}

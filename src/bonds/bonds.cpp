@@ -298,6 +298,84 @@ std::int64_t family_class(const Nodes& nodes, const CellList& cells, std::int64_
   return key;
 }
 
+namespace {
+
+// The fan triangles [first, last] of a many-cornered polygon that segment a-b may meet (first >
+// last: none), a superset found by angle: the part of the segment within the slab |n . x -
+// offset| <= 2 tolerance (where every point of the fan lies), projected on the plane, seen from
+// the first corner, spans an arc of angles; a triangle whose wedge misses the arc, widened by the
+// round-off of the projection, cannot meet the segment. Where the projection passes near the
+// first corner (angles undefined) or the slab's ends are not resolved, every triangle stays.
+void fan_candidates(const double* a, const double* b, double da, double db, double tolerance, double scale,
+                    const Crack& crack, std::size_t& first, std::size_t& last) {
+  const double slab = 2 * tolerance, dd = db - da;
+  double t0 = 0, t1 = 1;
+  if (dd != 0) {
+    double ta = (-slab - da) / dd, tb = (slab - da) / dd;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (!(t0 <= t1)) return;
+  }
+  const double* c0 = crack.polygon[0].data();
+  const double* u = crack.fan_u.data();
+  const double* v = crack.fan_v.data();
+  double q[2][2];
+  for (int e = 0; e < 2; ++e) {
+    const double t = e == 0 ? t0 : t1;
+    double r[3];
+    for (int d = 0; d < 3; ++d) r[d] = a[d] + t * (b[d] - a[d]) - c0[d];
+    q[e][0] = r[0] * u[0] + r[1] * u[1] + r[2] * u[2];
+    q[e][1] = r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
+  }
+  // The in-plane segment's distance from the first corner, and how far round-off and the fan's
+  // departure from the plane may move a point of it.
+  const double ex = q[1][0] - q[0][0], ey = q[1][1] - q[0][1], e2 = ex * ex + ey * ey;
+  double s = e2 > 0 ? -(q[0][0] * ex + q[0][1] * ey) / e2 : 0.0;
+  s = std::clamp(s, 0.0, 1.0);
+  const double dist = std::hypot(q[0][0] + s * ex, q[0][1] + s * ey);
+  double reach = std::fabs(c0[0]) + std::fabs(c0[1]) + std::fabs(c0[2]);
+  const double slack = slab + 1e-12 * (scale + reach);
+  if (!(dist > 1e3 * slack)) return;
+  const double margin = slack / dist + 1e-12;
+  auto angle = [](const double* p) {
+    const double phi = std::atan2(p[1], p[0]);
+    return phi < -M_PI / 2 ? phi + 2 * M_PI : phi;
+  };
+  const double p0 = angle(q[0]), p1 = angle(q[1]);
+  // The arc the segment spans (the shorter way round: it passes the corner at a distance), as
+  // one interval [lo, hi] of angles, or as (-inf, lo] and [hi, inf) where it passes the angle
+  // 3 pi / 2 at which the angles wrap (behind the fan, which lies within [0, pi]).
+  const bool wraps = std::fabs(p0 - p1) > M_PI;
+  const double lo = std::min(p0, p1), hi = std::max(p0, p1);
+  const std::vector<double>& low = crack.fan_low;
+  const std::vector<double>& high = crack.fan_high;
+  // Triangles with fan_high >= x: from the first such on; with fan_low <= y: up to the last.
+  auto from = [&](double x) { return static_cast<std::size_t>(std::lower_bound(high.begin(), high.end(), x) - high.begin()); };
+  auto upto = [&](double y) {
+    return static_cast<std::ptrdiff_t>(std::upper_bound(low.begin(), low.end(), y) - low.begin()) - 1;
+  };
+  if (!wraps) {
+    first = from(lo - margin);
+    const std::ptrdiff_t end = upto(hi + margin);
+    if (end < static_cast<std::ptrdiff_t>(first)) first = 1, last = 0;
+    else last = static_cast<std::size_t>(end);
+    return;
+  }
+  // Two ends of the fan: triangles up to angle lo, and from angle hi on; the range between them
+  // when they meet, else both ends (the range from the first to the last is tested: a superset).
+  const std::ptrdiff_t low_end = upto(lo + margin);
+  const std::size_t high_start = from(hi - margin);
+  if (low_end < 0 && high_start >= high.size()) {
+    first = 1, last = 0;
+    return;
+  }
+  first = low_end < 0 ? high_start : 0;
+  last = high_start >= high.size() ? static_cast<std::size_t>(low_end) : high.size() - 1;
+}
+
+}  // namespace
+
 bool crosses(const double* a, const double* b, const Crack& crack) {
   if (!crack.is_polygon()) return segments_cross(a, b, crack.from.data(), crack.to.data());
   // A convex polygon as the fan of triangles from its first corner (degenerate ones meet nothing);
@@ -312,7 +390,9 @@ bool crosses(const double* a, const double* b, const Crack& crack) {
   for (int d = 0; d < 3; ++d) scale += std::fabs(a[d]) + std::fabs(b[d]);
   const double tolerance = crack.plane_tolerance + 8e-16 * scale;
   if ((da > tolerance && db > tolerance) || (da < -tolerance && db < -tolerance)) return false;
-  for (std::size_t k = 1; k + 1 < c.size(); ++k)
+  std::size_t first = 0, last = c.size() - 3;  // the fan triangles to test (k: corners 0, k+1, k+2)
+  if (!crack.fan_low.empty()) fan_candidates(a, b, da, db, tolerance, scale, crack, first, last);
+  for (std::size_t k = first + 1; k <= last + 1; ++k)
     if (segment_meets_triangle(a, b, c[0].data(), c[k].data(), c[k + 1].data())) return true;
   return false;
 }

@@ -218,6 +218,34 @@ void read_crack_polygon(const Value& list, Crack& c) {
   c.plane_offset = 0;
   for (int d = 0; d < 3; ++d) c.plane_offset += normal[d] * (c.polygon[0][d] + centre[d] * size);
   c.plane_tolerance = 2e-9 * size;
+  // The fan's wedges about the first corner: the corners' angles from the second one, rising
+  // (the corners turn about the normal) from 0 to the angle at the first corner, at most pi (and
+  // round-off; kept in [-pi/2, 3pi/2)). A corner may turn back by round-off; the bounds stay
+  // monotone (a running minimum from the end, a running maximum from the start).
+  if (n < kFanSearchCorners) return;
+  Vec3 u = p[1];
+  const double along = dot(u, normal);
+  for (int d = 0; d < 3; ++d) u[d] -= along * normal[d];
+  const double length = std::sqrt(dot(u, u));
+  for (double& x : u) x /= length;
+  c.fan_u = u;
+  c.fan_v = cross(normal, u);
+  std::vector<double> angle(n);
+  for (std::size_t k = 1; k < n; ++k) {
+    angle[k] = std::atan2(dot(p[k], c.fan_v), dot(p[k], u));
+    if (angle[k] < -M_PI / 2) angle[k] += 2 * M_PI;
+  }
+  const std::size_t fan = n - 2;
+  c.fan_low.resize(fan);
+  c.fan_high.resize(fan);
+  for (std::size_t k = 0; k < fan; ++k) {
+    const double high = std::max(angle[k + 1], angle[k + 2]);
+    c.fan_high[k] = k > 0 ? std::max(c.fan_high[k - 1], high) : high;
+  }
+  for (std::size_t k = fan; k-- > 0;) {
+    const double low = std::min(angle[k + 1], angle[k + 2]);
+    c.fan_low[k] = k + 1 < fan ? std::min(c.fan_low[k + 1], low) : low;
+  }
 }
 
 Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {

@@ -231,6 +231,10 @@ struct Region {
   }
 };
 
+/// Polygons with at least this many corners keep their fan's wedges (Crack::fan_low): a bond
+/// tests only the fan triangles about its crossing of the plane, not all n - 2.
+inline constexpr std::size_t kFanSearchCorners = 8;
+
 /// Pre-crack: every bond whose reference segment meets it is broken at the start (Silling &
 /// Bobaru 7.1: "breaking all the peridynamic bonds that intersect the slit"). A slit, the segment
 /// [from, to] taken in the xy plane, cuts sheets and fibers; a polygon, a convex plane polygon in
@@ -246,6 +250,13 @@ struct Crack {
   /// filter before the exact test; infinite where not computed, filtering nothing).
   Vec3 plane_normal{0, 0, 0};
   double plane_offset = 0, plane_tolerance = INFINITY;
+  /// A polygon's fan seen from its first corner, for crosses()' search of the fan triangles a
+  /// bond may meet: axes u (toward the second corner) and v = n x u in the mean plane, and per fan
+  /// triangle k (corners 1, k + 2, k + 3, counted from 1) bounds on its wedge's angles about the
+  /// first corner that rise with k: fan_low[k] the least angle of triangles k and after,
+  /// fan_high[k] the largest of triangles k and before. Empty: every triangle is tested.
+  Vec3 fan_u{0, 0, 0}, fan_v{0, 0, 0};
+  std::vector<double> fan_low, fan_high;
   bool is_polygon() const { return !polygon.empty(); }
   /// Whether it cuts the bonds of a body of this dimension (1 fibers, 2 sheets, 3 volumes).
   bool cuts_dimension(int dimension) const { return is_polygon() || dimension < 3; }
