@@ -334,7 +334,7 @@ void fan_candidates(const double* a, const double* b, double da, double db, doub
   double s = e2 > 0 ? -(q[0][0] * ex + q[0][1] * ey) / e2 : 0.0;
   s = std::clamp(s, 0.0, 1.0);
   const double dist = std::hypot(q[0][0] + s * ex, q[0][1] + s * ey);
-  double reach = std::fabs(c0[0]) + std::fabs(c0[1]) + std::fabs(c0[2]);
+  const double reach = std::fabs(c0[0]) + std::fabs(c0[1]) + std::fabs(c0[2]);
   const double slack = slab + 1e-12 * (scale + reach);
   if (!(dist > 1e3 * slack)) return;
   const double margin = slack / dist + 1e-12;
