@@ -63,12 +63,25 @@ stages:
 output: {frames: 3}
 """
 
+# The block with a tilted 12-corner penny cut at the start (a polygon crack: its fan searched by
+# angle, Crack::fan_low), pulled apart across it.
+PENNY = BLOCK.replace("initial:\n  velocity_gradient: [[2000, 0, 0], [0, -500, 0], [0, 0, 0]]",
+                      "cracks:\n  - {name: penny, polygon: [" + ", ".join(
+                          f"[{0.007 + 0.0045 * np.cos(k * np.pi / 6):.12f}, {0.007 + 0.0045 * np.sin(k * np.pi / 6):.12f}, "
+                          f"{0.0072 + 0.0008 * np.cos(k * np.pi / 6):.12f}]" for k in range(12)) + "]}\n"
+                      "initial:\n  velocity_gradient: [[0, 0, 0], [0, 0, 0], [0, 0, 1500]]")
+assert PENNY != BLOCK
+
 # Each case: scene (file in SCENES_DIR or inline text), --set overrides, what must happen in it.
 CASES = {
     # A slit membrane pulled apart: the crack runs across rank boundaries.
     "membrane_slit": ("slit_membrane.yaml",
                       ["bodies.sheet.spacing=0.0003", "stages.pull.duration=8.0e-5", "output.frames=3"]),
     "pmb_block": (BLOCK, []),
+    "penny_block": (PENNY, []),
+    # A curved mesh membrane (Gmsh triangles, free rows) under the follower pressure, clamped by
+    # physical groups, with a polygon flaw in one wall that runs as the pressure rises.
+    "mesh_tube_flaw": ("tube_flaw.yaml", ["stages.open.duration=3.0e-4", "output.frames=3"]),
     # Marder's lattice (two- and three-body terms, Kelvin dashpots), the crack running.
     "lattice": ("supersonic_rubber_broad_switch.yaml",
                 ["bodies.strip.size=[0.05, 0.04330127]", "stages.run.duration=2.0e-4", "output.frames=3",
