@@ -69,7 +69,7 @@ PENNY = BLOCK.replace("initial:\n  velocity_gradient: [[2000, 0, 0], [0, -500, 0
                       "cracks:\n  - {name: penny, polygon: [" + ", ".join(
                           f"[{0.007 + 0.0045 * np.cos(k * np.pi / 6):.12f}, {0.007 + 0.0045 * np.sin(k * np.pi / 6):.12f}, "
                           f"{0.0072 + 0.0008 * np.cos(k * np.pi / 6):.12f}]" for k in range(12)) + "]}\n"
-                      "initial:\n  velocity_gradient: [[0, 0, 0], [0, 0, 0], [0, 0, 1500]]")
+                      "initial:\n  velocity_gradient: [[0, 0, 0], [0, 0, 0], [0, 0, 300]]")
 assert PENNY != BLOCK
 
 # Each case: scene (file in SCENES_DIR or inline text), --set overrides, what must happen in it.
