@@ -44,11 +44,10 @@ Pressure::Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, 
       load.node.push_back(i);
       load.inv_volume.push_back(1.0 / domain.volume[i]);
       for (const auto& [a, c, t] : shares[i]) {
-        load.others.push_back({a, c});
         load.triangle.push_back(t);
         load.bonds.push_back({bond_to(i, a), bond_to(i, c)});
       }
-      load.begin.push_back(static_cast<std::int64_t>(load.others.size()));
+      load.begin.push_back(static_cast<std::int64_t>(load.triangle.size()));
     }
     load.area.assign(3 * load.corners.size(), 0.0);
     load.force_prev.assign(3 * load.node.size(), 0.0);
@@ -86,7 +85,7 @@ void Pressure::add_stiffness(const LoadTarget& target, const StiffnessSink& sink
       const std::int32_t i = load.node[m];
       for (std::int64_t e = load.begin[m]; e < load.begin[m + 1]; ++e) {
         if (!intact(load.bonds[e][0]) || !intact(load.bonds[e][1])) continue;
-        const std::int32_t a = load.others[e][0], c = load.others[e][1];
+        const auto [a, c] = others(load, e, i);
         const double e1[3] = {pos(a, 0) - pos(i, 0), pos(a, 1) - pos(i, 1), pos(a, 2) - pos(i, 2)};
         const double e2[3] = {pos(c, 0) - pos(i, 0), pos(c, 1) - pos(i, 1), pos(c, 2) - pos(i, 2)};
         // F_i = k e1 x e2: dF_i = k ([e2]x - [e1]x) dx_i - k [e2]x dx_a + k [e1]x dx_c; K = -dF.

@@ -39,16 +39,22 @@ class Pressure final : public Load {
     std::vector<std::int32_t> node;                   // owned loaded nodes (local)
     std::vector<double> inv_volume;                   // per loaded node, 1 / its measure
     std::vector<std::int64_t> begin{0};               // per loaded node, into the lists below
-    std::vector<std::array<std::int32_t, 2>> others;  // the triangle's other corners (local), CCW
-    std::vector<std::int32_t> triangle;               // and the triangle, into `corners`
+    std::vector<std::int32_t> triangle;               // per share: its triangle, into `corners`
     std::vector<std::array<std::int32_t, 3>> corners;  // the triangles met (local corners, the file's order)
     std::vector<double> area;                          // per triangle, its current 2 x area vector
-    std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to them (-1: none)
+    std::vector<std::array<std::int64_t, 2>> bonds;   // CSR positions of the bonds to the other two
+                                                      // corners, in turn after the node (-1: none)
     std::vector<double> force_prev, x_prev;           // per loaded node: last force [N], position
     bool started = false;
   };
   double current(const Sphere& load, double t) const;
   bool intact(std::int64_t q) const { return q < 0 || !(domain_.bonds.broken[q] & 1); }
+  /// A share's triangle's other two corners, in turn after node i (counter-clockwise).
+  static std::array<std::int32_t, 2> others(const Sphere& load, std::int64_t e, std::int32_t i) {
+    const auto& t = load.corners[load.triangle[e]];
+    const int k = t[0] == i ? 0 : t[1] == i ? 1 : 2;
+    return {t[(k + 1) % 3], t[(k + 2) % 3]};
+  }
   const Domain& domain_;
   std::vector<Sphere> loads_;
 };
