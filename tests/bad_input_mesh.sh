@@ -48,7 +48,16 @@ f=$(scene missing membrane data/none.msh)
 expect missing_file "$f:$(line_of "$f" 'mesh:'): bodies.m.mesh: cannot read the mesh '$work/data/none.msh': No such file or directory" -- "$f"
 echo 'this is no mesh' > data/garbage.msh
 f=$(scene garbage membrane data/garbage.msh)
-expect unreadable "bodies.m.mesh: Gmsh cannot read the mesh '$work/data/garbage.msh': " -- "$f"
+expect not_a_mesh "$work/data/garbage.msh: bodies.m.mesh: neither a Gmsh mesh (a .msh file starts with \$MeshFormat) nor an STL" -- "$f"
+printf '$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n1 0 0 0\n2 1 0\n' > data/truncated.msh
+f=$(scene truncated membrane data/truncated.msh)
+expect unreadable "bodies.m.mesh: Gmsh cannot read the mesh '$work/data/truncated.msh': " -- "$f"
+# Gmsh runs what it takes for a script (shell commands too), whatever the file's name, and the
+# options file <mesh>.opt beside a mesh it opens: neither may run.
+echo "System \"touch $work/ran_script\";" > data/script.msh
+f=$(scene script_named_msh membrane data/script.msh)
+expect script_named_msh "$work/data/script.msh: bodies.m.mesh: neither a Gmsh mesh" -- "$f"
+[ -e "$work/ran_script" ] && { echo "FAIL script_named_msh: the script ran"; fail=$((fail + 1)); }
 echo 'Point(1) = {0, 0, 0};' > data/script.geo
 f=$(scene script membrane data/script.geo)
 expect geo_script "bodies.m.mesh: '$work/data/script.geo' is a Gmsh script, not a mesh" -- "$f"
@@ -76,6 +85,29 @@ EOF
 f=$(scene second_order membrane data/second.msh)
 expect second_order "bodies.m.mesh: unsupported element type 'Triangle 6' (Gmsh type 9, " -- "$f"
 grep -qF "$work/data/second.msh: element " "$work/stderr" || { echo "FAIL second_order: the element not named"; fail=$((fail + 1)); }
+# A second-order triangle in the entity of first-order ones: Gmsh drops it without a word.
+m=$(msh mixed_order "$square;6 0.5 0 0;7 0.75 0.25 0;8 0.25 0.25 0" '1 2 2 0 1 1 2 5;2 2 2 0 1 2 3 5;3 2 2 0 1 3 4 5;4 9 2 0 1 1 2 5 6 7 8')
+f=$(scene mixed_order membrane data/mixed_order.msh)
+expect mixed_order "$m:$(line_of "$m" '4 9 2'): element 4: bodies.m.mesh: unsupported element type 'Triangle 6' (Gmsh type 9, which Gmsh drops where it shares an entity with triangles)" -- "$f"
+# STL facets Gmsh drops: a corner not a number, two corners alike.
+stl() {  # NAME FACETS ("x y z x y z x y z" per facet, ';' between)
+  local name=$1 facets
+  IFS=';' read -ra facets <<< "$2"
+  { echo "solid $name"
+    for t in "${facets[@]}"; do
+      set -- $t
+      printf 'facet normal 0 0 1\n outer loop\n  vertex %s %s %s\n  vertex %s %s %s\n  vertex %s %s %s\n endloop\nendfacet\n' "$@"
+    done
+    echo "endsolid $name"; } > "data/$name.stl"
+  echo "$work/data/$name.stl"
+}
+m=$(stl nan_corner '0 0 0 1 0 0 0 1 0;1 0 0 1 1 0 nan 1 0')
+f=$(scene nan_corner membrane data/nan_corner.stl)
+expect stl_not_a_number "$m:9: bodies.m.mesh: facet 2: a corner at (nan, 1, 0); expected finite coordinates below 1e100 m (after scale)" -- "$f"
+m=$(stl repeated_corner '0 0 0 1 0 0 0 1 0;1 0 0 1 1 0 1 1 0')
+f=$(scene repeated_corner membrane data/repeated_corner.stl)
+expect stl_degenerate "$m:9: bodies.m.mesh: facet 2: degenerate facet: two corners at (1, 1, 0); expected three distinct corners" -- "$f"
+
 # Degenerate and inverted cells, duplicate points.
 m=$(msh collinear '1 0 0 0;2 1 0 0;3 2 0 0;4 0 1 0' '1 2 2 0 1 1 2 4;2 2 2 0 1 1 2 3')
 f=$(scene collinear membrane data/collinear.msh)
@@ -131,6 +163,18 @@ f=$(scene partial membrane data/square.msh ', quadrature: partial_area')
 expect mesh_partial_area "bodies.m.quadrature: expected one of: full, taper; got partial_area" -- "$f"
 f=$(scene scale_zero membrane data/square.msh ', scale: 0')
 expect scale_zero "bodies.m.scale: expected a positive number, got 0" -- "$f"
+
+# An options file beside a good mesh (Gmsh runs <mesh>.opt when it opens <mesh>): not run, the
+# mesh read.
+echo "System \"touch $work/ran_options\";" > data/square.msh.opt
+f=$(scene options_beside membrane data/square.msh)
+if (cd run && "${mpi[@]}" "$peridrive" "$f" --dry-run > "$work/stdout" 2> "$work/stderr") && [ ! -e "$work/ran_options" ] &&
+  grep -q "m.nodes = 5" "$work/stdout"; then
+  echo "ok   options_beside: the mesh read, its .opt not run"; pass=$((pass + 1))
+else
+  echo "FAIL options_beside: exit, options run or nodes wrong"; cat "$work/stderr"; fail=$((fail + 1))
+fi
+rm data/square.msh.opt
 
 # A fiber's path from a file.
 fiber() {  # NAME FILE_TEXT

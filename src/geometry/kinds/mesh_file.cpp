@@ -15,6 +15,7 @@
 
 #include "common.hpp"
 #include "gmsh_library.hpp"
+#include "mesh_scan.hpp"
 
 namespace peri::kinds {
 namespace {
@@ -79,8 +80,8 @@ constexpr int kPoint = 15, kLine = 1, kTriangle = 2, kTetrahedron = 4;
 
 const Key kMeshKey2 = {
     .name = "mesh", .fallback = "- (a grid sheet)",
-    .doc = "instead of origin and size: a triangle surface mesh (relative to the scene file; Gmsh's .msh or any "
-           "format Gmsh opens, e.g. STL), possibly curved. Nodes at its vertices in ascending tag order, each with "
+    .doc = "instead of origin and size: a triangle surface mesh (relative to the scene file; a Gmsh .msh, version "
+           "2.2 or 4.1, or an STL, known by its bytes), possibly curved. Nodes at its vertices in ascending tag order, each with "
            "a third of its triangles' areas (measure area x thickness); full weights within the horizon; spacing "
            "optional (default: the mesh's mean edge length). Its triangles carry `pressure`, oriented as in the "
            "file (right-hand rule: the pressure pushes along (b - a) x (c - a)). Only 3-node triangles, with "
@@ -89,8 +90,8 @@ const Key kMeshKey2 = {
            "(`region: {body: <name>, group: <group>}`). A mesh with every node at one z is flat (as a grid sheet)"};
 const Key kMeshKey3 = {
     .name = "mesh", .fallback = "- (a box)",
-    .doc = "instead of origin and size: a tetrahedral mesh (relative to the scene file; Gmsh's .msh or any format "
-           "Gmsh opens). Nodes at its vertices in ascending tag order, each with a quarter of its tetrahedra's "
+    .doc = "instead of origin and size: a tetrahedral mesh (relative to the scene file; a Gmsh .msh, version 2.2 "
+           "or 4.1). Nodes at its vertices in ascending tag order, each with a quarter of its tetrahedra's "
            "volumes; full weights within the horizon; spacing optional (default: the mesh's mean edge length). "
            "Only 4-node tetrahedra, with points, 2-node lines and 3-node triangles for physical groups; nodes no "
            "tetrahedron uses are not the body's; no degenerate or inverted tetrahedron, no two nodes at one "
@@ -120,7 +121,15 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
   auto at_element = [&](std::size_t tag, const std::string& what) {
     throw InputError(path + ": element " + std::to_string(tag) + ": " + key + ": " + what);
   };
-  auto gmsh_failed = [&](const std::string& what) { v.fail("Gmsh cannot read the mesh '" + path + "': " + what); };
+  std::string opened;  // the path Gmsh opens (a link to the file): named as the file in Gmsh's messages
+  auto gmsh_failed = [&](std::string what) {
+    for (std::size_t at; !opened.empty() && (at = what.find(opened)) != std::string::npos;) what.replace(at, opened.size(), path);
+    v.fail("Gmsh cannot read the mesh '" + path + "': " + what);
+  };
+  // The file's own bytes first: Gmsh runs what it takes for a script (mesh_scan.hpp).
+  const std::vector<int> accepted = dimension == 2 ? std::vector<int>{kPoint, kLine, kTriangle}
+                                                   : std::vector<int>{kPoint, kLine, kTriangle, kTetrahedron};
+  const MeshFileScan scan = scan_mesh_file(path, key, b.scale, accepted);
 
   auto data = std::make_shared<MeshData>();
   MeshData& m = *data;
@@ -138,8 +147,10 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
     gmsh_call([&] { lib = &GmshLibrary::get(); }, gmsh_failed);
     const GmshLibrary& g = *lib;
     const GmshSession session(g);
+    const MeshLink link(path, scan.stl);
+    opened = link.path();
     int ierr = 0;
-    gmsh_call([&] { g.open(path.c_str(), &ierr), g.check(ierr, "cannot open it"); }, gmsh_failed);
+    gmsh_call([&] { g.open(link.path().c_str(), &ierr), g.check(ierr, "cannot open it"); }, gmsh_failed);
     gmsh_call(
         [&] {
           {
@@ -195,6 +206,43 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
             at_element(element_tags[worst].front(),
                        "unsupported element type '" + worst_name + "' (Gmsh type " + std::to_string(types[worst]) +
                            ", " + std::to_string(element_tags[worst].size()) + " of them, this the first); " + why);
+          }
+          // An element Gmsh dropped without a word (a second-order triangle among first-order
+          // ones of one entity): named from the file.
+          auto type_name = [&](int t) {
+            char* name = nullptr;
+            int dim = 0, order = 0, nodes = 0, primary = 0;
+            GmshArray<double> local(g);
+            g.get_element_properties(t, &name, &dim, &order, &nodes, &local.data, &local.size, &primary, &ierr);
+            const std::string text = g.take(name);
+            return ierr ? std::string("unknown") : text;
+          };
+          if (scan.unaccepted_tag)
+            throw InputError(path + ":" + std::to_string(scan.unaccepted_line) + ": element " +
+                             std::to_string(scan.unaccepted_tag) + ": " + key + ": unsupported element type '" +
+                             type_name(scan.unaccepted_type) + "' (Gmsh type " + std::to_string(scan.unaccepted_type) +
+                             ", which Gmsh drops where it shares an entity with " + cells + "); " +
+                             (dimension == 2 ? "a membrane's mesh takes 3-node triangles (and points and 2-node "
+                                               "lines for physical groups)"
+                                             : "a solid's mesh takes 4-node tetrahedra (and points, 2-node lines "
+                                               "and 3-node triangles for physical groups)"));
+          std::size_t read = 0;
+          for (const auto& tags : element_tags) read += tags.size();
+          if (scan.stl && read != scan.elements)
+            throw InputError(path + ": " + key + ": Gmsh kept " + std::to_string(read) + " of the file's " +
+                             std::to_string(scan.elements) +
+                             " facets (it drops facets whose corners coincide within its tolerance); expected "
+                             "every facet a triangle of three distinct corners");
+          if (!scan.stl && !scan.binary && read < scan.elements) {
+            std::vector<std::size_t> tags_read;
+            tags_read.reserve(read);
+            for (const auto& tags : element_tags) tags_read.insert(tags_read.end(), tags.begin(), tags.end());
+            std::sort(tags_read.begin(), tags_read.end());
+            const MissingElement lost = first_element_not_read(path, tags_read);
+            if (lost.tag)
+              throw InputError(path + ":" + std::to_string(lost.line) + ": element " + std::to_string(lost.tag) + ": " +
+                               key + ": Gmsh did not read this element (type '" + type_name(lost.type) +
+                               "', Gmsh type " + std::to_string(lost.type) + "); expected every element of the file read");
           }
           GmshArray<int> physical(g);  // (dim, tag) pairs
           g.get_physical_groups(&physical.data, &physical.size, -1, &ierr);
