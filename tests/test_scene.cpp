@@ -1251,6 +1251,26 @@ TEST(SceneLimits, ValuesAreCountedBeforeTheDocumentIsKept) {
   EXPECT_EQ(peri::parse_scene(text, "scene.yaml").cracks.size(), 90000u);
 }
 
+TEST(SceneLimits, AliasesCountAsTheValuesTheyStandFor) {
+  // A polygon of 1000 corners (a crack of 4003 values: its map, the key, the list, 1000 lists of
+  // 3) given once with an anchor, then 400 cracks that are aliases of it: 1.6 million values once
+  // expanded, in a text of 20 kB. Refused at the alias where the count passes 1,000,000 (an alias
+  // counted as one value let 3000 such cracks through, 48 million values, 3 GB).
+  std::string polygon = "[";
+  for (int k = 0; k < 1000; ++k) polygon += (k ? ", [" : "[") + std::to_string(k) + ", 0, " + std::to_string(k % 7) + "]";
+  polygon += "]";
+  std::string text = kBase + "cracks:\n  - &p {polygon: " + polygon + "}\n";
+  for (int k = 0; k < 400; ++k) text += "  - *p\n";
+  // kBase's 15 lines and 37 values, "cracks:" (2 values: the key and the list), the anchored
+  // crack on line 17, then alias n on line 17 + n.
+  const int aliases = (1000000 - (37 + 2 + 4003)) / 4003 + 1;
+  const int line = 17 + aliases;
+  EXPECT_EQ(error_of(text), "scene.yaml:" + std::to_string(line) +
+                                ": cracks: the scene holds more than 1000000 YAML values (numbers, strings, lists, maps) "
+                                "by this line; expected at most 1000000 (about 90000 cracks written as {from: [x, y, "
+                                "z], to: [x, y, z]})");
+}
+
 TEST(SceneLimits, ReadingStopsWhenAsked) {
   // The stop check is asked before each 64 KiB of text: a long scene is abandoned mid-way.
   std::string text = kBase + "cracks:\n";

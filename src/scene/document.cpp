@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -35,31 +36,52 @@ class DocumentCounter : public YAML::EventHandler {
   std::vector<YAML::Mark> roots;   ///< per document: where its root node starts
   void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
   void OnDocumentEnd() override {}
-  void OnNull(const YAML::Mark& m, YAML::anchor_t) override { value(m, nullptr); }
-  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { value(m, nullptr); }
-  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string& text) override {
+  void OnNull(const YAML::Mark& m, YAML::anchor_t anchor) override {
+    value(m, nullptr);
+    anchored(anchor, 1);
+  }
+  // An alias stands for its anchor's node with every value in it: counted as that many, so
+  // that aliases of aliases cannot expand a small text into a huge scene.
+  void OnAlias(const YAML::Mark& m, YAML::anchor_t anchor) override {
+    const auto it = sizes_.find(anchor);
+    value(m, nullptr, it == sizes_.end() ? 1 : it->second);
+  }
+  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t anchor, const std::string& text) override {
     value(m, &text);
+    anchored(anchor, 1);
   }
-  void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+  void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t anchor,
+                       YAML::EmitterStyle::value) override {
+    open_.push_back({anchor, values_});
     value(m, nullptr);
     ++depth_;
   }
-  void OnSequenceEnd() override { --depth_; }
-  void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+  void OnSequenceEnd() override { close(); }
+  void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t anchor, YAML::EmitterStyle::value) override {
+    open_.push_back({anchor, values_});
     value(m, nullptr);
     ++depth_;
   }
-  void OnMapEnd() override { --depth_; }
+  void OnMapEnd() override { close(); }
 
  private:
-  void value(const YAML::Mark& m, const std::string* scalar) {
+  void anchored(YAML::anchor_t anchor, long size) {
+    if (anchor) sizes_[anchor] = size;
+  }
+  void close() {
+    --depth_;
+    anchored(open_.back().first, values_ - open_.back().second);
+    open_.pop_back();
+  }
+  void value(const YAML::Mark& m, const std::string* scalar, long count = 1) {
     if (roots.size() < starts.size()) roots.push_back(m);
     // Directly inside the top-level map, entries alternate key and value.
     if (depth_ == 1) {
       if (key_next_ && scalar) key_ = *scalar;
       key_next_ = !key_next_;
     }
-    if (++values_ <= kMaxSceneValues) return;
+    values_ += count;
+    if (values_ <= kMaxSceneValues) return;
     throw InputError(SourceLoc{file_, m.line >= 0 ? m.line + 1 : 1}.str() + ": " + (key_.empty() ? "top level" : key_) +
                      ": the scene holds more than " + std::to_string(kMaxSceneValues) +
                      " YAML values (numbers, strings, lists, maps) by this line; expected at most " +
@@ -71,6 +93,8 @@ class DocumentCounter : public YAML::EventHandler {
   int depth_ = 0;
   bool key_next_ = true;
   long values_ = 0;
+  std::vector<std::pair<YAML::anchor_t, long>> open_;  // collections being read: anchor, values before
+  std::map<YAML::anchor_t, long> sizes_;               // anchored nodes: their values, aliases expanded
 };
 
 /// The scene text handed to yaml-cpp in 64 KiB pieces, asking `stop` before each piece (yaml-cpp

@@ -331,7 +331,8 @@ inline const Keys kStabilityKeys = {
     {.name = "energy_error", .fallback = "0.05",
      .doc = ">= 0: stop a dynamic stage when the energy balance error |E - E0| exceeds this fraction of the "
             "largest energy term (at least the energy of a 1e-10 strain of every body) at every series row for 10 "
-            "steps or more (a transient, such as a tool's first touch, is let through); 0: off"},
+            "steps or more (a transient, such as a tool's first touch, is let through), or at the run's last row; 0: "
+            "off"},
     {.name = "motion_per_step", .fallback = "1",
      .doc = ">= 0: stop when a node with intact bonds moves more than this many grid spacings in one step; 0: off"},
 };

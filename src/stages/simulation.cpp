@@ -356,7 +356,8 @@ void Simulation::write_series_row() {
   const EnergyRow row = reduce_energies(ledger_.bonds.strain_energy);
   // Energy growth detector (after the first row, which sets the reference).
   if (step_ > 0)
-    health_.check_energy(row, energy_balance_error(row), summary_.initial_total_energy, verlet_.dt(), summary_.dt_stable);
+    health_.check_energy(row, energy_balance_error(row), summary_.initial_total_energy, verlet_.dt(), summary_.dt_stable,
+                         step_ == total_steps_);
   std::string extra;
   if (tips_) {
     extra = tips_->sample(row, [this] { return forces_.damage(); });

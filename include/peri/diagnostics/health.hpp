@@ -47,7 +47,9 @@ class HealthCheck {
   /// which before anything else has moved can be most of the balance (0.74 of it for one step in
   /// the blunt tool's scene with dashpots, 0.05 or less from the next step); an instability does
   /// not recover.
-  void check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable);
+  /// `run_end`: the run's last series row, where an error above the tolerance stops the run
+  /// however few steps it has lasted.
+  void check_energy(const EnergyRow& row, double error, double e0, double dt, double dt_stable, bool run_end);
   static constexpr std::int64_t kEnergyErrorSteps = 10;
   /// The energy check's memory across a restart (a checkpoint extra): the first step of the
   /// current run of checks above the tolerance, or -1. `restore` takes a checkpoint's values
@@ -59,6 +61,8 @@ class HealthCheck {
   /// The long-range rules whose contact a step dt exceeds (PairContactStep::exceeded_by) with the
   /// bonds' bound dt_stable, as a likely cause; empty when none does.
   std::string contact_note(double dt, double dt_stable) const;
+  /// With a crack-tip rule: its share in an energy balance error, for the message.
+  std::string tip_advance_note() const;
 
  private:
   std::array<double, 3> reference_position(std::int64_t natural) const;  // of any node (collective)
