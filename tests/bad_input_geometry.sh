@@ -118,6 +118,9 @@ f=$(block negative_volume 'x,y,z,volume\n0,0,0,-1e-9\n')
 expect cloud_negative_volume "$work/data/negative_volume.csv:2: bodies.block.points: column volume: expected a positive volume [m^3], got '-1e-9'" -- "$f"
 f=$(block duplicate 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n0.002,0,0,1e-9\n0.001,0,0,2e-9\n')
 expect cloud_duplicate "$work/data/duplicate.csv:5: bodies.block.points: duplicate point (0.001, 0, 0), the same as line 3" -- "$f"
+# Within 1e-8 of the points' size (1e-3 m here): one point given twice with round-off.
+f=$(block near_twin 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n0.002,0,0,1e-9\n0.001,0,1e-15,1e-9\n')
+expect cloud_near_twin "$work/data/near_twin.csv:5: bodies.block.points: point (0.001, 0, 1e-15) within 1e-11 m of line 3 (1e-8 of the points' size, the cube root of their median volume); expected each point once" -- "$f"
 f=$(block columns 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0\n')
 expect cloud_column_count "$work/data/columns.csv:3: bodies.block.points: expected 4 columns (x,y,z,volume), got 3" -- "$f"
 f=$(block header 'x,y,volume\n0,0,1e-9\n')

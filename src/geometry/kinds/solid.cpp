@@ -146,7 +146,8 @@ BodyKind solid_kind() {
        .doc = "[Lx, Ly, Lz], all > 0"},
       {.name = "points", .fallback = "- (a box)",
        .doc = "instead of origin and size: a CSV file (relative to the scene file) with the header x,y,z,volume or "
-              "x,y,z,volume,material and one point a row [m, m^3]; nodes in file order, volumes > 0, no point twice; "
+              "x,y,z,volume,material and one point a row [m, m^3]; nodes in file order, volumes > 0, no point twice "
+              "(nor two within 1e-8 of the cube root of the median volume); "
               "with a material column the body takes the rows naming its material; `#` lines and blank lines are "
               "skipped. Or an HDF5 file (.h5, .hdf5) with the 1D datasets x, y, z, volume (numbers) and optionally "
               "material (strings), one point an index"},
