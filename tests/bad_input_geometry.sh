@@ -80,6 +80,26 @@ fiber=$src/drivers/scenes/fiber_long_range.yaml
 expect cutout_on_fiber "bodies.fiber.cutouts: not used by a fiber body" -- "$fiber" \
   --set 'bodies.fiber.cutouts=[{kind: circle, center: [0, 0], radius: 1e-9}]'
 
+# A crossing polygon whose two lobes' signed areas cancel (a bow-tie) encloses them by the
+# even-odd rule: read, not refused as "corners on one line" (48 nodes inside, counted apart).
+f=$(plate bow_tie '{kind: polygon, vertices: [[0, 0], [0.0031, 0], [0, 0.0021], [0.0031, 0.0021]]}')
+if "${mpi[@]}" "$peridrive" "$f" --dry-run > "$work/stdout" 2> "$work/stderr" && grep -qx "plate.nodes = 1552" "$work/stdout"; then
+  echo "ok   bow_tie_cutout: 1552 of 1600 nodes kept"; pass=$((pass + 1))
+else
+  echo "FAIL bow_tie_cutout: expected 1552 nodes kept"; cat "$work/stderr"; grep "plate.nodes" "$work/stdout"; fail=$((fail + 1))
+fi
+
+# Cutouts that cut a node off from the rest by more than the horizon: warned of (how many, where
+# the first is), the run not refused.
+f=$(plate lone_corner '{kind: box, min: [0.0002, -1, -1], max: [0.005, 1, 1]}' '{kind: box, min: [-1, 0.0002, -1], max: [0.0002, 1, 1]}')
+if "${mpi[@]}" "$peridrive" "$f" --dry-run > "$work/stdout" 2> "$work/stderr" &&
+   grep -qF "peridrive: warning: $f:$(line_of "$f" 'kind: membrane'): bodies.plate: 1 of its 801 nodes have no bond (the first at (0.000125, 0.000125, 0))" "$work/stderr" &&
+   [ "$(grep -c 'have no bond' "$work/stderr")" -eq 1 ]; then
+  echo "ok   lone_node_warned: $(grep 'have no bond' "$work/stderr" | cut -c1-160)"; pass=$((pass + 1))
+else
+  echo "FAIL lone_node_warned: expected one warning naming 1 of 801 nodes"; cat "$work/stderr"; fail=$((fail + 1))
+fi
+
 # Point clouds: a block scene beside a data folder.
 mkdir -p "$work/data"
 block() {  # block NAME CSV_TEXT [extra body keys]: prints the scene's path
@@ -121,6 +141,11 @@ expect cloud_duplicate "$work/data/duplicate.csv:5: bodies.block.points: duplica
 # Within 1e-8 of the points' size (1e-3 m here): one point given twice with round-off.
 f=$(block near_twin 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n0.002,0,0,1e-9\n0.001,0,1e-15,1e-9\n')
 expect cloud_near_twin "$work/data/near_twin.csv:5: bodies.block.points: point (0.001, 0, 1e-15) within 1e-11 m of line 3 (1e-8 of the points' size, the cube root of their median volume); expected each point once" -- "$f"
+# A body none of whose nodes has a bond (points 10 mm apart, the horizon 3 mm), beside a body
+# with bonds: refused, naming it (it ran before, its nodes loose).
+f=$(block sparse 'x,y,z,volume\n0,0,0,1e-9\n0.01,0,0,1e-9\n0.02,0,0,1e-9\n0.03,0,0,1e-9\n')
+sed -i 's|^bodies:$|bodies:\n  plate: {kind: solid, material: glass, origin: [0.1, 0, 0], size: [0.002, 0.002, 0.002], spacing: 0.0005}|' "$f"
+expect body_without_bonds "$f:$(line_of "$f" 'block:'): bodies.block: none of its 4 nodes has a bond: its horizon 0.003 m reaches no other node" -- "$f"
 f=$(block columns 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0\n')
 expect cloud_column_count "$work/data/columns.csv:3: bodies.block.points: expected 4 columns (x,y,z,volume), got 3" -- "$f"
 f=$(block header 'x,y,volume\n0,0,1e-9\n')

@@ -186,6 +186,12 @@ f=$(fiber two_numbers '0 0 0\n0.01 0\n')
 expect polyline_columns "$work/data/two_numbers.xyz:2: bodies.f.polyline: expected 3 numbers x, y, z [m], got '0.01 0'" -- "$f"
 f=$(fiber word '# x y z\n0 0 0\n0.01 zero 0\n')
 expect polyline_number "$work/data/word.xyz:3: bodies.f.polyline: expected 3 finite numbers x, y, z [m], got '0.01 zero 0'" -- "$f"
+f=$(fiber empty_field '0 0 0\n0.01,,0,0\n')
+expect polyline_empty_field "$work/data/empty_field.xyz:2: bodies.f.polyline: an empty field before a comma; expected 3 numbers x, y, z [m], got '0.01,,0,0'" -- "$f"
+f=$(fiber trailing_comma '0 0 0\n0.01,0,0,\n')
+expect polyline_trailing_comma "$work/data/trailing_comma.xyz:2: bodies.f.polyline: an empty field after the last comma; expected 3 numbers x, y, z [m], got '0.01,0,0,'" -- "$f"
+f=$(fiber subnormal '0 0 0\n0.01 1e-320 0\n')
+expect polyline_subnormal "$work/data/subnormal.xyz:2: bodies.f.polyline: '1e-320' is below the smallest normal double" -- "$f"
 f=$(fiber repeated '0 0 0\n0.01 0 0\n\n0.01, 0, 0\n')
 expect polyline_repeat "$work/data/repeated.xyz:4: bodies.f.polyline: the same point as line 2; expected each point different from the one before it" -- "$f"
 f=$(fiber single '0 0 0\n')

@@ -214,7 +214,19 @@ TEST(Partitioner, LineWeightKeepsGridLinesWhole) {
   PetscOptionsSetValue(nullptr, "-partition_line_weight", "0");
   const std::string message = settings_error();
   EXPECT_NE(message.find("-partition_line_weight 0: expected an integer in [1, 64]"), std::string::npos) << message;
+  // Not integers: read as text, refused as input (PETSc's own reading ended in its error handler).
+  for (const char* text : {"1.5", "nan", "abc", "5x", ""}) {
+    PetscOptionsSetValue(nullptr, "-partition_line_weight", text);
+    EXPECT_NE(settings_error().find("-partition_line_weight " + std::string(text) + ": expected an integer in [1, 64]"),
+              std::string::npos) << text;
+  }
   PetscOptionsClearValue(nullptr, "-partition_line_weight");
+  PetscOptionsSetValue(nullptr, "-partition_mat_partitioning_type", "foo");
+  const std::string type_message = settings_error();
+  EXPECT_NE(type_message.find("-partition_mat_partitioning_type foo: not a partitioner of this PETSc build; expected "
+                              "one of: current, average, square"),
+            std::string::npos) << type_message;
+  PetscOptionsClearValue(nullptr, "-partition_mat_partitioning_type");
   EXPECT_EQ(partition_settings_from_options().line_weight, kLineWeight);
 }
 

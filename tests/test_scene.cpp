@@ -1271,6 +1271,33 @@ TEST(SceneLimits, AliasesCountAsTheValuesTheyStandFor) {
                                 "z], to: [x, y, z]})");
 }
 
+TEST(SceneLimits, OverrideWithTextAfterItsValue) {
+  // yaml-cpp reads the first value and drops the rest; the scene file refuses the same text.
+  EXPECT_EQ(error_of(kBase, {{"bodies.sheet.origin", "[0, 0, 0] [1, 1, 1]"}}),
+            "--set bodies.sheet.origin=[0, 0, 0] [1, 1, 1]: text after the value; expected one YAML value (a value "
+            "that starts with a quote or a bracket ends where it closes: to give the whole text as a string, wrap it "
+            "in quotes of the other kind)");
+  EXPECT_THAT(error_of(kBase, {{"description", "\"abc\" junk"}}),
+              StartsWith("--set description=\"abc\" junk: text after the value"));
+  EXPECT_EQ(peri::parse_scene(kBase, "scene.yaml", {{"description", "'\"abc\" junk'"}}).description, "\"abc\" junk");
+  EXPECT_EQ(peri::parse_scene(kBase, "scene.yaml", {{"description", "abc junk"}}).description, "abc junk");
+}
+
+TEST(SceneLimits, TextThatIsNotUtf8) {
+  // Invalid bytes (a lone lead byte, an overlong form, a surrogate) in the file or a --set value.
+  EXPECT_EQ(error_of(kBase + "description: \"ok\xc3\x28\"\n"),
+            "scene.yaml:16: the byte 0xC3 at offset " + std::to_string(kBase.size() + 16) +
+                " is not UTF-8 text; expected a scene in UTF-8");
+  EXPECT_THAT(error_of(kBase + "description: \"\xc0\xaf\"\n"), StartsWith("scene.yaml:16: the byte 0xC0"));
+  EXPECT_THAT(error_of(kBase + "description: \"\xed\xa0\x80\"\n"), StartsWith("scene.yaml:16: the byte 0xED"));
+  EXPECT_THAT(error_of("\xff\xfe" + kBase), HasSubstr("(the file starts with a UTF-16 byte order mark: save it as UTF-8)"));
+  EXPECT_EQ(error_of(kBase, {{"description", "ok\xc3\x28"}}),
+            "--set description=ok\xc3\x28: the value is not UTF-8 text; expected UTF-8");
+  // Well-formed UTF-8 of 2, 3 and 4 bytes is read.
+  EXPECT_EQ(peri::parse_scene(kBase + "description: \"\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80\"\n", "scene.yaml").description,
+            "\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80");
+}
+
 TEST(SceneLimits, ReadingStopsWhenAsked) {
   // The stop check is asked before each 64 KiB of text: a long scene is abandoned mid-way.
   std::string text = kBase + "cracks:\n";

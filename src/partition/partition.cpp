@@ -7,8 +7,10 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 
@@ -39,22 +41,57 @@ const char* to_string(PartitionMethod m) {
   return "?";
 }
 
+namespace {
+
+// An integer option read as text (PETSc's own reading of "1.5" or "abc" ends in its error
+// handler, exit status 4): InputError unless a whole integer in [lo, hi].
+int integer_option(const char* option, long lo, long hi, int fallback) {
+  char text[64] = "";
+  PetscBool set = PETSC_FALSE;
+  PERI_PETSC(PetscOptionsGetString(nullptr, nullptr, option, text, sizeof text, &set));
+  if (!set) return fallback;
+  long value = 0;
+  const char* end = text + std::strlen(text);
+  const auto r = std::from_chars(text, end, value);
+  if (!*text || r.ec != std::errc() || r.ptr != end || value < lo || value > hi)
+    throw InputError(std::string(option) + " " + text + ": expected an integer in [" + std::to_string(lo) + ", " +
+                     std::to_string(hi) + "]");
+  return static_cast<int>(value);
+}
+
+// The partitioner types this PETSc has, among those PETSc defines.
+std::string partitioner_types() {
+  std::string out;
+  for (const char* t : {MATPARTITIONINGCURRENT, MATPARTITIONINGAVERAGE, MATPARTITIONINGSQUARE, MATPARTITIONINGPARMETIS,
+                        MATPARTITIONINGPTSCOTCH, MATPARTITIONINGCHACO, MATPARTITIONINGPARTY, MATPARTITIONINGHIERARCH}) {
+    void (*create)(void) = nullptr;
+    PERI_PETSC(PetscFunctionListFind(MatPartitioningList, t, &create));
+    if (create) out += (out.empty() ? "" : ", ") + std::string(t);
+  }
+  return out;
+}
+
+}  // namespace
+
 PartitionSettings partition_settings_from_options() {
   PartitionSettings s;
   char name[64] = "";
   PetscBool set = PETSC_FALSE;
   PERI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-partition_method", name, sizeof name, &set));
   if (set) s.method = partition_method(name);
-  PetscInt per_part = s.cells_per_part;
-  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-partition_cells_per_part", &per_part, &set));
-  if (set && (per_part < 1 || per_part > 1000000))
-    throw InputError("-partition_cells_per_part " + std::to_string(per_part) + ": expected an integer in [1, 1000000]");
-  s.cells_per_part = static_cast<int>(per_part);
-  PetscInt line_weight = s.line_weight;
-  PERI_PETSC(PetscOptionsGetInt(nullptr, nullptr, "-partition_line_weight", &line_weight, &set));
-  if (set && (line_weight < 1 || line_weight > 64))
-    throw InputError("-partition_line_weight " + std::to_string(line_weight) + ": expected an integer in [1, 64]");
-  s.line_weight = static_cast<int>(line_weight);
+  s.cells_per_part = integer_option("-partition_cells_per_part", 1, 1000000, s.cells_per_part);
+  s.line_weight = integer_option("-partition_line_weight", 1, 64, s.line_weight);
+  // The PETSc partitioner's type, checked against those this PETSc has (an unknown one ended in
+  // PETSc's error handler on 2 ranks and went unread on 1).
+  PERI_PETSC(PetscOptionsGetString(nullptr, nullptr, "-partition_mat_partitioning_type", name, sizeof name, &set));
+  if (set) {
+    PERI_PETSC(MatInitializePackage());
+    void (*create)(void) = nullptr;
+    PERI_PETSC(PetscFunctionListFind(MatPartitioningList, name, &create));
+    if (!create)
+      throw InputError(std::string("-partition_mat_partitioning_type ") + name +
+                       ": not a partitioner of this PETSc build; expected one of: " + partitioner_types());
+  }
   return s;
 }
 

@@ -4,6 +4,7 @@
 // "<file>:<line>: <dotted.key.path>: <what is wrong>".
 #include <yaml-cpp/eventhandler.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -16,6 +17,37 @@
 #include "schema.hpp"
 
 namespace peri {
+
+/// The byte offset of the first byte of `text` that is not part of well-formed UTF-8 (overlong
+/// forms, surrogates and code points beyond U+10FFFF included), or npos. yaml-cpp reads bytes
+/// as they come, and a scene's strings end up in HDF5 datasets declared UTF-8 (the scene text of
+/// every frames file and checkpoint), which readers then cannot decode.
+std::size_t scene_detail::first_bad_utf8(const std::string& text) {
+  const auto* b = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  for (std::size_t i = 0; i < n;) {
+    const unsigned c = b[i];
+    std::size_t len = 0;
+    unsigned lo = 0x80, hi = 0xBF;  // the second byte's range
+    if (c < 0x80) len = 1;
+    else if (c >= 0xC2 && c <= 0xDF) len = 2;
+    else if (c == 0xE0) len = 3, lo = 0xA0;
+    else if (c == 0xED) len = 3, hi = 0x9F;
+    else if (c >= 0xE1 && c <= 0xEF) len = 3;
+    else if (c == 0xF0) len = 4, lo = 0x90;
+    else if (c == 0xF4) len = 4, hi = 0x8F;
+    else if (c >= 0xF1 && c <= 0xF3) len = 4;
+    else return i;
+    if (i + len > n) return i;
+    for (std::size_t k = 1; k < len; ++k) {
+      const unsigned d = b[i + k];
+      if (d < (k == 1 ? lo : 0x80u) || d > (k == 1 ? hi : 0xBFu)) return i;
+    }
+    i += len;
+  }
+  return std::string::npos;
+}
+
 namespace {
 
 using namespace scene_detail;
@@ -130,6 +162,17 @@ struct StoppableStream : std::istream {
 };
 
 YAML::Node load_document(const std::string& text, const std::string& file, const StopCheck& stop) {
+  if (const std::size_t bad = first_bad_utf8(text); bad != std::string::npos) {
+    const long line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(bad), '\n');
+    char byte[8];
+    std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[bad]));
+    throw InputError(SourceLoc{file, static_cast<int>(line)}.str() + ": the byte " + byte + " at offset " + std::to_string(bad) +
+                     " is not UTF-8 text" +
+                     (text.size() >= 2 && (text.compare(0, 2, "\xFF\xFE") == 0 || text.compare(0, 2, "\xFE\xFF") == 0)
+                          ? " (the file starts with a UTF-16 byte order mark: save it as UTF-8)"
+                          : "") +
+                     "; expected a scene in UTF-8");
+  }
   std::vector<YAML::Node> docs;
   try {
     // Count the documents first. YAML::LoadAll is not used: on a token that starts no node (a

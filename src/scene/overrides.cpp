@@ -1,8 +1,11 @@
 // The --set overrides (overrides.hpp).
 #include "overrides.hpp"
 
+#include <yaml-cpp/eventhandler.h>
+
 #include <algorithm>
 #include <functional>
+#include <sstream>
 
 #include "peri/core/format.hpp"
 #include "schema.hpp"
@@ -42,6 +45,21 @@ std::size_t find_entry(const YAML::Node& list, const std::string& segment, const
   return 0;
 }
 
+/// Counts the YAML documents of a text. yaml-cpp's Load reads the first and drops the rest, and
+/// it takes text after a complete value (`[5, 0] [50, 0]`, `"abc" junk`) for a second document.
+struct DocumentCount : YAML::EventHandler {
+  int documents = 0;
+  void OnDocumentStart(const YAML::Mark&) override { ++documents; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
 }  // namespace
 
 /// Applies one override to the document tree and records the key paths it set (with list
@@ -50,8 +68,17 @@ void apply_override(YAML::Node& root, const Override& o, Context& ctx) {
   const auto fail = [&](const std::string& why) {
     throw InputError("--set " + shown_value(o.path) + "=" + shown_value(o.value) + ": " + why);
   };
+  if (first_bad_utf8(o.value) != std::string::npos) fail("the value is not UTF-8 text; expected UTF-8");
   YAML::Node value;
   try {
+    std::istringstream text(o.value);
+    YAML::Parser parser(text);
+    DocumentCount count;
+    while (count.documents < 2 && parser.HandleNextDocument(count)) {
+    }
+    if (count.documents > 1)
+      fail("text after the value; expected one YAML value (a value that starts with a quote or a bracket ends "
+           "where it closes: to give the whole text as a string, wrap it in quotes of the other kind)");
     value = YAML::Load(o.value);
   } catch (const YAML::Exception& e) {
     fail("cannot read the value as YAML: " + e.msg);

@@ -168,6 +168,9 @@ void read_crack_polygon(const Value& list, Crack& c) {
       items[k].fail("expected a corner different from the one before it, got " + items[k].got());
   }
   const std::size_t n = c.polygon.size();
+  if (n > 2 && c.polygon[n - 1] == c.polygon[0])
+    items[n - 1].fail("the same corner as the first; expected each corner once (the polygon closes from its last "
+                      "corner to its first by itself)");
   for (std::size_t k = 0; k < n; ++k)
     for (double x : c.polygon[k])
       if (!(std::fabs(x) < 1e100)) items[k].fail("expected a corner within 1e100 m of the origin, got " + items[k].got());
@@ -208,8 +211,8 @@ void read_crack_polygon(const Value& list, Crack& c) {
     const Vec3 e0 = minus(p[(i + 1) % n], p[i]), e1 = minus(p[(i + 2) % n], p[(i + 1) % n]);
     const double turn = dot(cross(e0, e1), normal);
     if (turn < -1e-9 * std::sqrt(dot(e0, e0) * dot(e1, e1)))
-      list.fail("expected a convex polygon with its corners in order (it turns the other way at corner " +
-                std::to_string((i + 1) % n + 1) + "); give a non-convex cut as several convex polygons");
+      items[(i + 1) % n].fail("expected a convex polygon with its corners in order, got a turn the other way at "
+                              "this corner; give a non-convex cut as several convex polygons");
     turning += std::atan2(turn, dot(e0, e1));
   }
   if (!(std::fabs(turning - 2 * M_PI) < 1e-6)) list.fail(crossing);

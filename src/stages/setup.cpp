@@ -401,6 +401,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   PetscLogEventEnd(events().bonds, 0, 0, 0, 0);
   stop_point(comm);  // before anything reads a domain the stop left unfinished
   count_edge_cut(partition, p.domain, comm);
+  check_body_bonds(p.scene, nodes.bodies, p.domain, comm, p.rank);
   allocate_history(p.domain, laws);
   mark_memory(summary, "domain", comm);
 

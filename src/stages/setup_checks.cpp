@@ -312,6 +312,46 @@ void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector
   }
 }
 
+void check_body_bonds(const Scene& scene, const std::vector<BodyGeometry>& bodies, const Domain& d, MPI_Comm comm,
+                      int rank) {
+  // Per body: ordered bonds, nodes without any, nodes; and the first node without a bond.
+  const std::size_t n = scene.bodies.size();
+  std::vector<long long> local(3 * n, 0), all(3 * n, 0);
+  std::vector<long long> first_local(n, std::numeric_limits<long long>::max()), first(n);
+  for (std::int32_t i = 0; i < d.owned; ++i) {
+    const auto b = static_cast<std::size_t>(d.body[i]);
+    const std::int64_t k = d.bonds.offsets[i + 1] - d.bonds.offsets[i];
+    local[b] += k;
+    local[n + b] += k == 0;
+    ++local[2 * n + b];
+    if (k == 0) first_local[b] = std::min<long long>(first_local[b], d.natural[i]);
+  }
+  MPI_Allreduce(local.data(), all.data(), static_cast<int>(3 * n), MPI_LONG_LONG, MPI_SUM, comm);
+  MPI_Allreduce(first_local.data(), first.data(), static_cast<int>(n), MPI_LONG_LONG, MPI_MIN, comm);
+  for (std::size_t b = 0; b < n; ++b) {
+    const Body& body = scene.bodies[b];
+    if (bodies[b].traits.lattice || all[2 * n + b] == 0 || all[n + b] == 0) continue;
+    if (all[b] == 0)
+      throw InputError(body.where.str() + ": bodies." + body.name + ": none of its " + std::to_string(all[2 * n + b]) +
+                       " nodes has a bond: its horizon " + num(body.horizon_value()) +
+                       " m reaches no other node; expected a horizon of a few of its nodes' spacings (horizon_factor "
+                       "or horizon)");
+    // The first node without a bond, and where it is (collective: its owner gives it).
+    double X_local[3] = {0, 0, 0}, X[3];
+    for (std::int32_t i = 0; i < d.owned; ++i)
+      if (d.natural[i] == first[b])
+        for (int c = 0; c < 3; ++c) X_local[c] = d.X[3 * static_cast<std::size_t>(i) + c];
+    MPI_Allreduce(X_local, X, 3, MPI_DOUBLE, MPI_SUM, comm);
+    if (rank == 0)
+      std::fprintf(stderr,
+                   "peridrive: warning: %s: bodies.%s: %lld of its %lld nodes have no bond (the first at (%s, %s, %s)): "
+                   "nothing holds them, and they move only with their initial velocity and the loads on them; "
+                   "cutouts, cracks or a mesh may have cut them off by more than the horizon %s m\n",
+                   body.where.str().c_str(), body.name.c_str(), all[n + b], all[2 * n + b], num(X[0]).c_str(),
+                   num(X[1]).c_str(), num(X[2]).c_str(), num(body.horizon_value()).c_str());
+  }
+}
+
 double check_stable_step(const Problem& p, const std::vector<double>& dt_body, const std::vector<double>& dt_undamped) {
   const Scene& scene = p.scene;
   const std::size_t nb = dt_body.size();

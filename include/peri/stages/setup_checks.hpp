@@ -13,6 +13,7 @@
 #include "peri/bonds/bonds.hpp"
 #include "peri/geometry/discretization.hpp"
 #include "peri/models/law.hpp"
+#include "peri/partition/domain.hpp"
 #include "peri/scene/scene.hpp"
 
 namespace peri {
@@ -42,6 +43,12 @@ void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank);
 /// Every node within 1e9 spacings of the origin, where positions keep a spacing to 1e-7; a
 /// warning (rank 0) beyond 1e6 spacings.
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
+/// Per body after the bonds are built (collective): a body none of whose nodes has a bond is
+/// refused (InputError naming it and its horizon); nodes without a bond in a body with bonds are
+/// warned of on rank 0 (how many, and where the first is). Lattice bodies are not checked.
+void check_body_bonds(const Scene& scene, const std::vector<BodyGeometry>& bodies, const Domain& d, MPI_Comm comm,
+                      int rank);
+
 /// A polygon crack lying in the plane of a flat sheet (which would break every bond within its
 /// area, not cut along a line): InputError naming the crack and the sheet.
 void check_polygon_cracks(const Scene& scene, const Nodes& nodes);

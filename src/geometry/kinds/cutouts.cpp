@@ -140,18 +140,24 @@ Cutout read_cutout(const Value& v, int dimension) {
         if (k > 0 && c.vertices[k] == c.vertices[k - 1])
           items[k].fail("expected a corner different from the one before it, got " + items[k].got());
       }
-      // Twice the signed area (shoelace, about the first corner), against the bounding box's: a
-      // polygon whose corners lie on one line (to round-off) encloses nothing.
-      double area2 = 0, lo[2] = {HUGE_VAL, HUGE_VAL}, hi[2] = {-HUGE_VAL, -HUGE_VAL};
+      // A polygon whose corners lie on one line (to round-off) encloses nothing: every corner's
+      // offset from the line through the first corner and the one farthest from it, against the
+      // bounding box's diagonal. (Not the signed area: a crossing polygon whose lobes cancel
+      // encloses them by the even-odd rule.)
+      double lo[2] = {HUGE_VAL, HUGE_VAL}, hi[2] = {-HUGE_VAL, -HUGE_VAL}, far = 0, off = 0;
       const auto& o = c.vertices[0];
+      std::size_t f = 0;
       for (std::size_t i = 0; i < c.vertices.size(); ++i) {
         const auto& p = c.vertices[i];
-        const auto& q = c.vertices[(i + 1) % c.vertices.size()];
-        area2 += (p[0] - o[0]) * (q[1] - o[1]) - (q[0] - o[0]) * (p[1] - o[1]);
+        const double d2 = (p[0] - o[0]) * (p[0] - o[0]) + (p[1] - o[1]) * (p[1] - o[1]);
+        if (d2 > far) far = d2, f = i;
         for (int d = 0; d < 2; ++d) lo[d] = std::min(lo[d], p[d]), hi[d] = std::max(hi[d], p[d]);
       }
+      const auto& q = c.vertices[f];
+      for (const auto& p : c.vertices)
+        off = std::max(off, std::fabs((q[0] - o[0]) * (p[1] - o[1]) - (p[0] - o[0]) * (q[1] - o[1])));
       const double box = (hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]);
-      if (!(std::fabs(area2) > 1e-12 * box))
+      if (!(off > 1e-12 * box))
         list.fail("expected a polygon that encloses an area (corners not all on one line), got " + list.got());
       break;
     }

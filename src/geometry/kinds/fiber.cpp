@@ -175,16 +175,32 @@ double read_polyline(const Value& v, Body& b) {
     std::string t = text.substr(first, text.find_last_not_of(" \t\r") - first + 1);
     std::vector<std::string> cells;
     std::string cell;
-    for (char& c : t)
-      if (c == ',') c = ' ';
+    const std::string shown = "'" + (t.size() > 60 ? t.substr(0, 60) + "..." : t) + "'";
+    // A comma ends a field that must hold a number: none before it (",0,0", "0,,0") or after the
+    // last ("0,0,0,") is an empty field.
+    bool filled = false;
+    for (char& c : t) {
+      if (c == ',') {
+        if (!filled) fail_at(line, "an empty field before a comma; expected 3 numbers x, y, z [m], got " + shown);
+        filled = false;
+        c = ' ';
+      } else if (c != ' ' && c != '\t' && c != '\r') {
+        filled = true;
+      }
+    }
+    if (!filled) fail_at(line, "an empty field after the last comma; expected 3 numbers x, y, z [m], got " + shown);
     std::istringstream words(t);
     while (words >> cell) cells.push_back(cell);
-    const std::string shown = "'" + (t.size() > 60 ? t.substr(0, 60) + "..." : t) + "'";
     if (cells.size() != 3) fail_at(line, "expected 3 numbers x, y, z [m], got " + shown);
     Vec3 p{};
-    for (int c = 0; c < 3; ++c)
-      if (scene_detail::parse_number(cells[c], p[c]) != scene_detail::NumberText::Ok)
+    for (int c = 0; c < 3; ++c) {
+      const scene_detail::NumberText r = scene_detail::parse_number(cells[c], p[c]);
+      if (r == scene_detail::NumberText::Subnormal)
+        fail_at(line, "'" + cells[c] + "' is below the smallest normal double; expected numbers of magnitude 0 or at "
+                      "least 2.2e-308 [m], got " + shown);
+      if (r != scene_detail::NumberText::Ok)
         fail_at(line, std::string("expected 3 finite numbers x, y, z [m], got ") + shown);
+    }
     if (!b.path.empty()) {
       const double d = distance(b.path.back(), p);
       if (!(d > 0)) fail_at(line, "the same point as line " + std::to_string(previous) + "; expected each point "
