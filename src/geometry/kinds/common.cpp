@@ -1,8 +1,10 @@
 #include "common.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <unordered_map>
 
 namespace peri::kinds {
 
@@ -98,6 +100,41 @@ double grid_sheet_count(const Body& b) {
   double n = 1;
   for (int d = 0; d < 2; ++d) n *= std::max(1.0, std::round(b.size[d] / b.spacing));
   return b.grid == Grid::Hexagonal ? n * (2.0 / std::sqrt(3.0)) : n;
+}
+
+std::pair<std::size_t, std::size_t> first_close_pair(const std::vector<Vec3>& x, double cell, double tol) {
+  const std::size_t n = x.size();
+  for (const Vec3& p : x)
+    for (double c : p)
+      if (!(std::fabs(c / cell) < 1e15)) return {n, n};  // cells beyond an integer's reach
+  struct CellHash {
+    std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
+      return static_cast<std::size_t>(c[0] * 73856093 ^ c[1] * 19349663 ^ c[2] * 83492791);
+    }
+  };
+  std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::size_t>, CellHash> grid;
+  grid.reserve(n);
+  auto cell_of = [&](const Vec3& p) {
+    return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(p[0] / cell)),
+                                       static_cast<std::int64_t>(std::floor(p[1] / cell)),
+                                       static_cast<std::int64_t>(std::floor(p[2] / cell))};
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = x[i];
+    const auto c = cell_of(p);
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
+          if (it == grid.end()) continue;
+          for (std::size_t j : it->second) {
+            const double d[3] = {p[0] - x[j][0], p[1] - x[j][1], p[2] - x[j][2]};
+            if (std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) <= tol) return {i, j};
+          }
+        }
+    grid[c].push_back(i);
+  }
+  return {n, n};
 }
 
 std::string key_text(const Body& b, const char* key, double value) {

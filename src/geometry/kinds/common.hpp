@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "peri/core/format.hpp"
@@ -48,6 +49,10 @@ void read_sheet_extent(const Map& m, Body& b);
 void grid_sheet_nodes(const Body& b, BodyGeometry& g, NodeSink& sink);
 /// Nodes of a grid sheet before any is made (a hexagonal grid has 2/sqrt(3) more).
 double grid_sheet_count(const Body& b);
+
+/// The first point (in order) within `tol` of an earlier one, and that one, hashed on cells of
+/// size `cell` >= tol; {n, n} when none (or when a coordinate is beyond 1e15 cells).
+std::pair<std::size_t, std::size_t> first_close_pair(const std::vector<Vec3>& x, double cell, double tol);
 
 /// Number of grid cells along a length (at least one).
 std::int64_t count_along(double length, double dx);

@@ -376,41 +376,12 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
     sum += norm(d);
   }
   m.mean_edge = sum / static_cast<double>(edges.size());
-  // Two nodes closer than 1e-8 mean edges: one point given twice (hashed on cells of that size).
-  {
-    const double tol = 1e-8 * m.mean_edge;
-    struct CellHash {
-      std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
-        return static_cast<std::size_t>(c[0] * 73856093 ^ c[1] * 19349663 ^ c[2] * 83492791);
-      }
-    };
-    std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::int64_t>, CellHash> grid;
-    grid.reserve(m.nodes.size());
-    auto cell_of = [&](const Vec3& x) {
-      return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(x[0] / tol)),
-                                         static_cast<std::int64_t>(std::floor(x[1] / tol)),
-                                         static_cast<std::int64_t>(std::floor(x[2] / tol))};
-    };
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(m.nodes.size()); ++i) {
-      const Vec3& x = m.nodes[i];
-      const auto c = cell_of(x);
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dz = -1; dz <= 1; ++dz) {
-            const auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
-            if (it == grid.end()) continue;
-            for (std::int64_t j : it->second) {
-              const double d[3] = {x[0] - m.nodes[j][0], x[1] - m.nodes[j][1], x[2] - m.nodes[j][2]};
-              if (norm(d) <= tol)
-                throw InputError(path + ": node " + std::to_string(m.tags[i]) + ": " + key + ": at " + point_text(x) +
-                                 ", the position of node " + std::to_string(m.tags[j]) +
-                                 " too (within 1e-8 mean edge lengths); expected each point once (merge the "
-                                 "duplicate nodes, e.g. Gmsh's Coherence Mesh)");
-            }
-          }
-      grid[c].push_back(i);
-    }
-  }
+  // Two nodes closer than 1e-8 mean edges: one point given twice (hashed on cells of an edge).
+  if (const auto [i, j] = first_close_pair(m.nodes, m.mean_edge, 1e-8 * m.mean_edge); i < m.nodes.size())
+    throw InputError(path + ": node " + std::to_string(m.tags[i]) + ": " + key + ": at " + point_text(m.nodes[i]) +
+                     ", the position of node " + std::to_string(m.tags[j]) +
+                     " too (within 1e-8 mean edge lengths); expected each point once (merge the duplicate nodes, "
+                     "e.g. Gmsh's Coherence Mesh)");
   m.planar = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) { return x[2] == m.nodes[0][2]; });
   for (const Group& g : groups) {
     MeshGroup out{g.name, {}};

@@ -4,7 +4,6 @@
 // so that every problem of the file is an input error before anything is built:
 // "<file>:<line>: bodies.<name>.points: ..." ("<file>: point <k>: ..." for HDF5).
 #include <algorithm>
-#include <array>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -13,7 +12,6 @@
 #include <fstream>
 #include <numeric>
 #include <sstream>
-#include <unordered_map>
 
 #include "common.hpp"
 #include "peri/core/hdf5.hpp"
@@ -182,39 +180,10 @@ void refuse_near_twins(const std::vector<CloudRow>& rows, Place place, const cha
   for (const CloudRow& r : rows) volumes.push_back(r.p.volume);
   std::nth_element(volumes.begin(), volumes.begin() + static_cast<std::ptrdiff_t>(volumes.size() / 2), volumes.end());
   const double size = std::cbrt(volumes[volumes.size() / 2]), tol = 1e-8 * size;
-  for (const CloudRow& r : rows)
-    for (double x : r.p.x)
-      if (!(std::fabs(x / size) < 1e15)) return;  // cells beyond an integer's reach: exact twins only (above)
-  struct CellHash {
-    std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
-      return static_cast<std::size_t>(c[0] * 73856093 ^ c[1] * 19349663 ^ c[2] * 83492791);
-    }
-  };
-  std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::size_t>, CellHash> cells;
-  cells.reserve(rows.size());
-  auto cell_of = [&](const Vec3& x) {
-    return std::array<std::int64_t, 3>{static_cast<std::int64_t>(std::floor(x[0] / size)),
-                                       static_cast<std::int64_t>(std::floor(x[1] / size)),
-                                       static_cast<std::int64_t>(std::floor(x[2] / size))};
-  };
-  for (std::size_t k = 0; k < rows.size(); ++k) cells[cell_of(rows[k].p.x)].push_back(k);
-  std::size_t repeat = rows.size(), twin = 0;
-  for (std::size_t k = 0; k < rows.size(); ++k) {
-    const Vec3& x = rows[k].p.x;
-    const auto c = cell_of(x);
-    for (int dx = -1; dx <= 1; ++dx)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dz = -1; dz <= 1; ++dz) {
-          const auto it = cells.find({c[0] + dx, c[1] + dy, c[2] + dz});
-          if (it == cells.end()) continue;
-          for (std::size_t j : it->second) {
-            if (j >= k) continue;  // (the earlier of the two is the twin)
-            const double d[3] = {x[0] - rows[j].p.x[0], x[1] - rows[j].p.x[1], x[2] - rows[j].p.x[2]};
-            if (std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) <= tol && k < repeat) repeat = k, twin = j;
-          }
-        }
-    if (repeat < rows.size()) break;
-  }
+  std::vector<Vec3> x;
+  x.reserve(rows.size());
+  for (const CloudRow& r : rows) x.push_back(r.p.x);
+  const auto [repeat, twin] = first_close_pair(x, size, tol);
   if (repeat == rows.size()) return;
   const CloudRow& r = rows[repeat];
   throw InputError(place(r.place) + ": " + key + ": point (" + format_number(r.p.x[0]) + ", " +
