@@ -192,6 +192,8 @@ f=$(fiber trailing_comma '0 0 0\n0.01,0,0,\n')
 expect polyline_trailing_comma "$work/data/trailing_comma.xyz:2: bodies.f.polyline: an empty field after the last comma; expected 3 numbers x, y, z [m], got '0.01,0,0,'" -- "$f"
 f=$(fiber subnormal '0 0 0\n0.01 1e-320 0\n')
 expect polyline_subnormal "$work/data/subnormal.xyz:2: bodies.f.polyline: '1e-320' is below the smallest normal double" -- "$f"
+f=$(fiber folds_back '0 0 0\n0.01 0 0\n0.005 0 0\n')
+expect polyline_folds_back "$work/data/folds_back.xyz: bodies.f.polyline: the path comes back onto itself: its nodes at arc length 0.00975 m and 0.01025 m lie at one point (0.00975, 0, 0)" -- "$f"
 f=$(fiber repeated '0 0 0\n0.01 0 0\n\n0.01, 0, 0\n')
 expect polyline_repeat "$work/data/repeated.xyz:4: bodies.f.polyline: the same point as line 2; expected each point different from the one before it" -- "$f"
 f=$(fiber single '0 0 0\n')

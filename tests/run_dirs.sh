@@ -98,6 +98,13 @@ if (cd "$work" && "${mpi[@]}" "$peridrive" -partition_method cells "$in/Valid.YA
 else
   bad "petsc_options: $(head -3 "$work/p.out")"; cat "$work/p.err"
 fi
+# A misspelled partitioner option is read by nobody: warned of, the run goes on.
+if (cd "$work" && "${mpi[@]}" "$peridrive" "$in/Valid.YAML" -partition_methd rcb --dry-run > "$work/p.out" 2> "$work/p.err") &&
+   [ "$(grep -c "peridrive: warning: -partition_methd: a partitioner option this run did not read" "$work/p.err")" -eq 1 ]; then
+  ok "partition_option_misspelled: one warning"
+else
+  bad "partition_option_misspelled"; cat "$work/p.err"
+fi
 
 # --- output directory ---------------------------------------------------------------------------
 # The scene fails in setup (a region that selects no node): the directory's message must come first.

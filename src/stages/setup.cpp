@@ -392,6 +392,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   settings.method = resolve_partition_method(settings.method, nodes);  // auto: rcb or cells
   Partition partition = partition_nodes(nodes, cells, p.ranks, comm, settings);
   PetscLogEventEnd(events().partition, 0, 0, 0, 0);
+  warn_unused_partition_options(p.rank);
   stop_point(comm);
   mark_memory(summary, "partition", comm);
   Scene initial_cracks = p.scene;  // cracks named by release stages break later

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <map>
 #include <optional>
@@ -310,6 +311,23 @@ void check_node_masses(const Scene& scene, const Nodes& nodes, const std::vector
     }
     throw InputError(msg.str());
   }
+}
+
+void warn_unused_partition_options(int rank) {
+  if (rank != 0) return;
+  PetscInt n = 0;
+  char** names = nullptr;
+  char** values = nullptr;
+  if (PetscOptionsLeftGet(nullptr, &n, &names, &values)) return;
+  for (PetscInt k = 0; k < n; ++k)
+    if (std::strncmp(names[k], "partition_", 10) == 0)
+      std::fprintf(stderr,
+                   "peridrive: warning: -%s: a partitioner option this run did not read (a misspelling? the "
+                   "partitioner's options: -partition_method, -partition_cells_per_part, -partition_line_weight, "
+                   "-partition_mat_partitioning_type and, with -partition_method petsc, PETSc's "
+                   "-partition_mat_partitioning_*)\n",
+                   names[k]);
+  PetscOptionsLeftRestore(nullptr, &n, &names, &values);
 }
 
 void check_body_bonds(const Scene& scene, const std::vector<BodyGeometry>& bodies, const Domain& d, MPI_Comm comm,

@@ -43,6 +43,10 @@ void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank);
 /// Every node within 1e9 spacings of the origin, where positions keep a spacing to 1e-7; a
 /// warning (rank 0) beyond 1e6 spacings.
 void check_node_positions(const Scene& scene, const Nodes& nodes, int rank);
+/// After the partition (rank 0): a warning for each -partition_* PETSc option nobody read, a
+/// misspelling such as -partition_methd, which PETSc would otherwise pass over in silence.
+void warn_unused_partition_options(int rank);
+
 /// Per body after the bonds are built (collective): a body none of whose nodes has a bond is
 /// refused (InputError naming it and its horizon); nodes without a bond in a body with bonds are
 /// warned of on rank 0 (how many, and where the first is). Lattice bodies are not checked.

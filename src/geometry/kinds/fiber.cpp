@@ -294,6 +294,7 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
     std::size_t leg = 1;
     double leg_start = 0;
     double leg_length = distance(path[0], path[1]);
+    std::vector<Vec3> placed(static_cast<std::size_t>(n));
     for (std::int64_t k = 0; k < n; ++k) {
       const double s = (static_cast<double>(k) + 0.5) * ds;
       while (s > leg_start + leg_length && leg + 1 < path.size()) {
@@ -304,8 +305,20 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
       const double t = std::clamp((s - leg_start) / leg_length, 0.0, 1.0);
       const Vec3& p = path[leg - 1];
       const Vec3& q = path[leg];
-      sink.add(p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1]), p[2] + t * (q[2] - p[2]), g.area * ds);
+      placed[static_cast<std::size_t>(k)] = {p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1]), p[2] + t * (q[2] - p[2])};
     }
+    // A path that comes back onto its own line (0, 1 cm, 0.5 cm along x) puts nodes on nodes: a
+    // bond of no length, whose stable step is nothing.
+    if (const auto [i, j] = first_close_pair(placed, ds, 1e-8 * ds); i < placed.size()) {
+      const std::string place = b.polyline.empty() ? b.where.str() + ": bodies." + b.name + ".path"
+                                                   : b.polyline + ": bodies." + b.name + ".polyline";
+      throw InputError(place + ": the path comes back onto itself: its nodes at arc length " +
+                       format_number((static_cast<double>(j) + 0.5) * ds) + " m and " +
+                       format_number((static_cast<double>(i) + 0.5) * ds) + " m lie at one point (" +
+                       format_number(placed[i][0]) + ", " + format_number(placed[i][1]) + ", " +
+                       format_number(placed[i][2]) + "); expected a path that does not run over itself");
+    }
+    for (const Vec3& x : placed) sink.add(x[0], x[1], x[2], g.area * ds);
     g.path_first.push_back(static_cast<std::int64_t>(sink.size()) - g.first);
   }
   // One spacing for the body (stable-step and motion checks): the finest path's.
