@@ -156,6 +156,13 @@ f=$(scene group_and_box membrane data/grouped.msh '' 'boundaries:\n  - {name: ri
 expect group_with_box "boundaries.0.region.min: not with group" -- "$f"
 f=$(scene group_no_body membrane data/grouped.msh '' 'boundaries:\n  - {name: rim, region: {group: left}}')
 expect group_without_body "boundaries.0.region: missing required key 'body'" -- "$f"
+# Two physical groups of one dimension under one name: Gmsh keeps one of them for the name.
+{ printf '$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n3\n1 9 "rim"\n1 10 "rim"\n2 1 "sheet"\n$EndPhysicalNames\n'
+  printf '$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n5 0.5 0.5 0\n$EndNodes\n'
+  printf '$Elements\n6\n1 2 2 1 1 1 2 5\n2 2 2 1 1 2 3 5\n3 2 2 1 1 3 4 5\n4 2 2 1 1 4 1 5\n5 1 2 9 1 1 2\n6 1 2 10 2 3 4\n$EndElements\n'; } > data/same_name.msh
+f=$(scene same_name membrane data/same_name.msh)
+expect group_name_twice "$work/data/same_name.msh:7: bodies.m.mesh: a second physical group of dimension 1 named 'rim' (the first at line 6)" -- "$f"
+
 # Keys that exclude each other.
 f=$(scene with_origin membrane data/square.msh ', origin: [0, 0, 0]')
 expect mesh_with_origin "bodies.m.origin: not with mesh" -- "$f"

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "peri/core/error.hpp"
@@ -164,6 +165,37 @@ void each_text_element(std::ifstream& in, int version, F f) {
   }
 }
 
+// A text .msh's physical names ("$PhysicalNames", a count, then "dim tag \"name\"" lines): two
+// groups of one dimension under one name, of which Gmsh keeps one (the other's nodes would not be
+// the region's), refused naming both lines.
+void check_physical_names(std::ifstream& in, const std::string& path, const std::string& key) {
+  in.clear();
+  in.seekg(0);
+  std::string line;
+  std::size_t number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (!starts_with_word(line, "$PhysicalNames")) continue;
+    std::map<std::pair<int, std::string>, std::size_t> seen;  // (dim, name) -> line
+    while (std::getline(in, line)) {
+      ++number;
+      if (starts_with_word(line, "$EndPhysicalNames")) return;
+      const std::size_t open = line.find('"'), close = line.rfind('"');
+      if (open == std::string::npos || close <= open) continue;
+      int dim = -1;
+      std::istringstream(line.substr(0, open)) >> dim;
+      const std::string name = line.substr(open + 1, close - open - 1);
+      const auto [it, fresh] = seen.emplace(std::make_pair(dim, name), number);
+      if (!fresh)
+        throw InputError(path + ":" + std::to_string(number) + ": " + key + ": a second physical group of dimension " +
+                         std::to_string(dim) + " named '" + name + "' (the first at line " + std::to_string(it->second) +
+                         "), whose nodes Gmsh would leave out of the name; expected one group per name and "
+                         "dimension (merge them into one)");
+    }
+    return;
+  }
+}
+
 // The text .msh's "$MeshFormat" line's version (2 or 4) and whether it is binary.
 void read_msh_format(std::ifstream& in, const std::string& path, const std::string& key, int& version, bool& binary) {
   in.clear();
@@ -207,6 +239,7 @@ MeshFileScan scan_mesh_file(const std::string& path, const std::string& key, dou
     int version = 0;
     read_msh_format(in, path, key, version, s.binary);
     if (s.binary) return s;  // (its elements are not counted here)
+    check_physical_names(in, path, key);
     each_text_element(in, version, [&](std::size_t tag, int type, std::size_t line) {
       ++s.elements;
       if (!s.unaccepted_tag && std::find(accepted.begin(), accepted.end(), type) == accepted.end())
