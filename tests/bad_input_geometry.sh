@@ -154,6 +154,16 @@ f=$(block empty 'x,y,z,volume\n')
 expect cloud_no_points "$work/data/empty.csv:1: bodies.block.points: the point cloud has no points after its header" -- "$f"
 f=$(block other_material 'x,y,z,volume,material\n0,0,0,1e-9,glass\n0.001,0,0,1e-9,steel\n')
 expect cloud_unclaimed_material "$work/data/other_material.csv:3: bodies.block.points: material 'steel' is no body's" -- "$f"
+# The same file under another name (a link): its steel rows are the second body's, not refused.
+f=$(block two_materials 'x,y,z,volume,material\n0,0,0,1e-9,glass\n0.001,0,0,1e-9,glass\n0.01,0,0,1e-9,steel\n0.011,0,0,1e-9,steel\n')
+ln -s two_materials.csv "$work/data/linked.csv"
+sed -i 's|^bodies:$|bodies:\n  bolt: {kind: solid, material: steel, points: data/linked.csv, spacing: 0.001}|; s|^materials:$|materials:\n  steel: {model: pmb, density: 7800, micromodulus: 1.0e19}|' "$f"
+if "${mpi[@]}" "$peridrive" "$f" --dry-run > "$work/stdout" 2> "$work/stderr" && grep -qx "bolt.nodes = 2" "$work/stdout" &&
+   grep -qx "block.nodes = 2" "$work/stdout"; then
+  echo "ok   cloud_file_linked: two rows each for block (glass) and bolt (steel, through a link)"; pass=$((pass + 1))
+else
+  echo "FAIL cloud_file_linked"; cat "$work/stderr"; fail=$((fail + 1))
+fi
 # The same cloud as HDF5 (.h5): datasets x, y, z, volume and optionally material, written here by
 # h5py (SPEC: a Python expression of the dataset dict, from the good points P and volumes V).
 h5block() {  # h5block NAME SPEC: prints the scene's path

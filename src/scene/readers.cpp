@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 
 #include "peri/scene/models.hpp"
@@ -275,12 +276,17 @@ Crack read_crack(const Value& v, std::size_t index, UniqueNames& names) {
 // A point cloud's material column splits the file among the bodies that read it, one body per
 // material: every material it names is some such body's, or the rows would be lost unseen.
 void check_point_cloud_materials(const std::vector<Body>& bodies) {
+  // One file under two names (a link, `a/../b.csv`) is one file.
+  auto same_file = [](const std::string& a, const std::string& b) {
+    std::error_code ec;
+    return a == b || (!a.empty() && !b.empty() && std::filesystem::equivalent(a, b, ec) && !ec);
+  };
   for (const Body& b : bodies)
     for (const auto& [material, place] : b.cloud_materials) {
       std::vector<std::string> readers;
       bool taken = false;
       for (const Body& other : bodies)
-        if (other.points == b.points) {
+        if (same_file(other.points, b.points)) {
           readers.push_back(other.name + " (" + other.material + ")");
           taken = taken || other.material == material;
         }
