@@ -56,5 +56,9 @@ expect lattice_pmb "bodies.strip.material: a lattice body needs a material with 
 f=$(variant quasistatic 's/^stages:$/stages:\n  - {name: load, kind: quasistatic}/')
 expect quasistatic "$f:$(line_of "$f" 'name: load'): stages.load.kind: a scene with a lattice body runs dynamic stages only" -- "$f"
 
+# A breakable box that holds no two neighbours: nothing could break.
+f=$(variant breakable_empty 's/breakable: .*/breakable: {min: [-1, 0.9, -1], max: [1, 1, 1]}/')
+expect breakable_empty "bodies.strip.breakable: the box holds no bond of the body (no two lattice neighbours inside it)" -- "$f"
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -66,17 +66,24 @@ TEST(Fiber, NodesSitAlongThePathWithTheirMeasure) {
 // discrete energy of an interior node of the straight fiber under a small uniaxial stretch:
 // exact for the membrane law (its w does not depend on |xi| at a given lambda), (m + 1)/m times
 // the continuum for PMB (the sum of k ds over k = 1..m against the integral of xi to m ds).
+// The bar's calibration is the continuum's (E = 8 A c R_0, A c R_1); an interior node of the
+// discrete fiber (full weights, nodes ds apart, delta = m ds) holds the sum over k = 1..m of
+// g(k ds) (k ds)^j ds against the integral: exact for the membrane law with g = 1, (m + 1)/m for
+// PMB with g = 1, and with conical g (m - 1)/m (membrane law) and (m^2 - 1)/m^2 (PMB).
 TEST(Fiber, BarCalibrationMatchesTheDiscreteEnergy) {
-  for (int m : {3, 12}) {
+  for (int m : {3, 12})
+    for (const bool conical : {false, true})
     for (const bool membrane : {true, false}) {
       const double E = membrane ? 40e9 : 1.5e9;
-      const Scene scene = fiber_scene(membrane ? "membrane" : "pmb", "youngs_modulus: " + std::to_string(E), m);
+      const Scene scene = fiber_scene(membrane ? "membrane" : "pmb", "youngs_modulus: " + std::to_string(E) +
+                                          (conical ? ", influence: conical" : ""), m);
       const Nodes nodes = discretize(scene);
       const BodyGeometry& g = nodes.bodies[0];
       const BondLaw law = calibrate(scene.materials[0], g, "t");
       const double delta = g.horizon, A = g.area;
       const double c = law.derived("micromodulus");
-      EXPECT_NEAR(c, membrane ? E / (8 * A * delta) : 2 * E / (A * delta * delta), c * 1e-12);
+      const double c_expected = membrane ? E / ((conical ? 4 : 8) * A * delta) : (conical ? 6 : 2) * E / (A * delta * delta);
+      EXPECT_NEAR(c, c_expected, c * 1e-12);
       EXPECT_NEAR(elastic_constants(law, g, 3000).c_longitudinal, std::sqrt(E / 3000), 1e-9);
       // Energy density of the middle node: W = 1/2 sum_j w V_j, stretched by 1 + e.
       const double e = 1e-5;
@@ -89,10 +96,10 @@ TEST(Fiber, BarCalibrationMatchesTheDiscreteEnergy) {
       double W = 0;
       for (std::size_t k = 0; k < ids.size(); ++k)
         W += 0.5 * law.energy(xi2[k], (1 + e) * (1 + e) * xi2[k]) * w[k] * nodes.volume[ids[k]];
-      const double expected = 0.5 * E * e * e * (membrane ? 1.0 : (m + 1.0) / m);
-      EXPECT_NEAR(W / expected, 1.0, 2e-4) << (membrane ? "membrane" : "pmb") << " m = " << m;
+      const double discrete = membrane ? (conical ? (m - 1.0) / m : 1.0) : (conical ? (m * m - 1.0) / (m * m) : (m + 1.0) / m);
+      const double expected = 0.5 * E * e * e * discrete;
+      EXPECT_NEAR(W / expected, 1.0, 2e-4) << (membrane ? "membrane" : "pmb") << (conical ? " conical" : "") << " m = " << m;
     }
-  }
 }
 
 // Eq. (37): G = A w0 delta^2 / 2 for the membrane law with constant lambda_0; the bonds across a

@@ -36,6 +36,7 @@ void Forces::lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& 
   state_.enable_force_accumulation(3 * kMarderSlots);
   if (has_kelvin_) viscous_.assign(3 * static_cast<std::size_t>(domain_.local()), 0.0);
   lattice_direction_ = marder_directions(bond_view(), domain_.owned);
+  std::vector<long long> breakable(scene.bodies.size(), 0);  // per body: ordered bonds that may break
   for (std::int32_t i = 0; i < domain_.owned; ++i) {
     const std::optional<MarderLaw>& law = marder_[domain_.body[i]];
     if (!law) continue;
@@ -58,7 +59,16 @@ void Forces::lattice_setup(const Scene& scene, const std::vector<BodyGeometry>& 
     };
     for (std::int64_t k = b0; k < b1; ++k)
       if (!inside(i) || !inside(domain_.bonds.neighbor[k])) domain_.bonds.broken[k] |= kMarderUnbreakable;
+      else ++breakable[static_cast<std::size_t>(domain_.body[i])];
   }
+  // A box that holds no bond leaves the body unbreakable: surely not what it was given for.
+  std::vector<long long> all(breakable.size());
+  MPI_Allreduce(breakable.data(), all.data(), static_cast<int>(all.size()), MPI_LONG_LONG, MPI_SUM, comm_);
+  for (std::size_t b = 0; b < all.size(); ++b)
+    if (marder_[b] && scene.bodies[b].breakable && all[b] == 0)
+      throw InputError(scene.bodies[b].where.str() + ": bodies." + scene.bodies[b].name +
+                       ".breakable: the box holds no bond of the body (no two lattice neighbours inside it), so "
+                       "nothing may break; expected a box around the nodes that may break");
   domain_.bonds.summarize_rows();
 }
 
