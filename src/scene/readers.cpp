@@ -407,12 +407,16 @@ Tool read_tool(const Value& v, UniqueNames& names) {
 Initial read_initial(const Value& v) {
   const Map m(v, &kInitialKeys, "a map {displacement_gradient, velocity_gradient, center, seed}");
   Initial init;
-  if (auto x = m.get("displacement_gradient")) init.displacement_gradient = x->matrix3("");
+  if (auto x = m.get("displacement_gradient")) {
+    init.displacement_gradient = x->matrix3("");
+    init.gradient_where = x->where();
+  }
   if (auto x = m.get("velocity_gradient")) init.velocity_gradient = x->matrix3("1/s");
   if (auto x = m.get("center")) init.center = x->vec3("m");
   if (auto x = m.get("seed")) {
     const Map seed(*x, &kSeedKeys, "a map {amplitude: A, wavelength: [Lx, Ly]}");
     init.seed_amplitude = seed.at("amplitude").non_negative("m");
+    init.seed_where = seed.at("amplitude").where();
     if (auto w = seed.get("wavelength")) {
       const std::string expected = "a list of 2 non-negative numbers [Lx, Ly] [m]";
       const auto xs = w->numbers(2, 2, expected, "m");

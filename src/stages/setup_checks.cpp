@@ -509,7 +509,9 @@ void check_initial_state(const Problem& p) {
     if (u_max[b] <= kLargestStrain * extent) continue;
     const bool affine = !(affine_max[b] <= kLargestStrain * extent);
     std::ostringstream msg;
-    msg << where << (affine ? "initial.displacement_gradient" : "initial.seed.amplitude") << ": displaces nodes of body '"
+    const SourceLoc& at = affine ? scene.initial.gradient_where : scene.initial.seed_where;
+    msg << (at.file.empty() ? where : at.str() + ": ") << (affine ? "initial.displacement_gradient" : "initial.seed.amplitude")
+        << ": displaces nodes of body '"
         << scene.bodies[b].name << "' by up to " << num(u_max[b]) << " m, more than " << num(kLargestStrain)
         << " times its extent (" << num(extent) << " m); expected an initial stretch of at most " << num(kLargestStrain + 1);
     throw InputError(msg.str());
@@ -565,7 +567,9 @@ void check_initial_state(const Problem& p) {
       MPI_Bcast(direction[b].data(), 3, MPI_DOUBLE, least[b].second, p.comm);
       const double length = std::hypot(direction[b][0], direction[b][1], direction[b][2]);
       std::ostringstream msg;
-      msg << where << "initial.displacement_gradient: F = I + displacement_gradient shortens bonds of body '"
+      const SourceLoc& at = scene.initial.gradient_where;
+      msg << (at.file.empty() ? where : at.str() + ": ")
+          << "initial.displacement_gradient: F = I + displacement_gradient shortens bonds of body '"
           << scene.bodies[b].name << "' along (" << num(direction[b][0] / length) << ", " << num(direction[b][1] / length)
           << ", " << num(direction[b][2] / length) << ") to " << num(std::sqrt(least[b].first))
           << " of their length, collapsing the body; expected every bond's initial stretch |F xi| / |xi| to be at least "

@@ -303,6 +303,7 @@ struct Initial {
   double seed_amplitude = 0.0;  ///< A [m]
   double seed_wavelength_x = 0.0;  ///< Lx [m]
   double seed_wavelength_y = 0.0;  ///< Ly [m]
+  SourceLoc gradient_where, seed_where;  ///< where displacement_gradient and seed.amplitude were given
 };
 
 enum class StageKind {
