@@ -170,6 +170,8 @@ f=$(scene partial membrane data/square.msh ', quadrature: partial_area')
 expect mesh_partial_area "bodies.m.quadrature: expected one of: full, taper; got partial_area" -- "$f"
 f=$(scene scale_zero membrane data/square.msh ', scale: 0')
 expect scale_zero "bodies.m.scale: expected a positive number, got 0" -- "$f"
+f=$(scene scale_tiny membrane data/square.msh ', scale: 1e-120')
+expect scale_tiny "bodies.m.mesh: the mesh '$work/data/square.msh' spans 1.4142135623730951e-120 m after scale 1e-120; expected a body at least 1e-30 m across" -- "$f"
 
 # An options file beside a good mesh (Gmsh runs <mesh>.opt when it opens <mesh>): not run, the
 # mesh read.

@@ -302,6 +302,17 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
     index.emplace(tag, static_cast<std::int64_t>(m.nodes.size()));
     m.nodes.push_back(p);
   }
+  // A body below 1e-30 m across (a scale off by many orders): its areas' products would underflow
+  // and read as degenerate elements.
+  {
+    Vec3 lo = m.nodes[0], hi = m.nodes[0];
+    for (const Vec3& x : m.nodes)
+      for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], x[d]), hi[d] = std::max(hi[d], x[d]);
+    const double span = std::hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+    if (span < 1e-30)
+      v.fail("the mesh '" + path + "' spans " + format_number(span) + " m after scale " + format_number(b.scale) +
+             "; expected a body at least 1e-30 m across (is scale the file's unit in metres?)");
+  }
   // The cells: corners as body nodes; areas and volumes; each edge once.
   const std::size_t n_cells = cell_tags.size();
   m.measure.assign(m.nodes.size(), 0.0);
