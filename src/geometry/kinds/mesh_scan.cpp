@@ -1,7 +1,5 @@
 #include "mesh_scan.hpp"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -102,7 +100,6 @@ void scan_text_stl(std::ifstream& in, const std::string& path, const std::string
       words >> t[0] >> t[1] >> t[2];
       for (int d = 0; d < 3; ++d) {
         char* end = nullptr;
-        errno = 0;
         c[corners].x[d] = std::strtod(t[d].c_str(), &end);
         if (t[d].empty() || *end) fail(number, "'" + line + "': expected vertex x y z");
       }
