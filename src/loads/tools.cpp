@@ -108,8 +108,8 @@ void Tools::add_forces(double t, const LoadTarget& target, bool book, EnergyLedg
           << t << " s the nodes in contact weigh " << contact_mass << " kg, and the tool on their penalty springs "
           << "needs a step below " << 2.0 * std::sqrt(mass_[k] / (tool.stiffness * contact_mass)) << " s (dt = " << dt
           << " s); give it at least the mass it touches, " << contact_mass
-          << " kg (lighter tools that keep this bound still beat against the nodes faster than their step "
-             "follows: 1/12 and 1/3 of it gave energy balance errors of 1.2 and 0.26), or a smaller stiffness";
+          << " kg (a lighter tool within this bound still beats against the nodes faster than their step "
+             "follows: docs/theory/contact.md), or a smaller stiffness";
       throw RuntimeFailure(why.str());
     }
     contact_[k] = std::move(c);
