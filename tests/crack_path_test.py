@@ -5,7 +5,8 @@ damage along y(x) = y0 + A sin(2 pi x / lambda) + s x, the crack's faces one nod
 Checked: the path follows y(x) within a spacing; a straight tilted crack has no sign changes; the
 sine has one sign change per zero inside the sheet (at the half-wavelengths), a wavelength within
 2% of lambda and an amplitude within a spacing of A; a window (--from/--to) counts only its own
-crossings and forks; a fork (two damaged bands in a column, 4 mm apart) is reported at its column.
+crossings and forks; a fork (two damaged bands in a column, 4 mm apart) is reported at its column;
+on an irregular node set (a mesh) the columns are a spacing wide and give the same answers.
 usage: crack_path_test.py SOURCE_DIR
 """
 import importlib.util
@@ -76,6 +77,23 @@ check("fork reported", len(forks) > 0 and abs(forks[0] - 0.030) < 2 * h and fork
       f"{len(forks)} fork columns from x = {forks[0] * 1e3:.2f} to {forks[-1] * 1e3:.2f} mm (side crack 30-35 mm)")
 res, xc, yc, forks = analyse(X, damage, end=0.028)
 check("no fork before it", len(forks) == 0, f"{len(forks)} fork columns in [0, 28] mm")
+
+# The same sine on an irregular node set (a mesh's nodes: every x differs): columns one spacing
+# wide (the scene's), not one node each (binned by the smallest x difference, a straight slit gave
+# 28 sign changes).
+rng = np.random.default_rng(7)
+Xg, _ = sheet(curve, length)
+Xm = Xg + np.column_stack([rng.uniform(-0.3 * h, 0.3 * h, (len(Xg), 2)), np.zeros(len(Xg))])
+dm = np.where(np.abs(Xm[:, 1] - curve(Xm[:, 0])) <= 1.01 * h, 0.5, 0.0)
+xc, yc, _, forks, width = cp.path(Xm, dm, 0.3, 0.002, h)
+res = cp.oscillation(xc, yc, h)
+check("irregular nodes: columns a spacing wide", abs(width - h) < 1e-12 and res["sign_changes"] == expect,
+      f"column width {width * 1e3:.3f} mm, {res['sign_changes']} sign changes (expected {expect})")
+Xs = Xm.copy()
+ds = np.where(np.abs(Xs[:, 1] - 0.01) <= 1.01 * h, 0.5, 0.0)
+xc, yc, _, forks, _ = cp.path(Xs, ds, 0.3, 0.002, h)
+res = cp.oscillation(xc, yc, h)
+check("irregular nodes, straight crack", res["sign_changes"] == 0, f"{res['sign_changes']} sign changes")
 
 print(f"{sum(checks)} passed, {len(checks) - sum(checks)} failed")
 sys.exit(0 if all(checks) else 1)

@@ -96,6 +96,36 @@ with tempfile.TemporaryDirectory() as work:
             raised = True
         check(raised and len(calls) == 1, f"{what}: raised after {len(calls)} call(s)")
 
+    # A run that failed (FAILED, no summary.json): not live (a read failure is raised at once, no
+    # minute of retries), and the tools warn once that they draw a failed run's frames; a run
+    # without summary.json that has stopped writing: warned of as unfinished.
+    import contextlib
+    import io
+    failed = os.path.join(work, "failed")
+    fake_run(failed, frames=2, listed=2)
+    open(os.path.join(failed, "FAILED"), "w").write("energy balance error 0.5 at step 20 exceeds ...\n")
+    check(not peri_view.is_live(failed), "FAILED present: not live")
+    check(peri_view.run_state(failed) == "failed", f"FAILED present: state {peri_view.run_state(failed)}")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        peri_view.Run(failed)
+        peri_view.Run(failed)
+    check(err.getvalue().count("warning: ") == 1 and "the run failed (energy balance error 0.5 at step 20" in err.getvalue(),
+          f"failed run warned of once: {err.getvalue().strip()}")
+    stopped = os.path.join(work, "stopped")
+    fake_run(stopped, frames=2, listed=2)
+    old = time.time() - 3600
+    os.utime(os.path.join(stopped, "frames.h5"), (old, old))
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        peri_view.Run(stopped)
+    check(peri_view.run_state(stopped) == "unfinished" and "the run did not finish" in err.getvalue(),
+          f"stopped run warned of: {err.getvalue().strip()}")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        peri_view.Run(done)
+    check(err.getvalue() == "", f"a complete run: no warning ({err.getvalue().strip()})")
+
     # Not a run, and a finished run's truncated frames.h5: one message, no waiting.
     message, _ = exit_message(lambda: peri_view.Run(os.path.join(work, "missing")))
     check(message is not None and "no such directory" in message and "peridrive output directory" in message,

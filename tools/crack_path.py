@@ -2,11 +2,12 @@
 """Crack path of a sheet run: y(x) of the damaged nodes in a frame, its oscillation about its mean
 line (sign changes, wavelength, amplitude), for the blunt-tool scenes (examples/blunt-tool.md).
 
-The path: in each column of nodes (reference x, binned by the grid spacing) the mean reference y of
-the nodes with damage >= --threshold (0.3: the nodes along a crack's faces, not those a row away);
-a column whose damaged nodes spread over more than --fork (default 2 mm) holds a fork and is
-reported. The mean line is the least-squares straight line through y(x) from --from (default: the
-first damaged column past the notch) to --to (default: the path's end), and d(x) = y(x) - line;
+The path: in each column of nodes (reference x, binned by the sheet's spacing: a grid's columns,
+or bins one spacing wide on a mesh) the mean reference y of the nodes with damage >= --threshold
+(0.3: the nodes along a crack's faces, not those a row away); a column whose damaged nodes spread
+over more than --fork (default 2 mm) holds a fork and is reported. The mean line is the
+least-squares straight line through y(x) from --from (default: the first damaged column, a notch
+included) to --to (default: the path's end), and d(x) = y(x) - line;
 forks are counted in the same window. Sign changes of d count with hysteresis: d must pass beyond
 +-h (--band, default one spacing) on the other side. Wavelength: twice the mean distance between consecutive crossings (taken where d changes
 sign); amplitude: the mean of |d| at its extreme between consecutive crossings.
@@ -28,22 +29,34 @@ import peri_view  # noqa: E402
 def load(run, frame):
     """Reference positions, damage and time of frame `frame` (negative: from the end)."""
     r = peri_view.Run(run)
+    if "membrane" not in r.kinds:
+        print(f"crack_path: {run} holds no membrane sheet (bodies: {', '.join(r.kinds) or 'none'}); expected a "
+              "sheet run such as the blunt tool's", file=sys.stderr)
+        sys.exit(2)
     r.require("crack_path", "damage")
     n = len(r.frame_names)
     if not -n <= frame < n:
         print(f"crack_path: --frame {frame}: the run holds frames 0 .. {n - 1} (or -{n} .. -1)", file=sys.stderr)
         sys.exit(2)
     f = r.frame(frame)
-    return r.reference, f["damage"], f["time"]
+    spacings = [float(b["spacing"]) for b in (r.scene.get("bodies") or {}).values()
+                if (b or {}).get("kind", "membrane") == "membrane" and (b or {}).get("spacing")]
+    return r.reference, f["damage"], f["time"], (min(spacings) if spacings else None)
 
 
-def path(X, damage, threshold, fork):
+def path(X, damage, threshold, fork, spacing=None):
+    """Columns of the path: a grid's columns of nodes (the distinct x, at least half the sheet's
+    spacing apart), else (a mesh, whose nodes' x all differ) bins one spacing wide."""
     x, y = X[:, 0], X[:, 1]
     xs = np.unique(np.round(x, 9))
     h = np.min(np.diff(xs)) if len(xs) > 1 else 1.0
+    near = 0.25
+    if spacing and h < 0.5 * spacing:
+        h, near = spacing, 0.5
+        xs = np.arange(x.min(), x.max() + 0.5 * h, h)
     cols, ys, spread = [], [], []
     for xc in xs:
-        sel = (np.abs(x - xc) < 0.25 * h) & (damage >= threshold)
+        sel = (np.abs(x - xc) < near * h) & (damage >= threshold)
         if not sel.any():
             continue
         cols.append(xc)
@@ -107,8 +120,14 @@ def main():
     ap.add_argument("--plot", default=None)
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    X, damage, time = load(a.run, a.frame)
-    xc, yc, _, forks, h = path(X, damage, a.threshold, a.fork)
+    if a.start is not None and a.end is not None and not a.start < a.end:
+        ap.error(f"--from {a.start} is not below --to {a.end}")
+    if a.band is not None and not a.band > 0:
+        ap.error(f"--band {a.band}: expected a positive distance [m]")
+    if not a.fork > 0:
+        ap.error(f"--fork {a.fork}: expected a positive distance [m]")
+    X, damage, time, spacing = load(a.run, a.frame)
+    xc, yc, _, forks, h = path(X, damage, a.threshold, a.fork, spacing)
     xc, yc, forks = window(xc, yc, forks, a.start, a.end)
     res = oscillation(xc, yc, a.band if a.band is not None else h) or {"sign_changes": 0}
     res.update({"time": time, "spacing": float(h), "path_start": float(xc[0]) if len(xc) else None,

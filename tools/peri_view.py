@@ -63,24 +63,63 @@ def choose_view(kinds):
 _opened = []
 
 
+# The run directories whose state (failed, unfinished) has been reported once.
+_reported = set()
+
+
+def run_state(outdir):
+    """"complete" (summary.json, written last), "failed" (the FAILED file a run that stopped on an
+    error leaves; its first line is the error), "live" (is_live) or "unfinished" (stopped by a
+    signal, killed, or a copy taken mid-run)."""
+    if os.path.exists(os.path.join(outdir, "FAILED")):
+        return "failed"
+    if os.path.exists(os.path.join(outdir, "summary.json")):
+        return "complete"
+    return "live" if is_live(outdir) else "unfinished"
+
+
+def report_state(outdir):
+    """A warning on stderr, once per directory, when the run failed or did not finish: the tools
+    still draw what it wrote (a failed run's last frames are what one looks at to see why), but
+    the figures are not those of a complete run."""
+    if outdir in _reported:
+        return
+    _reported.add(outdir)
+    state = run_state(outdir)
+    if state == "failed":
+        try:
+            with open(os.path.join(outdir, "FAILED"), encoding="utf-8", errors="replace") as f:
+                why = f.readline().strip()
+        except OSError:
+            why = ""
+        print(f"warning: {outdir}: the run failed ({why[:200] or 'see its FAILED file'}); what follows shows "
+              "the frames and rows it wrote before it stopped", file=sys.stderr)
+    elif state == "unfinished":
+        print(f"warning: {outdir}: the run did not finish (no summary.json: stopped by a signal, killed, or "
+              "copied mid-run); what follows shows the frames and rows it wrote", file=sys.stderr)
+
+
 def require_run(outdir):
-    """Exit with a message unless `outdir` holds a run's frames.h5."""
+    """Exit with a message unless `outdir` holds a run's frames.h5 (report_state: a warning when
+    the run failed or did not finish)."""
     path = os.path.join(outdir, "frames.h5")
     if not os.path.isfile(path):
         what = "no such directory" if not os.path.isdir(outdir) else "no frames.h5 in it"
         raise SystemExit(f"{outdir}: {what}; expected a peridrive output directory")
     _opened.append(outdir)
+    report_state(outdir)
     return path
 
 
 def is_live(outdir, quiet_seconds=60.0):
-    """Whether a run seems to be writing `outdir`: no summary.json (written last) and frames.h5
-    modified within the last `quiet_seconds`."""
+    """Whether a run seems to be writing `outdir`: no summary.json (written last) nor FAILED, and
+    frames.h5 modified within the last `quiet_seconds`."""
     try:
         age = time.time() - os.path.getmtime(os.path.join(outdir, "frames.h5"))
     except OSError:
         return False
-    return not os.path.exists(os.path.join(outdir, "summary.json")) and age < quiet_seconds
+    done = any(os.path.exists(os.path.join(outdir, name)) for name in ("summary.json", "FAILED"))
+    return not done and age < quiet_seconds
 
 
 def run_tool(main, wait=60.0):
@@ -209,6 +248,9 @@ class Run:
         """Frame k (negative: from the end): time, step, position, displacement, damage. A frame
         holds the fields the scene's output.fields chose: position and displacement stand for each
         other (with the reference positions), and a field neither gives is None."""
+        n = len(self.frame_names)
+        if not -n <= k < n:
+            raise SystemExit(f"{self.outdir}: frame {k}: the run holds frames 0 .. {n - 1} (or -{n} .. -1)")
         with self.open() as f:
             g = f["frames"][self.frame_names[k]]
             get = lambda name: g[name][...].astype(float) if name in g else None

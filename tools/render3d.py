@@ -283,6 +283,8 @@ def read_frame(run, which):
         data = {name: g[name][...].astype(float) for name in g}
         data["time"], data["step"] = float(g.attrs["time"]), int(g.attrs["step"])
     if "position" not in data:
+        # Frames without position or displacement (output.fields) show the reference configuration.
+        data["reference_only"] = "displacement" not in data
         data["position"] = run.reference + data["displacement"] if "displacement" in data else run.reference
     if "displacement" not in data and "position" in data:
         data["displacement"] = data["position"] - run.reference
@@ -467,6 +469,10 @@ def main(argv=None):
     values, label, signed = field_values(field, data, run)
     damage = data.get("damage")
     cur = data["position"]
+    if data.get("reference_only") and not args.reference:
+        print(f"{TOOL}: the frames hold no position or displacement (output.fields): drawing the reference "
+              "configuration", file=sys.stderr)
+        args.reference = True
     shown = run.reference if args.reference else cur
     keep_node = clip_mask(cur, args.clip)
 

@@ -24,6 +24,7 @@ import math
 import os
 import shlex
 import subprocess
+import sys
 import time
 
 import yaml
@@ -54,24 +55,33 @@ def main():
     dynamic = next(i for i, s in enumerate(stages) if s.get("kind", "dynamic") == "dynamic")
     grips = list(stages[preload]["displacements"])
     os.makedirs(args.out, exist_ok=True)
-    rows = []
+    rows, failed = [], []
     for m in args.m:
         for lam in args.stretch:
-            run = os.path.join(args.out, f"m{m}_stretch{lam:g}")
+            run = os.path.join(args.out, f"m{m}_stretch{lam!r}")
             d = (lam - 1) * height / 2
-            if not os.path.exists(os.path.join(run, "summary.json")):
-                sets = {
-                    f"bodies.{body}.spacing": repr(args.horizon / m),
-                    f"bodies.{body}.horizon_factor": "~",
-                    f"bodies.{body}.horizon": repr(args.horizon),
-                    f"stages.{preload}.displacements": "{" + ", ".join(
-                        f"{g}: [0, {d if k == 0 else -d!r}, 0]" for k, g in enumerate(grips)) + "}",
-                    f"stages.{preload}.load_steps": str(max(4, math.ceil((lam - 1) / 0.05 - 1e-9))),
-                    f"stages.{dynamic}.duration": repr(args.duration),
-                    "output.frames": "4",
-                }
-                if args.safety_factor:
-                    sets[f"stages.{dynamic}.safety_factor"] = repr(args.safety_factor)
+            sets = {
+                f"bodies.{body}.spacing": repr(args.horizon / m),
+                f"bodies.{body}.horizon_factor": "~",
+                f"bodies.{body}.horizon": repr(args.horizon),
+                f"stages.{preload}.displacements": "{" + ", ".join(
+                    f"{g}: [0, {d if k == 0 else -d!r}, 0]" for k, g in enumerate(grips)) + "}",
+                f"stages.{preload}.load_steps": str(max(4, math.ceil((lam - 1) / 0.05 - 1e-9))),
+                f"stages.{dynamic}.duration": repr(args.duration),
+                "output.frames": "4",
+            }
+            if args.safety_factor:
+                sets[f"stages.{dynamic}.safety_factor"] = repr(args.safety_factor)
+            # A run is reused only for the same request (scene file, overrides, ranks), kept
+            # beside its directory.
+            request = {"scene": os.path.abspath(args.scene), "scene_text": open(args.scene).read(), "sets": sets,
+                       "np": args.np}
+            request_path = run + ".request.json"
+            try:
+                reuse = os.path.exists(os.path.join(run, "summary.json")) and json.load(open(request_path)) == request
+            except (OSError, ValueError):
+                reuse = False
+            if not reuse:
                 cmd = [args.mpiexec, "-n", str(args.np), *shlex.split(args.mpiexec_flags), args.peridrive, args.scene]
                 for k, v in sets.items():
                     cmd += ["--set", f"{k}={v}"]
@@ -81,7 +91,10 @@ def main():
                     rc = subprocess.call(cmd, stdout=log, stderr=subprocess.STDOUT)
                 print(f"m = {m}, stretch {lam:g}: exit {rc} in {time.time() - t0:.0f} s", flush=True)
                 if rc != 0:
+                    failed.append(f"m = {m}, stretch {lam:g} (exit {rc}, log {run}.log)")
                     continue
+                with open(request_path, "w") as r:
+                    json.dump(request, r)
             s = json.load(open(os.path.join(run, "summary.json")))
             c_r = float(s["derived"][f"{body}.rayleigh_wave_speed"])
             qs = (s.get("quasistatic") or [{}])[0]
@@ -128,6 +141,8 @@ def main():
         fig.tight_layout()
         fig.savefig(args.plot, dpi=130)
         print(f"wrote {args.plot}")
+    if failed:
+        sys.exit("speed_vs_stretch.py: " + str(len(failed)) + " run(s) failed, left out of the table: " + "; ".join(failed))
 
 
 if __name__ == "__main__":

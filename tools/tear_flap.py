@@ -142,9 +142,12 @@ def main():
               "merge_depth": (float(top - merge_y) if merge_y is not None else None),
               "convergence_angle_deg": angle, "flap_separated": separated, "flap_area": flap_area,
               "tears_at_top": [float(left[0]) if left.size else None, float(right[0]) if right.size else None]}
+    # (JSON has no NaN: a value not measured is null.)
+    result = {k: ([None if isinstance(x, float) and not np.isfinite(x) else x for x in v] if isinstance(v, list)
+                  else (None if isinstance(v, float) and not np.isfinite(v) else v)) for k, v in result.items()}
     with open(os.path.join(args.out, "tear_flap.json"), "w") as o:
-        json.dump(result, o, indent=2)
-    print(json.dumps(result, indent=2))
+        json.dump(result, o, indent=2, allow_nan=False)
+    print(json.dumps(result, indent=2, allow_nan=False))
     if args.json_only:
         return
     import matplotlib
