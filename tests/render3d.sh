@@ -88,6 +88,18 @@ render sheet stretch111 --frame 0 --gap-stretch 1.11
 render sphere hull
 render sphere projection --no-scipy
 render fiber fiber
+# Option values it cannot use: refused with exit status 2 and one line, no picture (each gave a
+# traceback before).
+for bad in "--range a,b" "--range 1,0" "--view 30" "--size 8" "--dpi 0" "--clip x<abc" "--out /nonexistent/x.png" \
+           "--out $work/x.jpgx" "--stats /nonexistent/x.json"; do
+  "$py" "$src/tools/render3d.py" "$work/sheet" $bad > "$work/refused.log" 2>&1
+  status=$?
+  if [ "$status" -ne 2 ] || grep -q Traceback "$work/refused.log"; then
+    echo "FAIL $bad: exit status $status (expected 2, no traceback)"; cat "$work/refused.log"; fail=$((fail + 1))
+  else
+    echo "ok   $bad refused: $(tail -1 "$work/refused.log")"
+  fi
+done
 # A clip on no axis is refused with exit status 2.
 "$py" "$src/tools/render3d.py" "$work/sheet" --clip 'q>1' --out "$work/refused.png" > "$work/refused.log" 2>&1
 status=$?

@@ -214,10 +214,25 @@ def main():
     if len(args.paths) != 3:
         sys.exit("usage: lattice_crack_map.py SCENE CASES.csv OUT.csv")
     args.scene, cases_path, out_path = args.paths
+    # The cases first, before OUT is opened for writing (arguments given the other way round
+    # would truncate the cases file).
+    try:
+        with open(cases_path, newline="") as f:
+            cases = list(csv.DictReader(f))
+    except OSError as e:
+        sys.exit(f"lattice_crack_map.py: {cases_path}: cannot read the cases ({e.strerror})")
+    needed = {"lx", "ly", "us", "nu", "b", "duration", "length"}
+    if not cases or not needed <= set(cases[0]):
+        sys.exit(f"lattice_crack_map.py: {cases_path}: expected a cases CSV with the columns "
+                 f"{', '.join(sorted(needed))} and at least one row (usage: SCENE CASES.csv OUT.csv)")
+    if os.path.exists(out_path) and os.path.samefile(out_path, cases_path):
+        sys.exit(f"lattice_crack_map.py: {out_path}: OUT.csv is the cases file")
     r = subprocess.run([args.peridrive, args.scene, "--print-scene"] + args.overrides, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"lattice_crack_map.py: {args.scene}: {r.stderr.strip()}")
     scene_text = r.stdout
+    if not re.search(r"^  (\S+):\n    kind: lattice", scene_text, re.M):
+        sys.exit(f"lattice_crack_map.py: {args.scene}: no lattice body (kind: lattice); expected a Marder scene")
     spacing = float(re.search(r"kind: lattice\n(?:    .*\n)*?    spacing: (\S+)", scene_text).group(1))
     material = re.search(r"kind: lattice\n(?:    .*\n)*?    material: (\S+)", scene_text).group(1)
     body = re.search(r"^  (\S+):\n    kind: lattice", scene_text, re.M).group(1)
@@ -227,7 +242,7 @@ def main():
     with open(out_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=FIELDS)
         w.writeheader()
-        for case in csv.DictReader(open(cases_path)):
+        for case in cases:
             row = run_case(args, case, scene_text, spacing, material, body)
             w.writerow(row)
             f.flush()

@@ -206,6 +206,8 @@ def main():
     ap.add_argument("--pair", type=int, nargs=2, metavar=("I", "J"), default=None,
                     help="two segments of the first fiber: their distance and winding over time")
     args = ap.parse_args()
+    if args.segment_length is not None and not args.segment_length > 0:
+        ap.error(f"--segment-length {args.segment_length}: expected a positive length [m]")
     run = peri_view.Run(args.outdir)
     fibers = fiber_bodies(run)
     if not fibers:
@@ -214,6 +216,10 @@ def main():
         sys.exit(2)
     seg_len = args.segment_length if args.segment_length is not None else float(fibers[0].get("segment_length", 0))
     mine = run.nodes_of("fiber")
+    if args.segment_length is not None:
+        spacing = float(fibers[0].get("spacing", 0) or 0)
+        if spacing and seg_len < spacing:
+            ap.error(f"--segment-length {seg_len}: below the fiber's node spacing {spacing} m (segments hold nodes)")
     unit, scale = peri_view.length_unit(float(np.ptp(run.reference[mine], axis=0).max()))
     run.require("plot_fiber.py", "position", "damage")
     with run.open() as f:

@@ -455,6 +455,46 @@ def main(argv=None):
     field = ALIASES.get(args.field, args.field)
     if field not in FIELDS:
         ap.error(f"--field {args.field}: expected one of {', '.join(FIELDS)}")
+
+    def pair(option, text, check, what):
+        # "A,B" as two finite numbers that pass `check` (status 2 otherwise, as argparse's errors).
+        try:
+            a, b = (float(v) for v in text.split(","))
+        except ValueError:
+            ap.error(f"{option} {text}: expected two numbers {what}")
+        if not (np.isfinite(a) and np.isfinite(b) and check(a, b)):
+            ap.error(f"{option} {text}: expected {what}")
+        return a, b
+
+    if args.range:
+        pair("--range", args.range, lambda a, b: a < b, "LO,HI with LO < HI")
+    if args.view:
+        pair("--view", args.view, lambda a, b: True, "ELEV,AZIM in degrees")
+    pair("--size", args.size, lambda a, b: 0 < a <= 100 and 0 < b <= 100, "W,H in inches, each in (0, 100]")
+    if not (np.isfinite(args.dpi) and 1 <= args.dpi <= 2000):
+        ap.error(f"--dpi {args.dpi}: expected a number in [1, 2000]")
+    for c in args.clip:
+        value = c.split("<", 1)[-1] if "<" in c else c.split(">", 1)[-1]
+        try:
+            float(value)
+        except ValueError:
+            ap.error(f"--clip {c}: expected AXIS<VALUE or AXIS>VALUE with a number")
+    for option, path, formats in (("--out", args.out, True), ("--stats", args.stats, False)):
+        if path:
+            existed = os.path.exists(path)
+            try:
+                with open(path, "ab"):
+                    pass
+            except OSError as e:
+                ap.error(f"{option} {path}: cannot be written ({e.strerror})")
+            if not existed:
+                os.remove(path)
+            if formats:
+                import matplotlib.pyplot as plt_check
+                ext = os.path.splitext(path)[1].lstrip(".").lower()
+                if ext not in plt_check.gcf().canvas.get_supported_filetypes():
+                    ap.error(f"{option} {path}: .{ext} is not a picture format matplotlib writes (png, pdf, svg, ...)")
+                plt_check.close("all")
     run = peri_view.Run(args.outdir)
     if args.time is not None:
         which = float(args.time)
