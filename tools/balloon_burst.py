@@ -77,6 +77,10 @@ def main():
         rel = ref - s["center"]
         theta = np.degrees(np.arccos(np.clip(rel @ impact / np.linalg.norm(rel, axis=1), -1, 1)))
         names = peri_view.frame_names(f, args.out)
+        if not names:
+            sys.exit(f"balloon_burst.py: {args.out}: no complete frame")
+        if "damage" not in f["frames"][names[0]]:
+            sys.exit(f"balloon_burst.py: the frames of {args.out} hold no damage (output.fields); run the scene with it")
         for name in names:
             g = f["frames"][name]
             d = g["damage"][...]

@@ -27,6 +27,13 @@ import numpy as np
 
 
 def load(run):
+    for name in ("tips.csv", "summary.json"):
+        if not os.path.isfile(os.path.join(run, name)):
+            why = ("no such directory" if not os.path.isdir(run) else
+                   "the run failed (FAILED)" if os.path.exists(os.path.join(run, "FAILED")) else
+                   f"no {name} (a run that has not finished, or no sheet whose tips are tracked)")
+            print(f"compare_cracks.py: {run}: {why}; expected a finished run with tracked crack tips", file=sys.stderr)
+            sys.exit(2)
     with open(os.path.join(run, "tips.csv")) as f:
         rows = [r for r in csv.DictReader(f) if r["track"] in ("0", "1")]
     if not rows:

@@ -118,9 +118,11 @@ def plot_damage(run, fr, t_unit, t_scale):
     else:
         fig = plt.figure(figsize=(7.5, 6.5))
         ax = fig.add_subplot(projection="3d")
-        sc = scatter3d(ax, fr["position"], fr["damage"], DAMAGE_CMAP, "damage (broken fraction)", *DAMAGE_LIMITS,
-                       u, s, run if run.view == "curves" else None)
-        ax.set_title(f"damage at {when}, deformed configuration", fontsize=10)
+        # (Frames without positions, by output.fields: the reference configuration, said so.)
+        deformed = fr["position"] is not None
+        sc = scatter3d(ax, fr["position"] if deformed else run.reference, fr["damage"], DAMAGE_CMAP,
+                       "damage (broken fraction)", *DAMAGE_LIMITS, u, s, run if run.view == "curves" else None)
+        ax.set_title(f"damage at {when}, {'deformed' if deformed else 'reference'} configuration", fontsize=10)
     fig.savefig(os.path.join(run.outdir, "damage.png"), dpi=130, bbox_inches="tight")
     peri_view.note(run.outdir, "damage.png", TOOL, run.view, fig, sc, run.unit)
     plt.close(fig)

@@ -11,6 +11,7 @@ slope of log(error) against log(dx) over each ladder.
 import argparse
 import csv
 import math
+import os
 import sys
 
 import matplotlib
@@ -78,7 +79,7 @@ def main():
     print()
     for p, ladder, o in orders:
         print(f"observed order {p} {ladder}: {o:.2f}" + ("" if math.isfinite(o) else " (undefined)"))
-    out = a.out or a.csv.rsplit(".", 1)[0] + ".png"
+    out = a.out or os.path.splitext(a.csv)[0] + ".png"
     fig.tight_layout()
     fig.savefig(out, dpi=120)
     print(f"wrote {out}")

@@ -47,12 +47,18 @@ def main():
     ap.add_argument("--plot")
     args = ap.parse_args()
 
-    scene = yaml.safe_load(open(args.scene))
+    try:
+        scene = yaml.safe_load(open(args.scene))
+    except OSError as e:
+        sys.exit(f"speed_vs_stretch.py: {args.scene}: cannot read the scene ({e.strerror})")
     body = next(iter(scene["bodies"]))
     height = float(scene["bodies"][body]["size"][1])
     stages = scene["stages"]
-    preload = next(i for i, s in enumerate(stages) if s.get("kind") == "quasistatic")
-    dynamic = next(i for i, s in enumerate(stages) if s.get("kind", "dynamic") == "dynamic")
+    preload = next((i for i, s in enumerate(stages) if s.get("kind") == "quasistatic"), None)
+    dynamic = next((i for i, s in enumerate(stages) if s.get("kind", "dynamic") == "dynamic"), None)
+    if preload is None or dynamic is None or not (stages[preload].get("displacements") or {}):
+        sys.exit(f"speed_vs_stretch.py: {args.scene}: expected a quasi-static stage that moves the grips "
+                 "(displacements) and a dynamic stage after it, as drivers/scenes/slit_release.yaml")
     grips = list(stages[preload]["displacements"])
     os.makedirs(args.out, exist_ok=True)
     rows, failed = [], []

@@ -59,7 +59,15 @@ def main():
     with peri_view.open_frames(args.out) as f:
         X = f["mesh/reference_position"][...].reshape(-1, 3)
         names = peri_view.frame_names(f, args.out)
+        if not names:
+            sys.exit(f"tear_flap.py: {args.out}: no complete frame")
+        if not -len(names) <= args.frame < len(names):
+            sys.exit(f"tear_flap.py: --frame {args.frame}: the run holds frames 0 .. {len(names) - 1}")
         g = f["frames"][names[args.frame]]
+        missing = [k for k in ("damage", "position") if k not in g]
+        if missing:
+            sys.exit(f"tear_flap.py: the frames of {args.out} hold no {', '.join(missing)} (output.fields); run the "
+                     "scene with them")
         damage = g["damage"][...]
         cur = g["position"][...].reshape(-1, 3)
         time = float(g.attrs["time"])
