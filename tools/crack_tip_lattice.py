@@ -65,6 +65,8 @@ def main():
     with peri_view.open_frames(args.out) as f:
         X = f["mesh/reference_position"][...]
         names = peri_view.frame_names(f, args.out)
+        if args.frame is not None and not -len(names) <= args.frame < len(names):
+            sys.exit(f"crack_tip_lattice.py: --frame {args.frame}: the run holds frames 0 .. {len(names) - 1}")
         missing = [k for k in ("position", "damage") if names and k not in f["frames"][names[0]]]
         if missing:
             sys.exit(f"crack_tip_lattice.py: the frames hold no {', '.join(missing)} (output.fields); run the scene with them")

@@ -134,6 +134,8 @@ def run_tool(main, wait=60.0):
             return main()
         except (OSError, KeyError) as e:
             if not (_opened and "Unable to" in str(e) and is_live(_opened[-1]) and time.monotonic() < deadline):
+                if isinstance(e, OSError) and e.filename:  # a file the tool cannot write or read
+                    raise SystemExit(f"{e.filename}: {e.strerror or e}") from None
                 raise
             print(f"{_opened[-1]}: frames.h5 changed while it was read (a run is writing it); reading it again",
                   file=sys.stderr)
@@ -276,8 +278,13 @@ def note(outdir, figure, tool, view, fig, mappable=None, unit=None):
     path = os.path.join(outdir, "figures.json")
     notes = {}
     if os.path.exists(path):
-        with open(path) as f:
-            notes = json.load(f)
+        try:
+            with open(path) as f:
+                notes = json.load(f)
+        except (OSError, ValueError):
+            notes = {}  # unreadable or corrupt: started afresh
+        if not isinstance(notes, dict):
+            notes = {}
     axes = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
     units = sorted({ax.get_xlabel().rsplit("[", 1)[-1].rstrip("]") for ax in axes if "[" in ax.get_xlabel()})
     entry = dict(tool=tool, view=view, projections=sorted({ax.name for ax in axes}), axis_units=units,
@@ -286,8 +293,15 @@ def note(outdir, figure, tool, view, fig, mappable=None, unit=None):
         lo, hi = mappable.get_clim()
         entry.update(color_limits=[float(lo), float(hi)], colormap=mappable.get_cmap().name)
     notes[figure] = entry
-    with open(path, "w") as f:
-        json.dump(notes, f, indent=1, sort_keys=True)
+    # Written beside and renamed over, so that a reader (or a second tool) never sees half of it;
+    # a directory the user may not write (a shared run) gets no notes, only a warning.
+    tmp = f"{path}.{os.getpid()}.tmp"
+    try:
+        with open(tmp, "w") as f:
+            json.dump(notes, f, indent=1, sort_keys=True)
+        os.replace(tmp, path)
+    except OSError as e:
+        print(f"warning: {path}: not written ({e.strerror}); the figures are saved without these notes", file=sys.stderr)
 
 
 def sheet_triangles(ref):

@@ -48,6 +48,11 @@ def main():
         times = [float(f["frames"][k].attrs.get("time", np.nan)) for k in keys]
         pos = [f["frames"][k]["position"][()][mine] for k in keys]
         dmg = [f["frames"][k]["damage"][()][mine] for k in keys]
+    bad = [k for k in (args.frames or []) if not -len(keys) <= k < len(keys)]
+    if bad:
+        print(f"plot_sphere.py: --frames {' '.join(map(str, bad))}: the run holds frames 0 .. {len(keys) - 1}",
+              file=sys.stderr)
+        sys.exit(2)
     with open(os.path.join(args.outdir, "sphere_radius.csv"), "w", newline="") as out:
         w = csv.writer(out)
         w.writerow(["frame", "time", "mean_radius", "radius_std", "damaged_nodes"])
