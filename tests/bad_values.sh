@@ -244,6 +244,20 @@ cloud_scene fits 2 "output: {frames: 2}"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "cloud_volumes_fit_spacing: no warning"
 else bad "cloud_volumes_fit_spacing: exit status or warning"; fi
 
+# A stage that gives dt and safety_factor steps with dt: one warning naming the unused key; the
+# resolved scene keeps dt alone.
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set stages.0.dt=1e-8 --set stages.0.safety_factor=0.5 --dry-run \
+  > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="--set: stages.0.safety_factor: stage 'pull' gives dt (1e-08 s), which the stage steps with; its safety_factor (0.5) is not used"
+if [ $rc -eq 0 ] && [ "$(grep -c "warning" "$work/stderr")" -eq 1 ] && grep -qF -- "$want" "$work/stderr"; then
+  ok "dt_and_safety_factor: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "dt_and_safety_factor: expected one warning '$want'"; fi
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set stages.0.dt=1e-8 --print-scene > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "safety_factor" "$work/stdout" && grep -q "dt: 1e-8" "$work/stdout" &&
+   ! grep -q "warning" "$work/stderr"; then ok "dt_alone: the resolved scene has dt and no safety_factor, no warning"
+else bad "dt_alone: resolved scene or warning"; fi
+
 # A body 2e6 spacings from the origin runs, with a warning of the round-off in its positions.
 cat > "$work/distant.yaml" <<EOF
 name: distant

@@ -196,7 +196,7 @@ void emit_stage(Writer& w, const Stage& s) {
   if (!(s.steps && s.duration == 0.0)) w.key(4, "duration", s.duration);
   if (s.steps) w.key(4, "steps", std::to_string(*s.steps));
   w.optional(4, "dt", s.dt);
-  w.key(4, "safety_factor", s.safety_factor);
+  if (!s.dt) w.key(4, "safety_factor", s.safety_factor);  // (unused where dt is given)
   w.key(4, "allow_unstable_dt", to_text(s.allow_unstable_dt));
   w.key(4, "damping", s.damping);
   if (!s.boundary_velocity.empty()) w.key(4, "boundary_velocity", flow_values(s.boundary_velocity));

@@ -517,8 +517,10 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
     m.missing("duration", "simulated time, s; or give steps");
   }
   if (auto x = m.get("dt")) s.dt = x->positive("s");
-  if (auto x = m.get("safety_factor"))
+  if (auto x = m.get("safety_factor")) {
     s.safety_factor = x->number_if("a number in (0, 1]", [](double f) { return f > 0 && f <= 1; });
+    s.safety_factor_where = x->where();
+  }
   if (auto x = m.get("allow_unstable_dt")) s.allow_unstable_dt = x->boolean();
   return s;
 }

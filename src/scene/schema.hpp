@@ -261,7 +261,7 @@ inline const Keys kStageKeys = {
     {.name = "dt", .unit = "s", .fallback = "safety_factor x the stable bound",
      .doc = "time step > 0; refused above the stable bound (the message gives it) unless allow_unstable_dt; "
             "duration / dt at most 1e9"},
-    {.name = "safety_factor", .fallback = "0.7", .doc = "in (0, 1]: dt = safety_factor x the stable bound"},
+    {.name = "safety_factor", .fallback = "0.7", .doc = "in (0, 1]: dt = safety_factor x the stable bound; not used where dt is given (a warning says so)"},
     {.name = "allow_unstable_dt", .fallback = "false",
      .doc = "run a dt above the stable bound anyway (the stability detectors still watch)"},
     {.name = "damping", .unit = "1/s", .fallback = "0",

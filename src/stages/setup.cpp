@@ -35,6 +35,7 @@ namespace {
 Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, MPI_Comm comm, int rank) {
   warn_large_families(scene, estimate_size(scene), rank);
   warn_cloud_spacing(scene, rank);
+  warn_unused_safety_factor(scene, rank);
   check_fits(scene, comm, settings.method == PartitionMethod::Bonds);
   stop_point(comm);
   Nodes nodes = discretize(scene);

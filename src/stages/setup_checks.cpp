@@ -127,6 +127,19 @@ void warn_pair_contact(const Scene& scene, const StagePlan& plan, int rank) {
   }
 }
 
+void warn_unused_safety_factor(const Scene& scene, int rank) {
+  if (rank != 0) return;
+  for (std::size_t k = 0; k < scene.stages.size(); ++k) {
+    const Stage& st = scene.stages[k];
+    if (st.kind != StageKind::Dynamic || !st.dt || !st.safety_factor_where) continue;
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: stages.%zu.safety_factor: stage '%s' gives dt (%s s), which the stage "
+                 "steps with; its safety_factor (%s) is not used\n",
+                 st.safety_factor_where->str().c_str(), k, st.name.c_str(), num(*st.dt).c_str(),
+                 num(st.safety_factor).c_str());
+  }
+}
+
 void warn_cloud_spacing(const Scene& scene, int rank) {
   if (rank != 0) return;
   for (const Body& b : scene.bodies) {

@@ -327,6 +327,7 @@ struct Stage {
   std::optional<long> steps;           ///< number of steps (1 .. kMaxStageSteps)
   std::optional<double> dt;            ///< time step [s]; default safety_factor * stable bound
   double safety_factor = 0.7;          ///< (0, 1]
+  std::optional<SourceLoc> safety_factor_where;  ///< where safety_factor was given, if it was
   bool allow_unstable_dt = false;      ///< accept a dt above the stable bound
   double damping = 0.0;                ///< mass-proportional viscous damping alpha [1/s] (>= 0)
   /// Constant velocity of named boundaries during this stage (replaces their scene velocity and

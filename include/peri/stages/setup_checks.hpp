@@ -32,6 +32,10 @@ void warn_overlapping_boundaries(const Scene& scene, const std::vector<std::vect
 /// its spacing or less than 1/1.5 of it: the horizon and the calibration take the spacing as the
 /// points' distance, so such a body is far stiffer or softer than its material.
 void warn_cloud_spacing(const Scene& scene, int rank);
+
+/// Warns (rank 0) of each dynamic stage that gives both dt and safety_factor: the step is dt, and
+/// safety_factor is not used.
+void warn_unused_safety_factor(const Scene& scene, int rank);
 /// Warns (rank 0) of two bodies whose nodes come within a horizon of each other: bodies do not
 /// bond to each other, so a piece made of two bodies comes apart at their seam. Pairs of fibers
 /// that take part in long-range pairs (which act between bodies) are not warned of.
