@@ -143,4 +143,22 @@ check("views", got == views, got)
 print(f"{sum(checks)} passed, {len(checks) - sum(checks)} failed")
 sys.exit(0 if all(checks) else 1)
 PY
+
+# Option values the study tools cannot use: refused with exit status 2 and a line naming the
+# option, before anything runs (--m 0 divided by zero; --us 0 likewise; a negative damage
+# threshold counted every node).
+refused() {
+  local want=$1
+  shift
+  "$py" "$@" > "$work/refused.log" 2>&1
+  local status=$?
+  if [ "$status" -ne 2 ] || ! grep -qF -- "$want" "$work/refused.log" || grep -q Traceback "$work/refused.log"; then
+    echo "FAIL refused $*: status $status"; cat "$work/refused.log"; fail=1
+  else echo "ok   refused $(basename "$1") ${*:2}"; fi
+}
+refused "--m: expected" "$tools/fig3_damage_stress.py" --m 0 --out "$work/fig3"
+refused "--dl: expected" "$tools/fig3_damage_stress.py" --dl -0.1 --out "$work/fig3"
+refused "--us: the switch width" "$tools/marder_phonons.py" 0.4 1.3 2.8 --us 0
+refused "--damage: expected" "$tools/balloon_burst.py" "$work/sphere" --damage -1
+[ ! -e "$work/fig3" ] || { echo "FAIL fig3_damage_stress.py wrote $work/fig3 for refused options"; fail=1; }
 [ "$fail" -eq 0 ]

@@ -65,6 +65,10 @@ def main():
     ap.add_argument("--min-piece", type=int, default=20)
     ap.add_argument("--json-only", action="store_true")
     args = ap.parse_args()
+    if not 0 < args.damage <= 1:
+        ap.error(f"--damage: expected a broken fraction in (0, 1], got {args.damage}")
+    if args.min_piece < 1:
+        ap.error(f"--min-piece: expected at least 1 triangle, got {args.min_piece}")
     peri_view.require_run(args.out)
     s = resolved(args.out)
     v = s["tool_velocity"]

@@ -232,6 +232,15 @@ def main(argv):
                     help="largest mean of |P_measured - P_eq28| over the curve's maximum (default 0.03)")
     ap.add_argument("--reuse", action="store_true", help="reuse runs already in --out")
     args = ap.parse_args(argv)
+    if args.m < 1:
+        ap.error(f"--m: expected a whole number of spacings per horizon >= 1, got {args.m}")
+    if args.np < 0:
+        ap.error(f"--np: expected a number of ranks >= 0 (0: no launcher), got {args.np}")
+    for name in ("dl", "tolerance", "mean_tolerance"):
+        if not getattr(args, name) > 0:
+            ap.error(f"--{name.replace('_', '-')}: expected a number > 0, got {getattr(args, name)}")
+    if not args.smooth >= 0:
+        ap.error(f"--smooth: expected a window >= 0 (0: raw), got {args.smooth}")
     args.launcher = [args.mpiexec, "-n", str(args.np)] + args.mpiexec_flags.split() if args.np > 0 else []
 
     # The closed form's own check: the stress is the derivative of the energy (28).

@@ -54,6 +54,14 @@ def main():
     ap.add_argument("--uc", type=float, default=3.0)
     ap.add_argument("--cells", type=int, default=4)
     args = ap.parse_args()
+    if not (args.l1 > 0 and args.l2 > 0):
+        ap.error(f"the stretches must be > 0, got {args.l1}, {args.l2}")
+    if not args.us > 0:
+        ap.error(f"--us: the switch width (eq. 32 divides by it) must be > 0, got {args.us}")
+    if not np.isfinite(args.b) or not np.isfinite(args.uc):
+        ap.error("b and --uc must be finite numbers")
+    if args.cells < 2:
+        ap.error(f"--cells: expected at least 2 cells per side, got {args.cells}")
     n = args.cells
     X, nbrs = lattice(n)
     F = np.diag([args.l1, args.l2])
