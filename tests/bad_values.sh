@@ -43,6 +43,9 @@ expect() {
 }
 
 # --- Derived constants that overflow or vanish: named by the key that made them ---------------
+# A segment_length that cuts a fiber into more segments than 32-bit numbers hold (they wrapped:
+# every node in one segment, the long-range forces silently off).
+expect segment_length_tiny "bodies.fiber.segment_length: 1e-19 m cuts a path of" -- "$scenes/fiber_long_range.yaml" --set bodies.fiber.segment_length=1e-19
 expect wave_speed_huge "<default scene>:$material_line: materials.rubber.wave_speed: 1e+308 m/s (density 1200 kg/m^3) gives mu = inf Pa, beyond the largest double" -- "${coarse[@]}" --set materials.rubber.wave_speed=1e308
 expect wave_speed_tiny "materials.rubber.wave_speed: 1e-300 m/s (density 1200 kg/m^3) gives mu = 0 Pa, below the smallest normal double" -- "${coarse[@]}" --set materials.rubber.wave_speed=1e-300
 expect density_huge "materials.rubber.wave_speed: 1000 m/s (density 1e+308 kg/m^3) gives mu = inf Pa" -- "${coarse[@]}" --set materials.rubber.density=1e308

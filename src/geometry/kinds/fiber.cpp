@@ -288,6 +288,15 @@ void discretize(const Body& b, BodyGeometry& g, NodeSink& sink) {
   g.quadrature = Quadrature::Full;
   for (const std::vector<Vec3>& path : fiber_paths(b)) {
     const double length = path_length(path);
+    // Segment numbers are 32-bit (long_range_table): a segment_length so short that the path
+    // holds more than 1e9 of them is refused (it wrapped the numbers, and every node fell in one
+    // segment, whose nodes never interact: the long-range forces silently off).
+    if (b.segment_length > 0 && !(length / b.segment_length <= 1e9))
+      throw InputError(b.where.str() + ": bodies." + b.name + ".segment_length: " + number_text(b.segment_length) +
+                       " m cuts a path of " + number_text(length) + " m into " + number_text(length / b.segment_length) +
+                       " segments; expected at most 1e9 (a segment_length of at least " +
+                       number_text(length * 1e-9) + " m; the node spacing, " + number_text(dx) +
+                       " m, puts each node in a segment of its own)");
     const std::int64_t n = count_along(length, dx);
     const double ds = length / static_cast<double>(n);
     g.path_spacing.push_back(ds);
