@@ -153,8 +153,11 @@ std::int64_t Simulation::advance(std::int64_t n) {
       ++stage_;
       verlet_.forces_at(time_);
       if (stage.kind == StageKind::QuasiStatic) check_tools_clear(stage);
-      write_series_row();
-      if (stage.kind == StageKind::QuasiStatic) summary_.initial_total_energy = summary_.final_energy.total();
+      write_series_row(stage.kind == StageKind::QuasiStatic);
+      if (stage_ == scene_.stages.size() && final_frame_deferred_) {
+        final_frame_deferred_ = false;
+        write_frame();
+      }
       continue;
     }
     if (!stage_started_) {
@@ -193,7 +196,10 @@ void Simulation::explicit_step() {
   if (series || frame || checkpoint_step || step_ % kCheckEvery == 0 || step_ == total_steps_)
     check_health(step_, time_);
   if (series) write_series_row();
-  if (frame) write_frame();
+  if (frame) {
+    if (step_ == total_steps_ && scene_.stages.back().kind != StageKind::Dynamic) final_frame_deferred_ = true;
+    else write_frame();
+  }
   if (cadence_.due(step_, step_ % kCheckEvery == 0 || step_ == total_steps_)) write_checkpoint();
 }
 
@@ -352,8 +358,9 @@ void Simulation::check_health(std::int64_t step, double time) {
   last_progress_ = now;
 }
 
-void Simulation::write_series_row() {
+void Simulation::write_series_row(bool new_reference) {
   const EnergyRow row = reduce_energies(ledger_.bonds.strain_energy);
+  if (new_reference) summary_.initial_total_energy = row.total();
   // Energy growth detector (after the first row, which sets the reference).
   if (step_ > 0)
     health_.check_energy(row, energy_balance_error(row), summary_.initial_total_energy, verlet_.dt(), summary_.dt_stable,

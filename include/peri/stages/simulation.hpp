@@ -116,7 +116,9 @@ class Simulation : public EquilibriumModel {
   void start_loop_clock();                   // the steps timed from here
   void check_health(std::int64_t step, double time);
   void write_frame();
-  void write_series_row();
+  /// One row of series.csv, checked by the energy detector; `new_reference`: the row is the
+  /// energy balance's new reference (after a quasi-static stage), set before the check.
+  void write_series_row(bool new_reference = false);
   /// |total - initial total| over the run's energy scale (at least the problem's floor), from
   /// the explicit part's initial total.
   double energy_balance_error(const EnergyRow& row) const;
@@ -141,6 +143,9 @@ class Simulation : public EquilibriumModel {
   std::size_t stage_ = 0;         // current stage
   std::int64_t stage_step_ = 0;   // steps taken in it
   bool stage_started_ = false;    // its start (time step, damping, boundaries) made
+  // The run's last frame when stages that take no time follow the last step: written after them,
+  // so that it shows the state they leave.
+  bool final_frame_deferred_ = false;
   // Diagnostics and the stages.
   EnergyLedger ledger_;           // this rank's energy accounts (diagnostics/energies.hpp)
   HealthCheck health_;
