@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <sstream>
 
 #include "peri/core/collective.hpp"
@@ -37,11 +39,25 @@ void RunOutput::open(const std::string& dir, const Domain& domain, State& state,
     // run leaves nothing of an earlier one (checkpoints, tips, temporaries) to be mixed with its own.
     const std::vector<std::string> stale =
         resume_step >= 0 ? std::vector<std::string>{"summary.json", "FAILED"} : run_file_names();
-    for (const std::string& name : stale) std::remove((dir + "/" + name).c_str());
-    try {
-      write_text_file(dir + "/scene.resolved.yaml", resolved_scene);
-    } catch (const Error& e) {
-      error = e.what();
+    for (const std::string& name : stale) {
+      const std::string path = dir + "/" + name;
+      errno = 0;
+      if (std::remove(path.c_str()) != 0 && errno != ENOENT && error.empty())
+        error = path + ": cannot remove this file of an earlier run (" + std::strerror(errno) +
+                "); it would describe this run's output; remove it, or give another --out";
+    }
+    if (!error.empty()) {
+      try {  // (the marker, so that the earlier run's files left there are not taken for this run's)
+        write_text_file(dir + "/FAILED", error + "\n");
+      } catch (const Error&) {
+      }
+    }
+    if (error.empty()) {
+      try {
+        write_text_file(dir + "/scene.resolved.yaml", resolved_scene);
+      } catch (const Error& e) {
+        error = e.what();
+      }
     }
   }
   const std::string verdict = agree_on_message(error, comm);  // (also the barrier before the frames)

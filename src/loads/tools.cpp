@@ -85,7 +85,7 @@ void Tools::add_forces(double t, const LoadTarget& target, bool book, EnergyLedg
       tool.t0 = t;
     }
     ContactTally c;
-    c.per_node = free;
+    c.per_node = true;  // (a free tool's motion and every tool's force in series.csv: summed in natural order)
     cylinder_contact(tool, t, dt, target.x, target.x_stride, v.data(), domain_.volume.data(),
                      inv_density_.data(), domain_.owned, target.force, c,
                      resumed_friction_ ? &(*resumed_friction_)[k] : nullptr);
@@ -159,10 +159,14 @@ std::string Tools::series_columns() const {
 }
 
 std::string Tools::series_values(double time, bool leading_comma) const {
-  std::vector<double> local(3 * tools_.size()), total(3 * tools_.size());
-  for (std::size_t k = 0; k < tools_.size(); ++k)
-    for (int d = 0; d < 3; ++d) local[3 * k + d] = contact_[k].force[d];
-  MPI_Allreduce(local.data(), total.data(), static_cast<int>(total.size()), MPI_DOUBLE, MPI_SUM, comm_);
+  // The force on the body, summed over the nodes in natural order (reaction): the same bits on
+  // any number of ranks (a reduction of the ranks' sums differed in the last bits).
+  std::vector<double> total(3 * tools_.size());
+  for (std::size_t k = 0; k < tools_.size(); ++k) {
+    double on_tool[3];
+    reaction(k, on_tool);
+    for (int d = 0; d < 3; ++d) total[3 * k + d] = -on_tool[d];
+  }
   std::ostringstream values;
   values << std::setprecision(12);
   for (std::size_t k = 0; k < tools_.size(); ++k) {
