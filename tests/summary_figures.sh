@@ -167,5 +167,17 @@ PY
 if [ "$rc" -eq 0 ] && last_frame > "$work/frame.log"; then ok "timeless_last: $(cat "$work/frame.log")"
 else bad "timeless_last: exit status $rc, expected 0 and a last frame of the final state"; cat "$work/stderr" "$work/frame.log"; fi
 
+# A quasi-static stage that moves no support (a relaxation between dynamic stages) does no work to
+# compare with: its work_error is null and there is no warning (it was 3.6e+296, and a warning of
+# 3.6e+298% apart, over a floor of 1e-300 J).
+sed -e 's/^  - {name: qs, kind: quasistatic.*$/  - {name: relax, kind: quasistatic, load_steps: 1}/' \
+    -e 's/^  - {name: cut, kind: release.*$/  - {name: d2, steps: 3}/' "$work/last.yaml" > "$work/relax.yaml"
+"${mpi[@]}" "$peridrive" "$work/relax.yaml" --out "$work/relax" --quiet > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ "$rc" -eq 0 ] && ! grep -q "warning" "$work/stderr" &&
+   $py -c 'import json, sys; s = json.load(open(sys.argv[1])); sys.exit(0 if s["quasistatic"][0]["work_error"] is None and s["quasistatic_work_error"] is None else 1)' "$work/relax/summary.json"; then
+  ok "relaxation: work_error null, no warning"
+else bad "relaxation: exit status $rc, expected 0, null work errors and no warning"; cat "$work/stderr"; fi
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -15,8 +15,10 @@ namespace peri {
 std::string RunSummary::to_json() const {
   // Rates over the steps this process timed (a resumed run: those after its checkpoint).
   const double updates = step_seconds > 0 ? double(ordered_bonds) * double(steps_timed) / step_seconds : 0;
-  double qs_error = 0;
-  for (double e : quasistatic_work_error) qs_error = std::max(qs_error, e);
+  // The largest stage's; null where every quasi-static stage moved no support (no work to compare).
+  double qs_error = quasistatic_work_error.empty() ? 0.0 : NAN;
+  for (double e : quasistatic_work_error)
+    if (std::isfinite(e)) qs_error = std::isfinite(qs_error) ? std::max(qs_error, e) : e;
   std::ostringstream j;
   j << "{\n"
     << "  \"peridrive_version\": " << json_string(version()) << ",\n"

@@ -308,14 +308,16 @@ void Simulation::run_quasistatic(const Stage& stage) {
   const double stored = (after.strain - before.strain) + (after.dissipated - before.dissipated) - before.kinetic;
   summary_.quasistatic.push_back({stage.name, stats});
   // Relative to the work, or where the work is round-off (a rigid motion of the whole body), to
-  // 1e-9 of the prescribed moves' energy scale.
-  const double scale = std::max({std::fabs(work), 1e-9 * stats.work_scale, 1e-300});
-  summary_.quasistatic_work_error.push_back(std::fabs(work - stored) / scale);
+  // 1e-9 of the prescribed moves' energy scale. A stage that moves no support (a relaxation)
+  // does no work to compare with: no figure (null in summary.json), no warning.
+  const double scale = std::max(std::fabs(work), 1e-9 * stats.work_scale);
+  summary_.quasistatic_work_error.push_back(scale > 0 ? std::fabs(work - stored) / scale : NAN);
   // Work the supports did that the body neither holds nor dissipated: bonds that break between
   // two equilibria (a preload that tears the sheet) release energy no stage follows. The explicit
   // part's balance restarts after this stage and would not show it; run_energy_balance_error does.
   const double tolerance = scene_.stability.energy_error;
-  if (rank_ == 0 && tolerance > 0 && !(summary_.quasistatic_work_error.back() <= tolerance))
+  if (rank_ == 0 && tolerance > 0 && std::isfinite(summary_.quasistatic_work_error.back()) &&
+      summary_.quasistatic_work_error.back() > tolerance)
     std::fprintf(stderr,
                  "peridrive: warning: %s: stages.%zu ('%s'): the quasi-static supports did %.6g J of work, but "
                  "the body stores and dissipated %.6g J (%.3g%% apart, more than stability.energy_error = %g; "
