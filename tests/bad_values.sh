@@ -43,6 +43,13 @@ expect() {
 }
 
 # --- Derived constants that overflow or vanish: named by the key that made them ---------------
+# A load-step cap that can never reach the full load (it ran 1000 increments, then exit 3 advising
+# more load_steps).
+expect max_load_step_budget "stages.0.max_load_step: increments of at most 5e-4 of the load need 2000 increments to reach it, more than max_load_steps (1000)" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 --set stages.0.max_load_step=5e-4
+# A value in a component the boundary does not prescribe did nothing (a preload of 0 Newton
+# iterations, a velocity without effect): refused, naming the boundary's components.
+expect unprescribed_displacement "stages.0.displacements.top: the y component 0.0075 is not prescribed: boundary 'top' holds components [x] (boundaries.top.components)" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 --set 'boundaries.top.components=[x]'
+expect unprescribed_velocity "boundaries.0.velocity: the y component 12.5 is not prescribed: boundary 'top' holds components [x, z]" -- "${coarse[@]}" --set 'boundaries.top.components=[x, z]'
 # A segment_length that cuts a fiber into more segments than 32-bit numbers hold (they wrapped:
 # every node in one segment, the long-range forces silently off).
 expect segment_length_tiny "bodies.fiber.segment_length: 1e-19 m cuts a path of" -- "$scenes/fiber_long_range.yaml" --set bodies.fiber.segment_length=1e-19

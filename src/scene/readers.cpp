@@ -364,14 +364,31 @@ std::array<bool, 3> read_components(const Value& v) {
   return on;
 }
 
+/// A boundary's value (velocity, a stage's displacement or velocity) is prescribed only in the
+/// boundary's components: a nonzero value in another did nothing, and is refused.
+void check_prescribed(const Value& v, const Boundary& b, const Vec3& value) {
+  static const char* const axis[3] = {"x", "y", "z"};
+  std::vector<std::string> held;
+  for (int d = 0; d < 3; ++d)
+    if (b.components[d]) held.push_back(axis[d]);
+  for (int d = 0; d < 3; ++d)
+    if (!b.components[d] && value[d] != 0)
+      v.fail("the " + std::string(axis[d]) + " component " + format_number(value[d]) + " is not prescribed: boundary '" +
+             b.name + "' holds components [" + join(held) + "] (boundaries." + b.name +
+             ".components); expected 0 there, or the component among them");
+}
+
 Boundary read_boundary(const Value& v, UniqueNames& names, const std::vector<Body>& bodies) {
   const Map m(v, &kBoundaryKeys, "a map {name, region, velocity, components, ramp_time}");
   Boundary b;
   b.name = entry_name(m, "", 0, names);
   b.where = m.where();
   b.region = read_region(m.at("region"), bodies);
-  if (auto x = m.get("velocity")) b.velocity = x->vec3("m/s");
   if (auto x = m.get("components")) b.components = read_components(*x);
+  if (auto x = m.get("velocity")) {
+    b.velocity = x->vec3("m/s");
+    check_prescribed(*x, b, b.velocity);
+  }
   if (auto x = m.get("ramp_time")) b.ramp_time = x->non_negative("s");
   return b;
 }
@@ -436,14 +453,16 @@ std::vector<BoundaryValue> read_boundary_values(const Value& v, const std::vecto
   const Map m(v, nullptr, "a map of boundary name to [x, y, z]");
   std::vector<BoundaryValue> out;
   for (const auto& [name, value] : m.items()) {
-    bool known = false;
-    for (const Boundary& b : boundaries) known |= b.name == name;
-    if (!known) {
+    const Boundary* named = nullptr;
+    for (const Boundary& b : boundaries)
+      if (b.name == name) named = &b;
+    if (!named) {
       std::vector<std::string> defined;
       for (const Boundary& b : boundaries) defined.push_back(b.name);
       value.fail("no boundary named '" + name + "'; defined: " + (defined.empty() ? "none" : join(defined)));
     }
     out.push_back({name, value.vec3(unit)});
+    check_prescribed(value, *named, out.back().value);
   }
   return out;
 }
@@ -470,8 +489,17 @@ Stage read_stage(const Value& v, std::size_t index, UniqueNames& names, const st
     if (s.max_load_steps < s.load_steps)
       m.at("max_load_steps").fail("expected an integer >= load_steps (" + std::to_string(s.load_steps) + "), got " +
                                   std::to_string(s.max_load_steps));
-    if (auto x = m.get("max_load_step"))
+    if (auto x = m.get("max_load_step")) {
       s.max_load_step = x->number_if("a number in (0, 1]", [](double f) { return f > 0 && f <= 1; });
+      // Increments of at most max_load_step reach the full load in ceil(1 / max_load_step), which
+      // max_load_steps (cut-backs included) must allow.
+      const double needed = std::ceil(1.0 / s.max_load_step - 1e-9);
+      if (needed > static_cast<double>(s.max_load_steps))
+        x->fail("increments of at most " + x->got() + " of the load need " + format_number(needed) +
+                " increments to reach it, more than max_load_steps (" + std::to_string(s.max_load_steps) +
+                "); expected max_load_step at least " + format_number(1.0 / static_cast<double>(s.max_load_steps)) +
+                ", or a larger max_load_steps");
+    }
     if (auto x = m.get("in_plane")) s.in_plane = x->boolean();
     if (auto x = m.get("jacobian"))
       s.jacobian = x->choice<Stage::Jacobian>({{"assembled", Stage::Jacobian::Assembled},

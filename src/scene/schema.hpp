@@ -190,7 +190,7 @@ inline const Keys kBoundaryKeys = {
     {.name = "velocity", .unit = "m/s", .fallback = "[0, 0, 0] (a clamp)",
      .doc = "prescribed velocity [vx, vy, vz] of the selected components"},
     {.name = "components", .fallback = "[x, y, z]",
-     .doc = "non-empty list of distinct letters from x, y, z: the components prescribed; the others move freely"},
+     .doc = "non-empty list of distinct letters from x, y, z: the components prescribed; the others move freely (a nonzero velocity or stage value in them is refused)"},
     {.name = "ramp_time", .unit = "s", .fallback = "0", .doc = "the velocity rises linearly from 0 over this time, >= 0"},
 };
 
