@@ -50,6 +50,9 @@ expect max_load_step_budget "stages.0.max_load_step: increments of at most 5e-4 
 # iterations, a velocity without effect): refused, naming the boundary's components.
 expect unprescribed_displacement "stages.0.displacements.top: the y component 0.0075 is not prescribed: boundary 'top' holds components [x] (boundaries.top.components)" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 --set 'boundaries.top.components=[x]'
 expect unprescribed_velocity "boundaries.0.velocity: the y component 12.5 is not prescribed: boundary 'top' holds components [x, z]" -- "${coarse[@]}" --set 'boundaries.top.components=[x, z]'
+# A release stage whose cracks cross no bond: refused before the run (it was refused when the
+# stage came, with exit status 2 and the preload's frames written).
+expect release_misses "stages.cut.cracks: the named cracks cross no bond of a body they cut" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 --set 'cracks.slit.from=[1, 1, 0]' --set 'cracks.slit.to=[2, 1, 0]'
 # A segment_length that cuts a fiber into more segments than 32-bit numbers hold (they wrapped:
 # every node in one segment, the long-range forces silently off).
 expect segment_length_tiny "bodies.fiber.segment_length: 1e-19 m cuts a path of" -- "$scenes/fiber_long_range.yaml" --set bodies.fiber.segment_length=1e-19

@@ -26,6 +26,7 @@
 #include "peri/partition/partition.hpp"
 #include "peri/stages/events.hpp"
 #include "peri/stages/problem.hpp"
+#include "peri/stages/release.hpp"
 #include "peri/stages/setup_checks.hpp"
 
 namespace peri {
@@ -418,6 +419,7 @@ std::unique_ptr<Problem> build_problem(const Scene& scene, MPI_Comm comm, RunSum
   partition.release_maps();
   p.bodies = std::move(nodes.bodies);
   nodes = Nodes{};
+  check_release_stages(p);
 
   // The state, the force model (lattice bodies, the bond loop's plans) and the node masses.
   p.state = std::make_unique<State>(p.domain, comm);
