@@ -53,6 +53,8 @@ expect unprescribed_velocity "boundaries.0.velocity: the y component 12.5 is not
 # A release stage whose cracks cross no bond: refused before the run (it was refused when the
 # stage came, with exit status 2 and the preload's frames written).
 expect release_misses "stages.cut.cracks: the named cracks cross no bond of a body they cut" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 --set 'cracks.slit.from=[1, 1, 0]' --set 'cracks.slit.to=[2, 1, 0]'
+# A matrix type the tangent's preallocation cannot fill (dense: a segmentation fault, exit 59).
+expect qs_mat_type "dense: expected aij or baij (the assembled tangent is sparse" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 -qs_mat_type dense
 # A segment_length that cuts a fiber into more segments than 32-bit numbers hold (they wrapped:
 # every node in one segment, the long-range forces silently off).
 expect segment_length_tiny "bodies.fiber.segment_length: 1e-19 m cuts a path of" -- "$scenes/fiber_long_range.yaml" --set bodies.fiber.segment_length=1e-19
@@ -157,6 +159,15 @@ expect_failure lattice_energy "the marder lattice law (body 'strip') has its bou
   "$scenes/supersonic_rubber_broad_switch.yaml" --set stability.energy_error=1e-12
 expect_failure free_tool_light "tools.0.mass: 1e-15 kg is too light for the step" "membrane law" -- \
   "$tool" "${coarse[@]}" --set tools.rod.mass=1e-15
+# Quasi-static solver options that stop Newton short of equilibrium, or that PETSc can set up only
+# in the solve: exit status 3 naming the stage (an unconverged preload passed with exit 0 and 232
+# bonds broken; a PETSc failure in the solve was an internal error, exit 4).
+expect_failure qs_not_converged "quasi-static stage 'preload': at load factor 0.25 PETSc reported convergence (CONVERGED_FNORM_ABS)" "internal error" -- \
+  "$release" --set bodies.sheet.spacing=0.001 -qs_snes_atol 1e10
+expect_failure qs_ksponly "PETSc reported convergence (CONVERGED_ITS) with a residual of" "internal error" -- \
+  "$release" --set bodies.sheet.spacing=0.001 -qs_snes_type ksponly
+expect_failure qs_solve_time "quasi-static stage 'preload': PETSc failed in the solve: Could not locate solver type nosuch" "internal error" -- \
+  "$release" --set bodies.sheet.spacing=0.001 -qs_pc_type lu -qs_pc_factor_mat_solver_type nosuch
 # An error that starts within the last 10 steps (the detector's grace for transients) stops the
 # run at its last step: no summary.json for a run that blew up.
 expect_failure energy_at_end "(t = 5.4e-05 s, the run's last) exceeds stability.energy_error = 0.05 since step 1" "membrane law" -- \

@@ -52,6 +52,18 @@ QuasiStaticLoader::QuasiStaticLoader(MPI_Comm comm, std::int32_t owned, DofLayou
     PERI_PETSC(MatSetType(J_, MATAIJ));
     PERI_PETSC(MatSetOptionsPrefix(J_, "qs_"));
     PERI_PETSC(MatSetFromOptions(J_));
+    {
+      // The tangent is preallocated row by row (MatXAIJSetPreallocation): AIJ and BAIJ only. Any
+      // other -qs_mat_type (dense: an unallocated matrix, a segmentation fault in the assembly)
+      // is refused here, at setup.
+      MatType type;
+      PERI_PETSC(MatGetType(J_, &type));
+      const std::string t = type ? type : "";
+      if (t != MATAIJ && t != MATSEQAIJ && t != MATMPIAIJ && t != MATBAIJ && t != MATSEQBAIJ && t != MATMPIBAIJ)
+        throw InputError(stage_.where.str() + ": quasi-static stage '" + stage_.name + "': -qs_mat_type " + t +
+                         ": expected aij or baij (the assembled tangent is sparse, preallocated per row; "
+                         "docs/user/quasistatic.md#solver-options)");
+    }
     PERI_PETSC(MatXAIJSetPreallocation(J_, bs, layout_.d_nnz.data(), layout_.o_nnz.data(), nullptr, nullptr));
     PERI_PETSC(MatSetOption(J_, MAT_KEEP_NONZERO_PATTERN, PETSC_TRUE));
     PERI_PETSC(MatSetOption(J_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE));
@@ -279,6 +291,34 @@ bool QuasiStaticLoader::reuse_tangent(KSP ksp) {
   return false;
 }
 
+double QuasiStaticLoader::residual_norm() {
+  PERI_PETSC(PetscPushErrorHandler(PetscIgnoreErrorHandler, nullptr));
+  const PetscErrorCode error = SNESComputeFunction(snes_, x_, r_);
+  PERI_PETSC(PetscPopErrorHandler());
+  callback_error_.rethrow();  // (an exception in the residual: its own message)
+  PERI_PETSC(error);
+  PetscReal norm;
+  PERI_PETSC(VecNorm(r_, NORM_2, &norm));
+  return norm;
+}
+
+void QuasiStaticLoader::check_converged(double load, int reason, double start_norm) {
+  // PETSc's verdict is taken only where the residual is small: 1e-6 of the increment's starting
+  // residual or of a node's force scale (the default tolerances reach 1e-9 and 1e-10 of them),
+  // so that options that stop Newton early (-qs_snes_atol 1e10, -qs_snes_type ksponly on a
+  // nonlinear step) cannot pass a state that is not in equilibrium.
+  const double norm = residual_norm(), allowed = std::max(1e-6 * start_norm, 1e-6 * stiffness_ * length_);
+  if (!(norm <= allowed)) {
+    std::ostringstream msg;
+    msg << stage_.where.str() << ": quasi-static stage '" << stage_.name << "': at load factor " << fmt(load)
+        << " PETSc reported convergence (" << SNESConvergedReasons[reason] << ") with a residual of " << fmt(norm)
+        << " N, more than " << fmt(allowed) << " N (1e-6 of the increment's starting residual " << fmt(start_norm)
+        << " N or of a node's force scale): not an equilibrium; likely cause: -qs_* options that stop Newton "
+           "early (docs/user/quasistatic.md#solver-options)";
+    throw RuntimeFailure(msg.str());
+  }
+}
+
 int QuasiStaticLoader::solve(Vec x) {
   // An exception in a callback comes back as an error code through SNESSolve: PETSc's handler
   // stays quiet meanwhile, and the exception itself (its message) is rethrown here.
@@ -286,7 +326,17 @@ int QuasiStaticLoader::solve(Vec x) {
   const PetscErrorCode error = SNESSolve(snes_, nullptr, x);
   PERI_PETSC(PetscPopErrorHandler());
   callback_error_.rethrow();
-  PERI_PETSC(error);
+  if (error) {
+    // PETSc's own failure in the solve (a preconditioner or factorization that this build or this
+    // number of ranks cannot set up, chosen by -qs_* options): the stage fails with PETSc's words.
+    const char* text = nullptr;
+    char* specific = nullptr;
+    PetscErrorMessage(error, &text, &specific);
+    throw RuntimeFailure(stage_.where.str() + ": quasi-static stage '" + stage_.name + "': PETSc failed in the " +
+                         "solve: " + (specific && *specific ? specific : text ? text : "unknown error") +
+                         "; where -qs_* options choose the solver, they are the likely cause "
+                         "(docs/user/quasistatic.md#solver-options)");
+  }
   SNESConvergedReason reason;
   PERI_PETSC(SNESGetConvergedReason(snes_, &reason));
   return static_cast<int>(reason);
@@ -363,7 +413,9 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     LoadIncrement inc;
     inc.load_factor = next;
     model.set_load_level(next);
+    const double start_norm = residual_norm();  // (the predictor's: the guard below)
     int reason = solve(x_);
+    if (reason > 0) check_converged(next, reason, start_norm);
     PetscInt its, lits;
     PERI_PETSC(SNESGetIterationNumber(snes_, &its));
     PERI_PETSC(SNESGetLinearSolveIterations(snes_, &lits));
@@ -405,7 +457,9 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
             << " (max_break_passes): the crack is running unstably; continue with a dynamic stage";
         throw RuntimeFailure(msg.str());
       }
+      const double restart_norm = residual_norm();
       reason = solve(x_);
+      if (reason > 0) check_converged(next, reason, restart_norm);
       PERI_PETSC(SNESGetIterationNumber(snes_, &its));
       PERI_PETSC(SNESGetLinearSolveIterations(snes_, &lits));
       stats.newton_iterations += its;
@@ -420,9 +474,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
         throw RuntimeFailure(msg.str());
       }
     }
-    PetscReal fnorm;
-    PERI_PETSC(SNESGetFunctionNorm(snes_, &fnorm));
-    inc.residual = fnorm;
+    inc.residual = residual_norm();  // (computed here: some -qs_snes_type, ksponly, report none)
     // Work of the support reactions and the loads over the increment (trapezoidal rule).
     expand(VecArrayRead(x_).data());
     std::vector<double> x_new = full_;

@@ -150,6 +150,9 @@ class QuasiStaticLoader {
   /// coming Newton iteration, from the last linear solve's iterations.
   bool reuse_tangent(KSP ksp);
   int solve(Vec x);  // SNESConvergedReason
+  double residual_norm();  // |R(x_)|, into r_
+  // RuntimeFailure where a solve PETSc calls converged left a residual above the guard's.
+  void check_converged(double load, int reason, double start_norm);
 
   MPI_Comm comm_;
   int rank_ = 0;
