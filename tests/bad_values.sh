@@ -55,6 +55,8 @@ expect unprescribed_velocity "boundaries.0.velocity: the y component 12.5 is not
 expect release_misses "stages.cut.cracks: the named cracks cross no bond of a body they cut" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 --set 'cracks.slit.from=[1, 1, 0]' --set 'cracks.slit.to=[2, 1, 0]'
 # A matrix type the tangent's preallocation cannot fill (dense: a segmentation fault, exit 59).
 expect qs_mat_type "dense: expected aij or baij (the assembled tangent is sparse" -- "$scenes/slit_release.yaml" --set bodies.sheet.spacing=0.001 -qs_mat_type dense
+# A hardening exponent whose lambda^n overflows (with coefficient 0, 0 * inf made every force NaN).
+expect hardening_exponent "materials.rubber.hardening.exponent: expected a number in (1, 100], got 1e300" -- "${coarse[@]}" --set 'materials.rubber.hardening={coefficient: 0, exponent: 1e300}'
 # A segment_length that cuts a fiber into more segments than 32-bit numbers hold (they wrapped:
 # every node in one segment, the long-range forces silently off).
 expect segment_length_tiny "bodies.fiber.segment_length: 1e-19 m cuts a path of" -- "$scenes/fiber_long_range.yaml" --set bodies.fiber.segment_length=1e-19

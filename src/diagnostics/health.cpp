@@ -55,10 +55,7 @@ void HealthCheck::check(std::int64_t step, double time, const double* u, const d
     double moved = node == unstable_node_ ? unstable_motion_ : 0, moved_max = 0;
     MPI_Allreduce(&moved, &moved_max, 1, MPI_DOUBLE, MPI_MAX, comm_);
     const std::array<double, 3> X = reference_position(node);
-    int body = -1, body_any = -1;  // of the node, from the rank that owns it
-    for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
-      if (domain_.natural[i] == node) body = domain_.body[i];
-    MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
+    const int body_any = body_of(node);
     std::ostringstream msg;
     msg << "unstable explicit integration detected by step " << step << " (t = " << number_text(time) << " s): node "
         << node << " at reference position (" << number_text(X[0]) << ", " << number_text(X[1]) << ", " << number_text(X[2])
@@ -77,11 +74,19 @@ void HealthCheck::check(std::int64_t step, double time, const double* u, const d
   }
   if (bad_global != none) {
     const std::array<double, 3> X = reference_position(bad_global);
+    const int body = body_of(bad_global);
     std::ostringstream msg;
     msg << "non-finite displacement or velocity at step " << step << " (t = " << number_text(time)
         << " s), node " << bad_global << " at reference position (" << number_text(X[0]) << ", " << number_text(X[1])
-        << ", " << number_text(X[2]) << "); likely cause: time step " << number_text(dt) << " s above the stable bound "
-        << number_text(dt_stable) << " s, or a boundary velocity too violent for the resolution";
+        << ", " << number_text(X[2]) << "); likely cause: ";
+    if (dt > dt_stable)
+      msg << "the time step " << number_text(dt) << " s is above the stable bound " << number_text(dt_stable)
+          << " s (accepted because of allow_unstable_dt)";
+    else
+      msg << "the time step " << number_text(dt) << " s is too large for the current state (stable bound "
+          << number_text(dt_stable) << " s at the reference state; " << law_note(body)
+          << "), a material law that overflows at this state (its parameters), or a boundary velocity too violent "
+             "for the resolution";
     throw RuntimeFailure(msg.str());
   }
 }
@@ -121,6 +126,14 @@ std::string HealthCheck::tip_advance_note() const {
   return "the crack-tip rule (tip_advance of material " + materials +
          "): a bond held past its failure test breaks later with a jump in its force, which the explicit step books "
          "with an error of first order in dt (a smaller safety_factor lowers it), ";
+}
+
+int HealthCheck::body_of(long long node) const {
+  int body = -1, body_any = -1;  // from the rank that owns the node
+  for (std::int32_t i = 0; i < domain_.owned && body < 0; ++i)
+    if (domain_.natural[i] == node) body = domain_.body[i];
+  MPI_Allreduce(&body, &body_any, 1, MPI_INT, MPI_MAX, comm_);
+  return body_any;
 }
 
 std::string HealthCheck::law_note(int body) const {

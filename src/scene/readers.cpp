@@ -150,7 +150,8 @@ Material read_material(const std::string& name, const Value& v) {
     const Map h(*x, &kHardeningKeys, "a map {coefficient: c, exponent: n}");
     Hardening hard;
     hard.coefficient = h.at("coefficient").non_negative("");
-    hard.exponent = h.at("exponent").number_if("a number > 1", [](double n) { return n > 1; });
+    // (lambda^n overflows a double at lambda = 2 from n = 1024; 0 * inf made the forces NaN)
+    hard.exponent = h.at("exponent").number_if("a number in (1, 100]", [](double n) { return n > 1 && n <= 100; });
     mat.hardening = hard;
   }
   return mat;

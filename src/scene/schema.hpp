@@ -117,7 +117,7 @@ inline const Keys kHardeningKeys = {
     {.name = "coefficient", .required = true, .what = "hardening coefficient c', >= 0", .unit = "J/m^6",
      .doc = "c' >= 0 of the added energy c' (lambda^n - n lambda + n - 1) g (eq. 16, written so that the "
             "reference state is stress-free)"},
-    {.name = "exponent", .required = true, .what = "hardening exponent n, > 1", .doc = "n > 1"},
+    {.name = "exponent", .required = true, .what = "hardening exponent n, in (1, 100]", .doc = "1 < n <= 100 (lambda^n stays a finite double)"},
 };
 
 /// The keys of every body; each kind's own keys are its module's (scene/body_kind.hpp).

@@ -58,6 +58,7 @@ class HealthCheck {
   void restore(const std::vector<double>* saved);
   /// How the laws behave near the stable bound: of body `body`, or of every body (-1).
   std::string law_note(int body) const;
+  int body_of(long long node) const;  // the body of a node (natural id); collective
   /// The long-range rules whose contact a step dt exceeds (PairContactStep::exceeded_by) with the
   /// bonds' bound dt_stable, as a likely cause; empty when none does.
   std::string contact_note(double dt, double dt_stable) const;
