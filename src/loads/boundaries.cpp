@@ -15,6 +15,7 @@ Boundaries::Boundaries(const Scene& scene, std::vector<int> node_boundary)
   du_.assign(3 * rows_.size(), 0.0);
   v_old_ = du_;
   prev_force_ = du_;
+  prev_viscous_ = du_;
   for (const Boundary& b : scene.boundaries) active_.push_back({b.velocity, b.ramp_time});
 }
 

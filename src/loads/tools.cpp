@@ -32,6 +32,7 @@ Tools::Tools(const Scene& scene, double dt_bound, const State& state, const Doma
   }
   contact_.assign(tools_.size(), ContactTally{});
   accel_.assign(tools_.size(), {0.0, 0.0, 0.0});
+  reaction_.assign(tools_.size(), {0.0, 0.0, 0.0});
 }
 
 bool Tools::free() const {
@@ -71,12 +72,13 @@ void Tools::add_forces(double t, const LoadTarget& target, bool book, EnergyLedg
   for (std::size_t k = 0; k < tools_.size(); ++k) {
     RigidTool& tool = tools_[k];
     const bool free = mass_[k] > 0;
-    double kinetic_before = 0;
+    double velocity_before[3] = {0, 0, 0};  // a free tool's velocity and reaction at the step's start
+    const std::array<double, 3> reaction_before = reaction_[k];
     if (free) {
       // Velocity Verlet: half kick with the last acceleration and drift to t (a step), or just
       // the position at t (the forces at a stage's start or after a restart).
       if (book) {
-        for (int d = 0; d < 3; ++d) kinetic_before += 0.5 * mass_[k] * tool.velocity[d] * tool.velocity[d];
+        for (int d = 0; d < 3; ++d) velocity_before[d] = tool.velocity[d];
         for (int d = 0; d < 3; ++d) {
           tool.velocity[d] += 0.5 * dt * accel_[k][d];
           tool.center[d] += dt * tool.velocity[d];
@@ -115,20 +117,27 @@ void Tools::add_forces(double t, const LoadTarget& target, bool book, EnergyLedg
     contact_[k] = std::move(c);
     double r[3];
     reaction(k, r);
-    for (int d = 0; d < 3; ++d) accel_[k][d] = r[d] / mass_[k];
-    if (!tool.sphere) accel_[k][2] = 0;  // a cylinder moves in the plane
+    if (!tool.sphere) r[2] = 0;  // a cylinder moves in the plane
+    for (int d = 0; d < 3; ++d) {
+      reaction_[k][d] = r[d];
+      accel_[k][d] = r[d] / mass_[k];
+    }
     if (book) {
       // Second half kick; the kinetic energy the tool lost is the work it did on the bodies (its
-      // share of friction included: friction_work books the relative motion's loss).
-      double kinetic_after = 0;
+      // share of friction included: friction_work books the relative motion's loss). The two half
+      // kicks give the impulse J = M (V1 - V0) = dt/2 (R0 + R1), and
+      //   1/2 M (V0^2 - V1^2) = -J . (V0 + V1) / 2,
+      // booked in that form: the difference of the two kinetic energies cancels to round-off for
+      // a heavy tool (M V^2 eps against F V dt), whose velocity change is then below V's last digits.
+      double work = 0;
       for (int d = 0; d < 3; ++d) {
         tool.velocity[d] += 0.5 * dt * accel_[k][d];
-        kinetic_after += 0.5 * mass_[k] * tool.velocity[d] * tool.velocity[d];
+        work -= 0.5 * dt * (reaction_before[d] + reaction_[k][d]) * 0.5 * (velocity_before[d] + tool.velocity[d]);
       }
       // Booked on rank 0 only: the ledger is summed over the ranks.
       int rank = 0;
       MPI_Comm_rank(comm_, &rank);
-      if (rank == 0) ledger.external_work += kinetic_before - kinetic_after;
+      if (rank == 0) ledger.external_work += work;
     }
   }
   resumed_friction_.reset();

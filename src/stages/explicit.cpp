@@ -94,6 +94,10 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
   // kinetic energy by F_d . (v_before + v_after)/2 dt/2 (exactly the share of F_d in
   // m (v_after^2 - v_before^2)/2), booked as dissipated with the opposite sign.
   double viscous = 0;
+  // The dashpots' share of the internal force at prescribed components does work -F_d du along
+  // the prescribed path, which reaction_work books as the reaction's (external) work against it:
+  // it is dissipated too (Boundaries::dashpot_work).
+  double viscous_prescribed = 0;
   const bool kelvin = viscous_force != nullptr;  // bond dashpots (lattice or peridynamic)
   // Half kick and drift (velocity Verlet); prescribed components follow their boundary.
   const bool damped_run = damping_ > 0;
@@ -129,7 +133,7 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
     for (int c = 0; c < 3 && bi >= 0; ++c) {
       const std::size_t k = k0 + c;
       if (boundaries.prescribes(bi, c)) {
-        moved2 += boundaries.drift(i, bi, c, k, t0, t1, u, v, force);
+        moved2 += boundaries.drift(i, bi, c, k, t0, t1, u, v, force, viscous_force);
       } else {
         moved2 += kick_drift(i, k);
       }
@@ -226,6 +230,7 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
       const std::size_t k = k0 + c;
       if (bi >= 0 && boundaries.prescribes(bi, c)) {
         ledger_.external_work += boundaries.reaction_work(i, c, k, v, force, domain_.volume[i], mass_[i]);
+        if (kelvin) viscous_prescribed -= boundaries.dashpot_work(i, c, k, viscous_force, domain_.volume[i]);
       } else {
         kick(i, k);
       }
@@ -259,7 +264,10 @@ double Verlet::step(double time, bool with_energy, bool defer_kick) {
   for (const auto& load : p_.loads) load->end_step(dt, v, ledger_);
   v_array.reset();
   if (damping_ > 0) ledger_.damping_work += 0.5 * damping_ * dt * damped;
-  if (kelvin) ledger_.damping_work += 0.5 * dt * viscous;
+  if (kelvin) {
+    ledger_.damping_work += 0.5 * dt * viscous;
+    ledger_.damping_work += viscous_prescribed;  // (a sum of its own: 0 where no boundary moves)
+  }
   PetscLogEventEnd(events().update, 0, 0, 0, 0);
   return t1;
 }

@@ -47,15 +47,17 @@ class Boundaries {
                            std::vector<double>& increment) const;
 
   /// Prescribed component c (k = 3 i + c) of node i, boundary b, over a step from t0 to t1:
-  /// keeps its velocity and force at the step's start for reaction_work, moves u[k] by the
+  /// keeps its velocity and force at the step's start for reaction_work (and the bond dashpots'
+  /// share of that force, `viscous`, for dashpot_work; null without dashpots), moves u[k] by the
   /// ramped velocity's integral and sets v[k] to the velocity at t1. Returns the motion squared.
   double drift(std::int32_t i, int b, int c, std::size_t k, double t0, double t1, double* u, double* v,
-               const double* force) {
+               const double* force, const double* viscous) {
     const Active& a = active_[b];
     const std::size_t kb = 3 * static_cast<std::size_t>(slot_[i]) + c;
     v_old_[kb] = v[k];
     du_[kb] = a.velocity[c] * (ramp_integral(t1, a.ramp_time) - ramp_integral(t0, a.ramp_time));
     prev_force_[kb] = force[k];
+    if (viscous) prev_viscous_[kb] = viscous[k];
     u[k] += du_[kb];
     v[k] = a.velocity[c] * ramp(t1, a.ramp_time);
     return du_[kb] * du_[kb];
@@ -70,6 +72,15 @@ class Boundaries {
     const double fi = 0.5 * (force[k] + prev_force_[kb]) * volume;
     return 0.5 * mass * (v[k] * v[k] - v_old_[kb] * v_old_[kb]) - fi * du_[kb];
   }
+  /// Work of the bond dashpots' force on prescribed component c over the step drift() began, by
+  /// the same trapezoid as reaction_work (whose internal force includes it): F_d du =
+  /// (F_d(t0) + F_d(t1))/2 volume du, with `viscous` F_d at the step's end. The reaction works
+  /// against it, so it is external work, and the dashpots dissipate it: -F_d du is booked as
+  /// dissipated. (A clamped node has du = 0.)
+  double dashpot_work(std::int32_t i, int c, std::size_t k, const double* viscous, double volume) const {
+    const std::size_t kb = 3 * static_cast<std::size_t>(slot_[i]) + c;
+    return 0.5 * (viscous[k] + prev_viscous_[kb]) * volume * du_[kb];
+  }
 
  private:
   struct Active {
@@ -81,8 +92,9 @@ class Boundaries {
   std::vector<std::int32_t> rows_;    // owned nodes with a boundary
   std::vector<std::int32_t> slot_;    // per owned node: its slot among rows_, or -1
   std::vector<Active> active_;        // per boundary, in the current stage
-  // Per slot, 3 components each: the step's increment, and velocity and force at its start.
-  std::vector<double> du_, v_old_, prev_force_;
+  // Per slot, 3 components each: the step's increment, and velocity, force and the force's
+  // dashpot share at its start.
+  std::vector<double> du_, v_old_, prev_force_, prev_viscous_;
 };
 
 }  // namespace peri

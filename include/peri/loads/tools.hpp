@@ -3,7 +3,8 @@
 // friction (contact.hpp). A tool's motion is prescribed (constant velocity), so it does work on
 // the body (its force times its velocity, trapezoidal over the step); or, with a mass, it is a
 // free rigid body moved by the reaction of its contact forces (velocity Verlet in step with the
-// nodes), and the kinetic energy it loses is the work it does on the body. Friction dissipates
+// nodes), and the kinetic energy it loses is the work it does on the body (booked as its impulse
+// times its mean velocity, which a heavy tool's kinetic energies would cancel). Friction dissipates
 // (booked once the step's end velocity is known); the penalty's energy counts as strain energy.
 #pragma once
 #include <mpi.h>
@@ -90,6 +91,7 @@ class Tools final : public Load {
   std::vector<double> mass_;               // per tool: > 0 free [kg], 0 prescribed
   std::vector<std::string> where_;         // per tool: its place in the scene file
   std::vector<std::array<double, 3>> accel_;  // per free tool: acceleration at the last evaluation
+  std::vector<std::array<double, 3>> reaction_;  // per free tool: the reaction giving accel_ [N]
   std::vector<std::string> names_;
   std::vector<ContactTally> contact_;      // per tool: this rank's contact at the last evaluation
   std::optional<std::vector<std::vector<NodeFriction>>> resumed_friction_;  // per tool, from a checkpoint
