@@ -22,7 +22,15 @@ bool usable(double x) { return std::isfinite(x) && x >= std::numeric_limits<doub
 
 std::string stiffness_input(const Material& m) {
   const std::string p = "materials." + m.name + ".";
-  if (m.marder) return p + "mooney_rivlin_a: " + number(m.marder->a) + " J/kg";
+  if (m.marder) {  // the lattice's stiffness and so its step depend on all of these (eqs. 27, 31-32)
+    const MarderParams& q = *m.marder;
+    std::string s = p + "mooney_rivlin_a: " + number(q.a) + " J/kg (with mooney_rivlin_b " + number(q.b) + ", cutoff " +
+                    number(q.cutoff) + " m, fracture_separation " + number(q.fracture_separation) + " m";
+    if (q.options.stiffening_width > 0)
+      s += ", stiffening_onset " + number(q.options.stiffening_onset) + " m, stiffening_width " +
+           number(q.options.stiffening_width) + " m";
+    return s + ")";
+  }
   if (m.wave_speed)
     return p + "wave_speed: " + number(*m.wave_speed) + " m/s (density " + number(m.density) + " kg/m^3)";
   if (m.bulk_modulus) return p + "bulk_modulus: " + number(*m.bulk_modulus) + " Pa";
