@@ -431,7 +431,7 @@ cracks:
 boundaries:
   - name: "null"
     region: {min: [-1, -1, -1], max: [1, 1, 1], body: block}
-    velocity: [0, 1.0e-7, 0]
+    velocity: [1.0e-7, 0, 0]
     components: [z, x]
     ramp_time: 1.0e-6
 initial:
@@ -472,7 +472,7 @@ output:
   EXPECT_THAT(emitted, HasSubstr("density: 0.30000000000000004\n"));
   EXPECT_THAT(emitted, HasSubstr("micromodulus: 1e-300\n"));
   EXPECT_THAT(emitted, HasSubstr("density: 6.02214076e23\n"));
-  EXPECT_THAT(emitted, HasSubstr("velocity: [0, 1e-7, 0]\n"));
+  EXPECT_THAT(emitted, HasSubstr("velocity: [1e-7, 0, 0]\n"));
   EXPECT_THAT(emitted, HasSubstr("bulk_modulus: 333333.3333333334\n"));
   EXPECT_THAT(emitted, HasSubstr("components: [x, z]\n"));
   EXPECT_THAT(emitted, HasSubstr("    horizon: 0.0301\n"));
@@ -822,7 +822,7 @@ TEST(SceneErrors, CriticalStretch) {
 TEST(SceneErrors, Hardening) {
   EXPECT_THAT(
       error_of(with("wave_speed: 1000", "wave_speed: 1000\n    hardening: {coefficient: 1, exponent: 1}")),
-      StartsWith("scene.yaml:7: materials.rubber.hardening.exponent: expected a number > 1, got 1"));
+      StartsWith("scene.yaml:7: materials.rubber.hardening.exponent: expected a number in (1, 100], got 1"));
   EXPECT_THAT(
       error_of(with("wave_speed: 1000", "wave_speed: 1000\n    hardening: {coefficient: 1, exponent: 2}",
                     with("model: membrane", "model: pmb"))),
