@@ -270,6 +270,14 @@ cloud_scene fits 2 "output: {frames: 2}"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "cloud_volumes_fit_spacing: no warning"
 else bad "cloud_volumes_fit_spacing: exit status or warning"; fi
 
+# A seed of one spacing's wavelength puts every grid node on a zero of the sine (|u_z| 5e-34 m for
+# an amplitude of 1e-5): one warning naming the wavelength and the least that resolves.
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'initial.seed.wavelength=[0.001, 0.001]' --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="initial.seed.wavelength: 0.001 m along x is below two spacings of body 'sheet' (0.001 m)"
+if [ $rc -eq 0 ] && [ "$(grep -c "warning" "$work/stderr")" -eq 2 ] && grep -qF -- "$want" "$work/stderr"; then
+  ok "seed_aliased: $(grep -m1 "warning" "$work/stderr" | cut -c1-160)"
+else bad "seed_aliased: expected two warnings (x and y) with '$want'"; fi
 # A stage that gives dt and safety_factor steps with dt: one warning naming the unused key; the
 # resolved scene keeps dt alone.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set stages.0.dt=1e-8 --set stages.0.safety_factor=0.5 --dry-run \

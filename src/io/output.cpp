@@ -195,7 +195,8 @@ void FrameWriter::start(const std::string& resolved_scene, std::int64_t resume_s
       if (domain_.rank == 0) write_xdmf(true);
       return;
     }
-    if (domain_.rank == 0)
+    std::error_code ec;  // (a resume into a new directory has no file to continue: no note)
+    if (domain_.rank == 0 && std::filesystem::exists(path, ec))
       std::fprintf(stderr, "peridrive: note: '%s' cannot be continued; starting it afresh at step %lld\n",
                    path.c_str(), static_cast<long long>(resume_step));
   }

@@ -37,6 +37,7 @@ Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, 
   warn_large_families(scene, estimate_size(scene), rank);
   warn_cloud_spacing(scene, rank);
   warn_unused_safety_factor(scene, rank);
+  warn_aliased_seed(scene, rank);
   check_fits(scene, comm, settings.method == PartitionMethod::Bonds);
   stop_point(comm);
   Nodes nodes = discretize(scene);

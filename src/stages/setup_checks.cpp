@@ -140,6 +140,25 @@ void warn_unused_safety_factor(const Scene& scene, int rank) {
   }
 }
 
+void warn_aliased_seed(const Scene& scene, int rank) {
+  const Initial& ic = scene.initial;
+  if (rank != 0 || ic.seed_amplitude == 0 || scene.bodies.empty()) return;
+  double spacing = INFINITY;  // the finest body's: the seed's shortest resolvable wavelength is twice it
+  std::string body;
+  for (const Body& b : scene.bodies)
+    if (b.spacing < spacing) spacing = b.spacing, body = b.name;
+  const std::pair<const char*, double> axes[2] = {{"x", ic.seed_wavelength_x}, {"y", ic.seed_wavelength_y}};
+  for (const auto& [axis, wavelength] : axes)
+    if (wavelength > 0 && wavelength < 2 * spacing)
+      std::fprintf(stderr,
+                   "peridrive: warning: %s: initial.seed.wavelength: %s m along %s is below two spacings of body "
+                   "'%s' (%s m): the nodes sample the sine aliased (at one spacing, or a multiple of half of one, "
+                   "every node of a grid lies on a zero and the seed does nothing); expected a wavelength of at "
+                   "least %s m\n",
+                   ic.seed_where.str().c_str(), num(wavelength).c_str(), axis, body.c_str(), num(spacing).c_str(),
+                   num(2 * spacing).c_str());
+}
+
 void warn_cloud_spacing(const Scene& scene, int rank) {
   if (rank != 0) return;
   for (const Body& b : scene.bodies) {
