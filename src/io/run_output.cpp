@@ -51,8 +51,7 @@ void RunOutput::open(const std::string& dir, const Domain& domain, State& state,
         write_text_file(dir + "/FAILED", error + "\n");
       } catch (const Error&) {
       }
-    }
-    if (error.empty()) {
+    } else {
       try {
         write_text_file(dir + "/scene.resolved.yaml", resolved_scene);
       } catch (const Error& e) {

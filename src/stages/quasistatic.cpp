@@ -302,7 +302,7 @@ double QuasiStaticLoader::residual_norm() {
   return norm;
 }
 
-void QuasiStaticLoader::check_converged(double load, int reason, double start_norm) {
+double QuasiStaticLoader::check_converged(double load, int reason, double start_norm) {
   // PETSc's verdict is taken only where the residual is small: 1e-6 of the increment's starting
   // residual or of a node's force scale (the default tolerances reach 1e-9 and 1e-10 of them),
   // so that options that stop Newton early (-qs_snes_atol 1e10, -qs_snes_type ksponly on a
@@ -317,6 +317,7 @@ void QuasiStaticLoader::check_converged(double load, int reason, double start_no
            "early (docs/user/quasistatic.md#solver-options)";
     throw RuntimeFailure(msg.str());
   }
+  return norm;
 }
 
 int QuasiStaticLoader::solve(Vec x) {
@@ -415,7 +416,9 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
     model.set_load_level(next);
     const double start_norm = residual_norm();  // (the predictor's: the guard below)
     int reason = solve(x_);
-    if (reason > 0) check_converged(next, reason, start_norm);
+    // The converged state's residual, computed by the stage (some -qs_snes_type, ksponly, report
+    // none): checked, and the increment's figure.
+    double residual = reason > 0 ? check_converged(next, reason, start_norm) : 0.0;
     PetscInt its, lits;
     PERI_PETSC(SNESGetIterationNumber(snes_, &its));
     PERI_PETSC(SNESGetLinearSolveIterations(snes_, &lits));
@@ -459,7 +462,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
       }
       const double restart_norm = residual_norm();
       reason = solve(x_);
-      if (reason > 0) check_converged(next, reason, restart_norm);
+      if (reason > 0) residual = check_converged(next, reason, restart_norm);
       PERI_PETSC(SNESGetIterationNumber(snes_, &its));
       PERI_PETSC(SNESGetLinearSolveIterations(snes_, &lits));
       stats.newton_iterations += its;
@@ -474,7 +477,7 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
         throw RuntimeFailure(msg.str());
       }
     }
-    inc.residual = residual_norm();  // (computed here: some -qs_snes_type, ksponly, report none)
+    inc.residual = residual;
     // Work of the support reactions and the loads over the increment (trapezoidal rule).
     expand(VecArrayRead(x_).data());
     std::vector<double> x_new = full_;

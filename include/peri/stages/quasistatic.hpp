@@ -151,8 +151,8 @@ class QuasiStaticLoader {
   bool reuse_tangent(KSP ksp);
   int solve(Vec x);  // SNESConvergedReason
   double residual_norm();  // |R(x_)|, into r_
-  // RuntimeFailure where a solve PETSc calls converged left a residual above the guard's.
-  void check_converged(double load, int reason, double start_norm);
+  // The residual a solve PETSc calls converged left; RuntimeFailure where it is above the guard's.
+  double check_converged(double load, int reason, double start_norm);
 
   MPI_Comm comm_;
   int rank_ = 0;
