@@ -77,6 +77,8 @@ expect pressure_mesh "bodies.tube.pressure: 1e+12 Pa gives the wall a stress p R
 expect pressure_large "bodies.balloon.pressure: 1e+12 Pa gives the wall a stress p R / (2 h) = 3.33333e+13 Pa, more than 100 times its in-plane bulk modulus" -- "$balloon" --set bodies.balloon.spacing=0.01 --set bodies.balloon.pressure=1e12
 expect membrane_stretch_resolution "materials.rubber.critical_stretch: expected a critical stretch lambda_0 >= 1 + 1e-10" -- "${coarse[@]}" --set materials.rubber.critical_stretch=1.00000000001
 expect pmb_strain_resolution "materials.film.critical_stretch: expected a critical bond strain s_0 >= 1e-10" -- "$tool" "${coarse[@]}" --set materials.film.critical_stretch=1e-300
+expect tip_scope_without_rule "materials.film.tip_advance_tips: requires tip_advance" -- "$tool" "${coarse[@]}" --set materials.film.tip_advance_tips=body
+expect tip_scope_word "materials.film.tip_advance_tips: expected one of" -- "$tool" "${coarse[@]}" --set materials.film.tip_advance=0.0005 --set materials.film.tip_advance_tips=global
 expect tool_stiffness_huge "--set: tools.0.stiffness: expected a number in (0, 1e6], got 1e300" -- "$tool" "${coarse[@]}" --set tools.rod.stiffness=1e300
 
 # --- Nodes so far from the origin that a position cannot hold the spacing ------------------------

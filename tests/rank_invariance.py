@@ -107,6 +107,10 @@ CASES = {
     "tool_tip_advance": ("blunt_tool.yaml",
                          ["bodies.sheet.spacing=0.0005", "stages.push.duration=4.0e-3", "output.frames=3",
                           "materials.film.tip_advance=0.0005"]),
+    # One tip for the whole body (tip_advance_tips: body): its latest break time reduced over ranks.
+    "tool_one_tip": ("blunt_tool.yaml",
+                     ["bodies.sheet.spacing=0.0005", "stages.push.duration=4.0e-3", "output.frames=3",
+                      "materials.film.tip_advance=0.0005", "materials.film.tip_advance_tips=body"]),
 }
 FIELDS = ("position", "velocity", "damage")
 UNBROKEN = {"fiber_network", "fiber_halo"}  # cases about pairs, too short for bonds to break

@@ -669,7 +669,8 @@ TEST(SceneErrors, UnknownKey) {
   EXPECT_EQ(error_of(with("density: 1200", "densty: 1200")),
             "scene.yaml:5: materials.rubber.densty: unknown key; expected one of: model, density, "
             "wave_speed, bulk_modulus, youngs_modulus, micromodulus, influence, critical_stretch, "
-            "critical_stretch_at_horizon, tip_advance, hardening, mooney_rivlin_a, mooney_rivlin_b, cutoff, fracture_separation, "
+            "critical_stretch_at_horizon, tip_advance, tip_advance_tips, hardening, mooney_rivlin_a, mooney_rivlin_b, cutoff, "
+      "fracture_separation, "
             "breaking, kelvin_viscosity, stiffening_onset, stiffening_width, break_separation");
   EXPECT_THAT(error_of(kBase + "outptu: {frames: 2}\n"),
               AllOf(StartsWith("scene.yaml:16: outptu: unknown key; expected one of: name, "),

@@ -91,6 +91,65 @@ TEST(TipAdvance, TipsAreTheNewestDamageOfAFamily) {
   EXPECT_EQ(count, 9);
 }
 
+// tip_advance_tips: body. Two cracks, one along y = 7.5 mm (x = 0.5 .. 4.5 mm, times 1 .. 5)
+// and one along y = 12.5 mm (x = 10.5 .. 14.5 mm, times 2 .. 6): by family each crack has its
+// tip; by body only the later crack's newest node is one, and nothing near the other crack may
+// break. Nodes broken in the same evaluation are all tips.
+TEST(TipAdvance, OneTipForTheBody) {
+  Grid g;
+  const std::size_t n = static_cast<std::size_t>(g.d().local());
+  std::vector<double> stamp(n, -kInf);
+  std::vector<std::int32_t> damaged;
+  auto at = [&](int crack, int k) { return g.node(0.0005 + 0.01 * crack + 0.001 * k, 0.0075 + 0.005 * crack); };
+  for (int crack = 0; crack < 2; ++crack)
+    for (int k = 0; k < 5; ++k) {
+      stamp[at(crack, k)] = 1.0 + crack + k;
+      damaged.push_back(at(crack, k));
+    }
+  const std::vector<std::uint8_t> by_body{1};
+  auto tips = [&](double now, bool body_scope) {
+    std::vector<std::uint8_t> tip(n, 0);
+    mark_crack_tips(g.view(), damaged, stamp.data(), now, tip.data());
+    if (body_scope) {
+      std::vector<double> latest(1, -kInf);
+      latest_breaks(damaged, g.d().body.data(), stamp.data(), now, by_body, latest);
+      mark_latest_tips(damaged, g.d().body.data(), stamp.data(), by_body, latest, tip.data());
+    }
+    return tip;
+  };
+  std::vector<std::uint8_t> tip = tips(100.0, false);
+  for (int crack = 0; crack < 2; ++crack)
+    for (int k = 0; k < 5; ++k) EXPECT_EQ(tip[at(crack, k)], k == 4 ? 1 : 0) << "family: crack " << crack << " node " << k;
+  tip = tips(100.0, true);
+  for (int crack = 0; crack < 2; ++crack)
+    for (int k = 0; k < 5; ++k)
+      EXPECT_EQ(tip[at(crack, k)], crack == 1 && k == 4 ? 1 : 0) << "body: crack " << crack << " node " << k;
+  // Before time 6 the first crack's tip (time 5) and the second's node at time 5 are both latest.
+  tip = tips(6.0, true);
+  for (int crack = 0; crack < 2; ++crack)
+    for (int k = 0; k < 5; ++k)
+      EXPECT_EQ(tip[at(crack, k)], (crack == 0 && k == 4) || (crack == 1 && k == 3) ? 1 : 0)
+          << "body, before 6: crack " << crack << " node " << k;
+  // Within r = 1.5 mm of the body's tip (14.5, 12.5) mm only: the first crack's tip (4.5, 7.5) mm
+  // may not break a bond.
+  tip = tips(100.0, true);
+  std::vector<std::uint8_t> allowed(n, 0);
+  mark_within(g.view(), g.d().owned, g.d().body.data(), damaged, {}, tip.data(), {0.0015 * 0.0015}, allowed.data());
+  int count = 0;
+  for (std::int32_t i = 0; i < g.d().owned; ++i) count += allowed[i];
+  EXPECT_EQ(count, 9);
+  EXPECT_EQ(allowed[at(1, 4)], 1);
+  EXPECT_EQ(allowed[at(0, 4)], 0);
+  // A body without the scope is left to the family rule.
+  const std::vector<std::uint8_t> family{0};
+  std::vector<double> latest(1, -kInf);
+  latest_breaks(damaged, g.d().body.data(), stamp.data(), 100.0, family, latest);
+  EXPECT_EQ(latest[0], -kInf);
+  tip = tips(100.0, false);
+  mark_latest_tips(damaged, g.d().body.data(), stamp.data(), family, latest, tip.data());
+  EXPECT_EQ(tip[at(0, 4)], 1);
+}
+
 // A pre-crack from the edge to x = 6 mm: a node pulled 0.2 mm off the line (bond strains up to
 // 20 times s_0) breaks bonds just ahead of the tip, not 10 mm ahead of it; without the rule it
 // breaks there too. A bond held intact acts as an intact bond.

@@ -115,7 +115,7 @@ LawEntry membrane_entry() {
   LawEntry e = make_law_entry<MembraneLaw>(
       "membrane", "rubbery membrane micropotential, eqs. (13), (15); failure at lambda_0 (eqs. 11, 22, 29)");
   e.stability_note = kMembraneStability;
-  e.material_keys = {"influence", "critical_stretch", "critical_stretch_at_horizon", "tip_advance", "hardening"};
+  e.material_keys = {"influence", "critical_stretch", "critical_stretch_at_horizon", "tip_advance", "tip_advance_tips", "hardening"};
   e.critical_problem = [](double x) -> std::string {
     if (!(x > 1)) return "the membrane model needs a critical stretch lambda_0 > 1";
     return strain_problem(x - 1, "expected a critical stretch lambda_0 >= 1 + 1e-10");
@@ -151,7 +151,7 @@ LawEntry pmb_entry() {
   e.stability_note =
       "keeps its bond stiffness at any strain, so its bound holds throughout; look for a tool pressed in faster "
       "than the sheet can follow, or a load that moves nodes a large part of the spacing per step";
-  e.material_keys = {"influence", "critical_stretch", "critical_stretch_at_horizon", "tip_advance"};
+  e.material_keys = {"influence", "critical_stretch", "critical_stretch_at_horizon", "tip_advance", "tip_advance_tips"};
   e.critical_problem = [](double x) -> std::string {
     if (!(x > 0)) return "the pmb model needs a critical bond strain s_0 > 0";
     return strain_problem(x, "expected a critical bond strain s_0 >= 1e-10");

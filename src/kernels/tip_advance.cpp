@@ -32,6 +32,22 @@ void mark_crack_tips(const BondView& v, const std::vector<std::int32_t>& damaged
   }
 }
 
+void latest_breaks(const std::vector<std::int32_t>& damaged, const int* body, const double* stamp, double now,
+                   const std::vector<std::uint8_t>& by_body, std::vector<double>& latest) {
+  for (std::int32_t i : damaged) {
+    const auto b = static_cast<std::size_t>(body[i]);
+    if (by_body[b] && stamp[i] < now && stamp[i] > latest[b]) latest[b] = stamp[i];
+  }
+}
+
+void mark_latest_tips(const std::vector<std::int32_t>& damaged, const int* body, const double* stamp,
+                      const std::vector<std::uint8_t>& by_body, const std::vector<double>& latest, std::uint8_t* tip) {
+  for (std::int32_t i : damaged) {
+    const auto b = static_cast<std::size_t>(body[i]);
+    if (by_body[b]) tip[i] = stamp[i] == latest[b] ? 1 : 0;
+  }
+}
+
 void mark_within(const BondView& v, std::int32_t owned, const int* body, const std::vector<std::int32_t>& marked_rows,
                  const std::vector<std::int32_t>& boundary_rows, const std::uint8_t* marked,
                  const std::vector<double>& radius2, std::uint8_t* out) {

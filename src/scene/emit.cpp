@@ -122,6 +122,7 @@ void emit_material(Writer& w, const Material& m) {
   w.optional(4, "critical_stretch", m.critical_stretch);
   w.optional(4, "critical_stretch_at_horizon", m.critical_stretch_at_horizon);
   w.optional(4, "tip_advance", m.tip_advance);
+  if (m.tip_advance_tips == TipScope::Body) w.key(4, "tip_advance_tips", std::string("body"));
   if (m.kelvin_viscosity > 0) w.key(4, "kelvin_viscosity", m.kelvin_viscosity);
   if (m.hardening) {
     w.key(4, "hardening",

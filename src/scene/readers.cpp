@@ -66,7 +66,8 @@ double critical_value(const Value& v, const MaterialModel& model) {
 /// stretch or hardening), and the breaking mode.
 Material read_marder_material(const Map& m, Material mat) {
   for (const char* key : {"wave_speed", "bulk_modulus", "youngs_modulus", "micromodulus", "influence",
-                          "critical_stretch", "critical_stretch_at_horizon", "hardening", "tip_advance"})
+                          "critical_stretch", "critical_stretch_at_horizon", "hardening", "tip_advance",
+                          "tip_advance_tips"})
     if (auto x = m.get(key))
       x->fail("not used by the marder model (its stiffness is mooney_rivlin_a, mooney_rivlin_b; its failure "
               "fracture_separation)");
@@ -106,7 +107,8 @@ Material read_material(const std::string& name, const Value& v) {
   if (info->lattice) return read_marder_material(m, std::move(mat));
   for (const char* key : kMarderKeys)
     if (auto x = m.get(key)) x->fail("only the marder model takes this key (model is " + mat.model + ")");
-  for (const char* key : {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening", "tip_advance"})
+  for (const char* key :
+       {"influence", "critical_stretch", "critical_stretch_at_horizon", "hardening", "tip_advance", "tip_advance_tips"})
     if (auto x = m.get(key); x && std::find(info->keys.begin(), info->keys.end(), key) == info->keys.end()) {
       std::vector<std::string> takers;
       for (const std::string& name : material_model_names())
@@ -144,6 +146,10 @@ Material read_material(const std::string& name, const Value& v) {
   if (auto x = m.get("tip_advance")) {
     if (!mat.critical_stretch) x->fail("requires critical_stretch (without failure no crack tip advances)");
     mat.tip_advance = x->positive("m");
+  }
+  if (auto x = m.get("tip_advance_tips")) {
+    if (!mat.tip_advance) x->fail("requires tip_advance (the rule whose crack tips it chooses)");
+    mat.tip_advance_tips = x->choice<TipScope>({{"family", TipScope::Family}, {"body", TipScope::Body}});
   }
   if (auto x = m.get("kelvin_viscosity")) mat.kelvin_viscosity = x->non_negative("m^2/s");
   if (auto x = m.get("hardening")) {

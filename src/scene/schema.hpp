@@ -78,6 +78,11 @@ inline const Keys kMaterialKeys = {
             "lies within this distance r > 0 of a crack-tip node, a damaged node whose family holds no node "
             "damaged later; without damage nothing breaks (crack from a pre-crack or notch); needs "
             "critical_stretch; r at most the horizon (checked at setup)"},
+    {.name = "tip_advance_tips", .fallback = "family",
+     .doc = "which damaged nodes are the crack tips of tip_advance: `family`, each damaged node whose family "
+            "holds no node damaged later (a tip for every crack; a branch that starts keeps growing); `body`, the "
+            "nodes of the body damaged at its latest break time (one tip for the whole body: a crack that stops "
+            "breaking while another breaks stays arrested); needs tip_advance"},
     {.name = "hardening", .fallback = "none",
      .doc = "power-law hardening of eq. (16), `{coefficient: c', exponent: n}` (`materials.<name>.hardening`); runs "
             "in the portable bond loop"},

@@ -102,11 +102,14 @@ Forces::Forces(const Scene& scene, const std::vector<BodyGeometry>& bodies, Doma
   lattice_setup(scene, bodies);
   dashpot_setup(scene, bodies);
   std::vector<double> tip_radius(nb, -1.0);
+  std::vector<std::uint8_t> tips_by_body(nb, 0);
   for (std::size_t b = 0; b < nb; ++b)
-    if (const Material& m = scene.material(scene.bodies[b].material); m.tip_advance && !marder_[b])
+    if (const Material& m = scene.material(scene.bodies[b].material); m.tip_advance && !marder_[b]) {
       tip_radius[b] = *m.tip_advance;
+      tips_by_body[b] = m.tip_advance_tips == TipScope::Body ? 1 : 0;
+    }
   if (std::any_of(tip_radius.begin(), tip_radius.end(), [](double r) { return r >= 0; }))
-    tip_advance_.emplace(tip_radius, domain_, state_);
+    tip_advance_.emplace(tip_radius, tips_by_body, domain_, state_);
   interior_plan_.resize(nb);
   boundary_plan_.resize(nb);
   PetscLogEventBegin(events().plans, 0, 0, 0, 0);

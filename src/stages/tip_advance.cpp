@@ -3,13 +3,15 @@
 #include <algorithm>
 #include <limits>
 #include <unordered_map>
+#include <utility>
 
 #include "peri/kernels/tip_advance.hpp"
 
 namespace peri {
 
-TipAdvance::TipAdvance(std::vector<double> radius, const Domain& domain, State& state)
-    : domain_(domain), state_(state) {
+TipAdvance::TipAdvance(std::vector<double> radius, std::vector<std::uint8_t> by_body, const Domain& domain,
+                       State& state)
+    : by_body_(std::move(by_body)), domain_(domain), state_(state) {
   for (double r : radius) radius2_.push_back(r >= 0 ? r * r : -1.0);
   for (std::int32_t i = 0; i < domain.owned; ++i)
     if (applies(domain.body[i])) rule_rows_.push_back(i);
@@ -29,6 +31,12 @@ void TipAdvance::prepare(const BondView& v, double now) {
   state_.exchange_ghosts(stamp_.data(), sizeof(double));
   std::fill(tip_.begin(), tip_.end(), std::uint8_t{0});
   mark_crack_tips(v, damaged_, stamp_.data(), now, tip_.data());
+  if (std::any_of(by_body_.begin(), by_body_.end(), [](std::uint8_t b) { return b != 0; })) {
+    std::vector<double> latest(by_body_.size(), -std::numeric_limits<double>::infinity());
+    latest_breaks(damaged_, domain_.body.data(), stamp_.data(), now, by_body_, latest);
+    MPI_Allreduce(MPI_IN_PLACE, latest.data(), static_cast<int>(latest.size()), MPI_DOUBLE, MPI_MAX, state_.comm());
+    mark_latest_tips(damaged_, domain_.body.data(), stamp_.data(), by_body_, latest, tip_.data());
+  }
   state_.exchange_ghosts(tip_.data(), 1);
   std::fill(allowed_.begin(), allowed_.end(), std::uint8_t{0});
   mark_within(v, domain_.owned, domain_.body.data(), damaged_, boundary_, tip_.data(), radius2_, allowed_.data());

@@ -11,6 +11,10 @@
 //     its flanks behind the tip are not (their neighbours towards the tip broke later); an
 //     arrested crack keeps its tip. Break times at or after the current evaluation's time do not
 //     count yet (a resumed run's first evaluation sees what the uninterrupted run saw).
+//     With tip_advance_tips: body the tip nodes are instead the body's nodes whose break time is
+//     the body's latest (before the current evaluation): one tip for the whole body, so a crack
+//     that stops breaking while another breaks is arrested for good unless the growing one
+//     reaches it.
 //  3. A node may break a bond when it lies, in the reference configuration, within r of a tip
 //     node (itself included).
 //  4. A bond reaching the law's failure test breaks only if one of its two ends may break; else
@@ -36,6 +40,16 @@ void stamp_breaks(const BondView& v, const std::int32_t* rows, std::size_t n, st
 /// `tip` are left as they are (the caller clears them).
 void mark_crack_tips(const BondView& v, const std::vector<std::int32_t>& damaged, const double* stamp, double now,
                      std::uint8_t* tip);
+
+/// latest[b] = max(latest[b], the latest break time before `now` of the rows of `damaged` of
+/// body b), for each b with by_body[b] (the rank's part of the body's latest break time).
+void latest_breaks(const std::vector<std::int32_t>& damaged, const int* body, const double* stamp, double now,
+                   const std::vector<std::uint8_t>& by_body, std::vector<double>& latest);
+
+/// For each row i of `damaged` whose body b has by_body[b]: tip[i] = 1 when its break time is
+/// latest[b] (the body's latest before the evaluation, over all ranks), else 0.
+void mark_latest_tips(const std::vector<std::int32_t>& damaged, const int* body, const double* stamp,
+                      const std::vector<std::uint8_t>& by_body, const std::vector<double>& latest, std::uint8_t* tip);
 
 /// out[i] = 1 for each owned node i within reference distance sqrt(radius2[body]) of a node
 /// marked in `marked` (local: owned and ghosts, ghosts current), i itself included: from the

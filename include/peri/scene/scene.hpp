@@ -22,6 +22,12 @@ namespace peri {
 using Vec3 = std::array<double, 3>;
 
 /// Influence function g(|xi|) of eq. (13).
+/// Which damaged nodes are crack tips under the incremental crack-tip advance (tip_advance).
+enum class TipScope {
+  Family,  ///< each damaged node whose family holds no node damaged later (a tip per crack)
+  Body,    ///< the body's nodes damaged at its latest break time (one tip for the whole body)
+};
+
 enum class Influence {
   Constant,  ///< g = 1
   Conical,   ///< g = 1 - |xi|/delta
@@ -74,6 +80,8 @@ struct Material {
   /// The incremental crack-tip advance of section 7.4 (kernels/tip_advance.hpp): a bond may break
   /// only where one of its ends lies within this distance [m] of a crack-tip node. Empty: off.
   std::optional<double> tip_advance;
+  /// Which damaged nodes are its crack tips (tip_advance_tips).
+  TipScope tip_advance_tips = TipScope::Family;
   /// Kinematic viscosity nu [m^2/s] of the peridynamic laws' bond dashpots
   /// (kernels/dashpots.hpp); 0: none. (The marder model keeps its own in MarderParams.)
   double kelvin_viscosity = 0;

@@ -15,12 +15,13 @@ namespace peri {
 
 class TipAdvance {
  public:
-  /// radius: per body, r [m] of its material's tip_advance, or negative (no rule).
-  TipAdvance(std::vector<double> radius, const Domain& domain, State& state);
+  /// radius: per body, r [m] of its material's tip_advance, or negative (no rule); by_body: per
+  /// body, 1 where its tips are the body's latest damage (tip_advance_tips: body).
+  TipAdvance(std::vector<double> radius, std::vector<std::uint8_t> by_body, const Domain& domain, State& state);
   bool applies(int body) const { return radius2_[static_cast<std::size_t>(body)] >= 0; }
   /// From the break times before `now`: the tip nodes, the nodes that may break (may_break()),
   /// and per body the owned rows with a bond that may break (rows()). Collective (three halo
-  /// exchanges).
+  /// exchanges, and a reduction of the latest break time where a body's tips are its latest).
   void prepare(const BondView& v, double now);
   const std::uint8_t* may_break() const { return allowed_.data(); }
   /// The owned rows of body b with a bond that may break, for the portable walk.
@@ -40,6 +41,7 @@ class TipAdvance {
 
  private:
   std::vector<double> radius2_;        // per body: r^2, or -1
+  std::vector<std::uint8_t> by_body_;  // per body: tips are the body's latest damage
   const Domain& domain_;
   State& state_;
   std::vector<std::int32_t> rule_rows_;  // owned rows of rule bodies
