@@ -80,7 +80,8 @@ scene.resolved.yaml, summary.json (written last: its presence marks a complete r
 checkpoint.h5 (+ checkpoint.prev.h5) every output.checkpoint_every_steps / _seconds.
 SIGTERM or SIGINT to a rank: all ranks write a final checkpoint and stop (a second signal ends at
 once); while the scene is read or the run set up (and in --dry-run) they stop at once, writing
-nothing. mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
+nothing; in a quasi-static stage, at its next load increment, with DIR/FAILED (no checkpoint
+part-way through a stage). mpirun forwards SIGTERM to the ranks but sends SIGKILL 1 s later (Open MPI's
 odls_base_sigkill_timeout). Ranks started by mpirun end at once (SIGKILL) if mpirun dies.
 exit status: 0 success, 2 invalid input (command line, scene, output directory, checkpoint;
 nothing written), 3 failure during the run (numerical, or output that cannot be written, e.g. on a
@@ -310,6 +311,12 @@ int main(int argc, char** argv) {
         for (const std::string& path : later) std::remove(path.c_str());  // as the frames after the step
         try {
           sim.run();
+        } catch (const peri::StopRequested& e) {  // (a quasi-static stage stopped part-way)
+          try {
+            if (rank == 0) peri::write_text_file(opt.out_dir + "/FAILED", std::string(e.what()) + "\n");
+          } catch (const peri::Error&) {
+          }
+          throw;
         } catch (const peri::RuntimeFailure& e) {
           try {  // (on a full disk the marker may not fit either: the message below still says why)
             if (rank == 0) peri::write_text_file(opt.out_dir + "/FAILED", std::string(e.what()) + "\n");

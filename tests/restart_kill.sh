@@ -8,6 +8,8 @@
 #  sigterm   SIGTERM to one rank: all ranks write a final checkpoint, exit status 5, no summary.json;
 #            --resume ends identical to the uninterrupted run
 #  one_rank  the 2-rank SIGTERM checkpoint resumed on 1 rank: final positions within 1e-12 relative
+#  quasistatic  SIGTERM to one rank in a quasi-static stage: all stop before the next increment,
+#            exit status 5, DIR/FAILED names the stage, no summary.json
 #  refusals  truncated, bit-flipped and wrong-version checkpoints: exit status 2, one message, the
 #            run's outputs untouched
 # usage: restart_kill.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
@@ -255,6 +257,30 @@ open('$ck', 'wb').write(b)"
   refuse foreign "checkpoint '$ck': not a peridrive checkpoint" "b[:] = open('$work/ref/frames.h5', 'rb').read()"
 else
   bad "sigterm: the run ended before its second checkpoint"; cat "$work/term.log"
+fi
+
+# --- quasistatic -------------------------------------------------------------------------------
+# fig3_damage_stress: two quasi-static stages (3800 nodes), the second of 1000 increments.
+qs=$work/qs
+"${mpi[@]}" -n 2 "$peridrive" "$src/drivers/scenes/fig3_damage_stress.yaml" --quiet --out "$qs" > "$qs.log" 2>&1 &
+run_pid=$!
+for _ in $(seq 1 3000); do
+  [ "$(grep -c ',stretch,' "$qs/quasistatic.csv" 2> /dev/null)" -ge 2 ] && break
+  kill -0 "$run_pid" 2> /dev/null || break
+  sleep 0.02
+done
+rows=$(grep -c ',stretch,' "$qs/quasistatic.csv" 2> /dev/null)
+SECONDS=0
+kill -TERM $(ranks_of "$run_pid" | head -1)
+wait "$run_pid"
+rc=$? took=$SECONDS
+after=$(grep -c ',stretch,' "$qs/quasistatic.csv" 2> /dev/null)
+if [ "$rc" -eq 5 ] && [ ! -e "$qs/summary.json" ] && [ "$took" -le 30 ] &&
+   grep -q "stopped by signal 15 in quasi-static stage 'stretch'" "$qs/FAILED" &&
+   [ "$(grep -c 'stopped by signal 15' "$qs.log")" -eq 1 ]; then
+  ok "quasistatic: stopped $took s after SIGTERM at increment $after of the stage (signalled at $rows), status 5, FAILED"
+else
+  bad "quasistatic: exit status $rc after $took s, $rows..$after increments"; cat "$qs.log"; cat "$qs/FAILED" 2> /dev/null
 fi
 
 echo "$pass passed, $fail failed"

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "peri/core/error.hpp"
+#include "peri/io/restart.hpp"
 
 namespace peri {
 namespace {
@@ -385,6 +386,19 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
   long attempts = 0;
   std::vector<double> target(n, 0.0), predicted(n);
   while (load < 1.0) {
+    // A stop signal (SIGTERM, SIGINT) on any rank ends the stage between solves, all ranks
+    // together: the stage has no checkpoint part-way, and a scheduler's SIGKILL follows soon.
+    {
+      int mine = stop_signal(), any = 0;
+      MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, comm_);
+      if (any != 0) {
+        std::ostringstream msg;
+        msg << "stopped by signal " << any << " in quasi-static stage '" << stage_.name << "' at load factor "
+            << fmt(load) << " (" << stats.increments.size() << " increments converged); a quasi-static stage is "
+            << "not checkpointed part-way: resume from a checkpoint written before it, or run again";
+        throw StopRequested(msg.str());
+      }
+    }
     if (++attempts > stage_.max_load_steps) {
       std::ostringstream msg;
       msg << stage_.where.str() << ": quasi-static stage '" << stage_.name << "' reached load factor " << fmt(load)
