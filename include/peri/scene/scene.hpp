@@ -21,13 +21,13 @@ namespace peri {
 
 using Vec3 = std::array<double, 3>;
 
-/// Influence function g(|xi|) of eq. (13).
 /// Which damaged nodes are crack tips under the incremental crack-tip advance (tip_advance).
 enum class TipScope {
   Family,  ///< each damaged node whose family holds no node damaged later (a tip per crack)
   Body,    ///< the body's nodes damaged at its latest break time (one tip for the whole body)
 };
 
+/// Influence function g(|xi|) of eq. (13).
 enum class Influence {
   Constant,  ///< g = 1
   Conical,   ///< g = 1 - |xi|/delta
