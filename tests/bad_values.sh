@@ -417,6 +417,13 @@ rc=$?
 if [ "$rc" -eq 0 ] && [ -n "$factor" ] && ! grep -q "long_range.pairs" "$work/stderr"; then
   ok "pair_contact_advice: safety_factor $factor runs, no warning"
 else bad "pair_contact_advice: safety_factor '$factor': exit status $rc"; fi
+# An exclusion that holds every pair a rule applies to: the rule never acted, and the run went on
+# without it (an exclusion longer than two segments; segments of one node each at the scene's
+# exclusion of 2e-9 m).
+expect exclusion_longer_than_segments "--set: long_range.exclusion: every pair of nodes that long_range.pairs.1 (between: adjacent_segments" -- "$ends" --set long_range.exclusion=3e-8
+exclusion_line=$(grep -n -m1 '^  exclusion:' "$ends" | cut -d: -f1)
+adjacent_line=$(grep -n -m1 'between: adjacent_segments' "$ends" | cut -d: -f1)
+expect exclusion_one_node_segments "$ends:$exclusion_line: long_range.exclusion: every pair of nodes that long_range.pairs.1 (between: adjacent_segments, $ends:$adjacent_line) applies to lies closer than the exclusion, 2e-09 m" -- "$ends" --set bodies.fiber.segment_length=5e-10
 "$peridrive" "$ends" --dry-run > "$work/stdout" 2> "$work/stderr"
 if [ $? -eq 0 ] && ! grep -q "long_range.pairs" "$work/stderr"; then ok "pair_contact_paper: no warning"
 else bad "pair_contact_paper: a warning for the paper's parameters"; fi

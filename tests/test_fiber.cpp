@@ -520,6 +520,54 @@ TEST(LongRange, SegmentsRuleIndicesWithinTheFiber) {
   }
 }
 
+// An exclusion that holds every pair a rule applies to is refused at setup, naming the rule; one
+// pair at the exclusion or beyond lets the rule act.
+TEST(LongRange, ExclusionThatHoldsEveryPairOfARule) {
+  LongRangeTable t;
+  for (int k = 0; k < 40; ++k) {  // fiber 0 along x, fiber 1 parallel 100 nm away; segments of 4 nodes
+    t.natural.push_back(k);
+    t.fiber.push_back(k / 20);
+    t.segment.push_back((k % 20) / 4);
+    t.X.insert(t.X.end(), {(k % 20) * 1e-9, k < 20 ? 0.0 : 1e-7, 0});
+    t.volume.push_back(1e-27);
+  }
+  LongRange spec = long_range_spec();
+  spec.where = {"scene.yaml", 3};
+  spec.exclusion = 6.9e-9;  // adjacent segments' nodes lie up to 7 nm apart
+  EXPECT_NO_THROW(check_exclusion(spec, PairLaw(spec), t));
+  spec.exclusion = 7.1e-9;
+  spec.exclusion_where = {"scene.yaml", 5};
+  try {
+    check_exclusion(spec, PairLaw(spec), t);
+    ADD_FAILURE() << "an adjacent_segments rule that never acts accepted";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "scene.yaml:5: long_range.exclusion: every pair of nodes that long_range.pairs.0 "
+                           "(between: adjacent_segments) applies to lies closer than the exclusion, 7.1e-09 m, "
+                           "in the reference configuration, so the rule never acts; expected an exclusion shorter "
+                           "than the distance between the nodes it should pull or push (about the fibers' horizon)");
+  }
+  // A segments rule: segments 0 and 1 (7 nm apart at most) under the default exclusion.
+  spec.pairs.erase(spec.pairs.begin());
+  PairRule r{{"scene.yaml", 9}, PairKind::Segments, 1, 1};
+  r.segments[0] = 1;
+  r.segments[1] = 0;
+  spec.pairs.push_back(r);
+  spec.exclusion_where = {};
+  try {
+    check_exclusion(spec, PairLaw(spec), t);
+    ADD_FAILURE() << "a segments rule that never acts accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("scene.yaml:3: long_range.exclusion: every pair of nodes that long_range.pairs.3 (between: "
+                         "segments [1, 0], scene.yaml:9) applies to lies closer than the exclusion, 7.1e-09 m (the "
+                         "default: the largest fiber horizon)", 0), 0u) << what;
+  }
+  spec.pairs.back().segments[1] = 3;  // 1 and 3: up to 11 nm apart, it acts
+  EXPECT_NO_THROW(check_exclusion(spec, PairLaw(spec), t));
+  spec.exclusion = 1e-6;  // every rule's pairs, the other fibers' included
+  EXPECT_THROW(check_exclusion(spec, PairLaw(spec), t), InputError);
+}
+
 }  // namespace
 }  // namespace peri
 

@@ -2,12 +2,14 @@
 
 #include "peri/bonds/bonds.hpp"
 #include "peri/core/error.hpp"
+#include "peri/core/format.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <sstream>
 #include <type_traits>
 
 namespace peri {
@@ -148,6 +150,95 @@ void check_segment_rules(const LongRange& spec, const LongRangeTable& table) {
     why += std::string(count == 1 ? ": segment_length 0 or longer than the fiber" : "") + "), got [" +
            std::to_string(r.segments[0]) + ", " + std::to_string(r.segments[1]) + "]";
     throw InputError(why);
+  }
+}
+
+namespace {
+
+/// A run of table nodes of one fiber and one segment, with its reference bounding box.
+struct SegmentRun {
+  std::int64_t begin, end;
+  std::array<double, 3> lo, hi;
+};
+
+std::string rule_text(const PairRule& r) {
+  switch (r.between) {
+    case PairKind::AdjacentSegments: return "adjacent_segments";
+    case PairKind::DistantSegments: return "distant_segments";
+    case PairKind::OtherFibers: return "other_fibers";
+    case PairKind::Segments:
+      return "segments [" + std::to_string(r.segments[0]) + ", " + std::to_string(r.segments[1]) + "]";
+  }
+  return "";
+}
+
+}  // namespace
+
+void check_exclusion(const LongRange& spec, const PairLaw& law, const LongRangeTable& table) {
+  if (!(law.exclusion > 0)) return;
+  const double excl2 = law.exclusion * law.exclusion;
+  std::vector<SegmentRun> runs;
+  for (std::int64_t p = 0; p < table.size(); ++p) {
+    if (runs.empty() || table.fiber[p] != table.fiber[runs.back().begin] ||
+        table.segment[p] != table.segment[runs.back().begin])
+      runs.push_back({p, p, {INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}});
+    SegmentRun& run = runs.back();
+    run.end = p + 1;
+    for (int d = 0; d < 3; ++d) {
+      run.lo[d] = std::min(run.lo[d], table.X[3 * p + d]);
+      run.hi[d] = std::max(run.hi[d], table.X[3 * p + d]);
+    }
+  }
+  auto dist2 = [&](std::int64_t p, std::int64_t q) {
+    return std::pow(table.X[3 * q] - table.X[3 * p], 2) + std::pow(table.X[3 * q + 1] - table.X[3 * p + 1], 2) +
+           std::pow(table.X[3 * q + 2] - table.X[3 * p + 2], 2);
+  };
+  // Per rule in effect: 0 applies to no pair, 1 to pairs all excluded, 2 to a pair that may act.
+  std::vector<int> seen(static_cast<std::size_t>(law.rules()), 0);
+  std::size_t open = 0;  // rules not yet known to act
+  for (int k = 0; k < law.rules(); ++k) open += (k >= 3 || law.acts[k]) ? 1 : 0;
+  for (std::size_t a = 0; a < runs.size() && open > 0; ++a)
+    for (std::size_t b = a + 1; b < runs.size() && open > 0; ++b) {
+      const SegmentRun &A = runs[a], &B = runs[b];
+      const int rule = law.rule_of(table, A.begin, B.begin);
+      if (rule < 0 || seen[static_cast<std::size_t>(rule)] == 2) continue;
+      seen[static_cast<std::size_t>(rule)] = 1;
+      double far2 = 0;  // the largest distance the two boxes allow
+      for (int d = 0; d < 3; ++d) far2 += std::pow(std::max(A.hi[d] - B.lo[d], B.hi[d] - A.lo[d]), 2);
+      if (far2 < excl2) continue;
+      bool acts = dist2(A.begin, B.end - 1) >= excl2 || dist2(A.end - 1, B.begin) >= excl2 ||
+                  dist2(A.begin, B.begin) >= excl2 || dist2(A.end - 1, B.end - 1) >= excl2;
+      for (std::int64_t p = A.begin; p < A.end && !acts; ++p)
+        for (std::int64_t q = B.begin; q < B.end && !acts; ++q) acts = dist2(p, q) >= excl2;
+      if (acts) {
+        seen[static_cast<std::size_t>(rule)] = 2;
+        --open;
+      }
+    }
+  for (int k = 0; k < law.rules(); ++k) {
+    if (seen[static_cast<std::size_t>(k)] != 1) continue;
+    // The scene's rule behind rule k in effect: the first of its kind, or of its pair of segments.
+    std::int32_t lo = -1, hi = -1;
+    for (const PairLaw::SegmentPair& sp : law.segment_pairs)
+      if (sp.rule == k) lo = sp.lo, hi = sp.hi;
+    std::size_t r = 0;
+    for (; r + 1 < spec.pairs.size(); ++r) {
+      const PairRule& pr = spec.pairs[r];
+      if (k < 3 ? pr.between == static_cast<PairKind>(k)
+                : pr.between == PairKind::Segments && std::min(pr.segments[0], pr.segments[1]) == lo &&
+                      std::max(pr.segments[0], pr.segments[1]) == hi)
+        break;
+    }
+    const PairRule& pr = spec.pairs[r];
+    const SourceLoc& at = spec.exclusion_where.file.empty() ? spec.where : spec.exclusion_where;
+    std::ostringstream msg;
+    msg << at.str() << ": long_range.exclusion: every pair of nodes that long_range.pairs." << r << " (between: "
+        << rule_text(pr) << (pr.where.file.empty() ? "" : ", " + pr.where.str()) << ") applies to lies closer than the exclusion, "
+        << number_text(law.exclusion) << " m"
+        << (spec.exclusion_where.file.empty() ? " (the default: the largest fiber horizon)" : "")
+        << ", in the reference configuration, so the rule never acts; expected an exclusion shorter than the "
+        << "distance between the nodes it should pull or push (about the fibers' horizon)";
+    throw InputError(msg.str());
   }
 }
 

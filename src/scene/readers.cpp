@@ -619,7 +619,10 @@ LongRange read_long_range(const Value& v, const std::vector<Body>& bodies) {
   // Default: the largest fiber horizon (bonded neighbours do not also interact at long range).
   for (const Body& b : bodies)
     if (b.kind->traits.long_range) lr.exclusion = std::max(lr.exclusion, b.horizon_value());
-  if (auto x = m.get("exclusion")) lr.exclusion = x->non_negative("m");
+  if (auto x = m.get("exclusion")) {
+    lr.exclusion = x->non_negative("m");
+    lr.exclusion_where = x->where();
+  }
   const Value pairs = m.at("pairs");
   const std::vector<Value> rules = pairs.list("a list of pair rules {between, alpha, beta}");
   if (rules.empty()) pairs.fail("expected at least one pair rule {between, alpha, beta}, got an empty list");

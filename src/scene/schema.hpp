@@ -145,7 +145,7 @@ inline const Keys kLongRangeKeys = {
             "positions"},
     {.name = "exclusion", .unit = "m", .fallback = "the largest fiber horizon",
      .doc = ">= 0: pairs closer than this in the reference configuration (neighbours in one continuous body) do "
-            "not interact"},
+            "not interact; refused at setup when it holds every pair a rule applies to (the rule would never act)"},
     {.name = "pairs", .required = true, .what = "list of pair rules {between, alpha, beta}",
      .doc = "non-empty list of rules (`long_range.pairs[i]`); a segments rule applies to its pair of segments, "
             "otherwise the first rule of a pair's kind applies; nodes of one segment never interact, a pair no "

@@ -47,6 +47,7 @@ void LongRangeForces::refresh(const double* X, const double* u) {
 LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm) {
   LongRangeForces lr(PairLaw(*scene.long_range), long_range_table(nodes), comm);
   check_segment_rules(*scene.long_range, lr.table);
+  check_exclusion(*scene.long_range, lr.law, lr.table);
   for (std::int32_t i = 0; i < domain.owned; ++i) {
     const std::int64_t p = lr.table.index_of(domain.natural[i]);
     if (p < 0) continue;

@@ -119,6 +119,13 @@ std::vector<PairContactStep> pair_contact_steps(const Scene& scene);
 /// segment of any of the table's fibers.
 void check_segment_rules(const LongRange& spec, const LongRangeTable& table);
 
+/// Refuses (InputError naming long_range.exclusion and the rule) a rule in effect whose every
+/// pair of nodes lies closer than the exclusion in the reference configuration, so that it would
+/// never act (an exclusion as long as the fiber, or as the distance between two named segments).
+/// The rule of a pair depends only on the two nodes' fibers and segments: the table's runs of one
+/// (fiber, segment) are compared two by two, by their bounding boxes first.
+void check_exclusion(const LongRange& spec, const PairLaw& law, const LongRangeTable& table);
+
 /// The nodes a rank's pairs read: its rows and their possible partners, each with its table
 /// index, current position and measure.
 struct PairNodes {

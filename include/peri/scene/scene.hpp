@@ -434,6 +434,7 @@ struct LongRange {
   double length = 0.0;     ///< a [m] (> 0)
   double cutoff = 0.0;     ///< largest current distance of an interacting pair [m] (> 0), unless a rule sets its own
   double exclusion = 0.0;  ///< [m] (>= 0)
+  SourceLoc exclusion_where;  ///< where `exclusion` was given (empty file: the default, the largest fiber horizon)
   /// A segments rule applies to its pair of segments whatever its place; otherwise the first rule
   /// of a pair's kind wins; a pair no rule matches does not interact.
   std::vector<PairRule> pairs;
