@@ -660,7 +660,20 @@ void check_initial_state(const Problem& p) {
     for (std::size_t k = 0; k < nt; ++k) {
       const Tool& t = scene.tools[k];
       const double speed = std::hypot(t.velocity[0], t.velocity[1], t.velocity[2]);
-      if (!(speed * dt <= per_step * finest)) refuse(t.where.str() + ": tools." + std::to_string(k) + ".velocity", speed, finest);
+      const std::string key = t.where.str() + ": tools." + std::to_string(k) + ".velocity";
+      if (!(speed * dt <= per_step * finest)) refuse(key, speed, finest);
+      // Whatever motion_per_step allows: a tool that passes a node by more than its radius in one
+      // step pushes it out of its far side (the penalty acts along the normal from the axis), so
+      // the tool tunnels through the body. Half the radius at most.
+      if (!(speed * dt <= 0.5 * t.radius)) {
+        std::ostringstream msg;
+        msg << key << ": " << num(speed) << " m/s moves tool '" << t.name << "' " << num(speed * dt)
+            << " m in one step of stage '" << st.name << "' (dt = " << num(dt) << " s), more than half its radius of "
+            << num(t.radius) << " m: nodes it passes by more than its radius are pushed out of its far side and the "
+               "tool tunnels through the body, whatever stability.motion_per_step allows; expected a speed of at most "
+            << num(0.5 * t.radius / dt) << " m/s";
+        throw InputError(msg.str());
+      }
     }
     first = false;
   }
