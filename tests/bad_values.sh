@@ -139,7 +139,7 @@ expect tool_velocity_huge "tools.0.velocity: 1e+300 m/s moves nodes 1.1156e+294 
 # A tool that jumps past nodes by more than its radius in one step tunnels through the sheet (it
 # broke 8607 bonds in 8 steps at 30 km/s with motion_per_step 100): refused whatever
 # motion_per_step allows.
-expect tool_tunnels "tools.0.velocity: 30000 m/s moves tool 'rod' 0.00836747 m in one step of stage 'push' (dt = 2.78916e-07 s), more than half its radius of 0.0015 m" -- "$tool" --set 'tools.rod.velocity=[30000, 0]' --set stability.motion_per_step=100
+expect tool_tunnels "tools.0.velocity: 30000 m/s moves tool 'rod' 0.00836747 m in one step of stage 'push' (dt = 2.78916e-07 s), more than its radius 0.0015 m" -- "$tool" --set 'tools.rod.velocity=[30000, 0]' --set stability.motion_per_step=100
 
 # --- Tools that start inside the body: refused, not an instability 10 steps later -----------------
 expect cylinder_inside "tools.0.center: tool 'rod' (cylinder of radius 0.0015 m) holds 4 nodes at t = 0, the deepest 0.000792893 m inside; expected a tool that starts clear of the body" -- "$tool" "${coarse[@]}" --set 'tools.rod.center=[0.01, 0.01]'

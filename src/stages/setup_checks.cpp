@@ -662,16 +662,17 @@ void check_initial_state(const Problem& p) {
       const double speed = std::hypot(t.velocity[0], t.velocity[1], t.velocity[2]);
       const std::string key = t.where.str() + ": tools." + std::to_string(k) + ".velocity";
       if (!(speed * dt <= per_step * finest)) refuse(key, speed, finest);
-      // Whatever motion_per_step allows: a tool that passes a node by more than its radius in one
-      // step pushes it out of its far side (the penalty acts along the normal from the axis), so
-      // the tool tunnels through the body. Half the radius at most.
-      if (!(speed * dt <= 0.5 * t.radius)) {
+      // Whatever motion_per_step allows: a tool that moves more than its radius in one step takes
+      // a node at its leading face past its axis (or centre), and the penalty, along the normal
+      // from there, pushes the node out of its far side: the tool tunnels through the body.
+      if (!(speed * dt <= t.radius)) {
         std::ostringstream msg;
         msg << key << ": " << num(speed) << " m/s moves tool '" << t.name << "' " << num(speed * dt)
-            << " m in one step of stage '" << st.name << "' (dt = " << num(dt) << " s), more than half its radius of "
-            << num(t.radius) << " m: nodes it passes by more than its radius are pushed out of its far side and the "
-               "tool tunnels through the body, whatever stability.motion_per_step allows; expected a speed of at most "
-            << num(0.5 * t.radius / dt) << " m/s";
+            << " m in one step of stage '" << st.name << "' (dt = " << num(dt) << " s), more than its radius "
+            << num(t.radius) << " m: nodes at its leading face are taken past its axis and pushed out of its far side, "
+               "and the tool tunnels through the body, whatever stability.motion_per_step allows; expected a speed of "
+               "at most "
+            << num(t.radius / dt) << " m/s";
         throw InputError(msg.str());
       }
     }
