@@ -176,6 +176,8 @@ class QuasiStaticLoader {
   // jacobian: mf_operator: a tangent is held (cleared by a new stage and by broken bonds), and the
   // linear iterations of the first solve after it was assembled (-1: that solve is still to come).
   bool have_tangent_ = false;
+  bool reuse_allowed_ = true;  // cleared for the rest of a stage by a failed solve that kept a tangent
+  bool reused_ = false;        // the last solve kept a tangent for some Newton iteration
   PetscInt fresh_iterations_ = -1;
   PetscInt max_linear_iterations_ = 1000;  // the Krylov limit with a fresh tangent
 };
