@@ -139,6 +139,9 @@ class QuasiStaticLoader {
  private:
   static PetscErrorCode form_function(SNES, Vec x, Vec f, void* ctx);
   static PetscErrorCode form_jacobian(SNES, Vec x, Mat J, Mat P, void* ctx);
+  static PetscErrorCode converged_or_stagnated(SNES, PetscInt it, PetscReal xnorm, PetscReal snorm, PetscReal fnorm,
+                                               SNESConvergedReason* reason, void* ctx);
+  std::string reason_text(int reason) const;  // SNESConvergedReasons, or the stagnation's
   /// Prescribed values (3 per owned node; components that are no unknowns take theirs in full_).
   void set_targets(const std::vector<double>& target);
   /// The model's displacement (3 per owned node) with the unknowns from `x` and the other
@@ -178,6 +181,9 @@ class QuasiStaticLoader {
   bool have_tangent_ = false;
   bool reuse_allowed_ = true;  // cleared for the rest of a stage by a failed solve that kept a tangent
   bool reused_ = false;        // the last solve kept a tangent for some Newton iteration
+  bool stagnated_ = false;     // the last solve stopped by converged_or_stagnated
+  bool stagnation_test_ = true;  // converged_or_stagnated may stop a solve (not after bonds broke)
+  std::vector<PetscReal> norms_;  // the residual norms of the current solve's Newton iterations
   PetscInt fresh_iterations_ = -1;
   PetscInt max_linear_iterations_ = 1000;  // the Krylov limit with a fresh tangent
 };

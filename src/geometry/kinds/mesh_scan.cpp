@@ -41,7 +41,11 @@ struct Corner {
   double x[3];
 };
 std::string corner_text(const Corner& c) {
-  return "(" + format_number(c.x[0]) + ", " + format_number(c.x[1]) + ", " + format_number(c.x[2]) + ")";
+  // Appended, not "(" + ...: GCC 12 warns of a false -Wstringop-overflow on operator+(const char*, string&&).
+  std::string s = "(";
+  s.append(format_number(c.x[0])).append(", ").append(format_number(c.x[1])).append(", ");
+  s.append(format_number(c.x[2])).append(")");
+  return s;
 }
 // Throws `fail(what)` for a facet whose corners Gmsh would drop it for.
 template <class Fail>
