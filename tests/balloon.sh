@@ -17,7 +17,7 @@
 # radius gives the applied pressure within 6% (4.5% measured: the horizon-3 discretization's
 # stiffness error, amplified in lambda near the maximum). Past the maximum (10 MPa, 10 mm spacing)
 # the stage stops (exit 3, FAILED, no summary.json) naming the load factor it cannot pass, known to
-# 1e-5 of the load: the discrete sphere's largest pressure, within 8% below eq. (19)'s maximum
+# 1e-5 of the load, and the pressure there (2 ranks: the same load factor, one message): the discrete sphere's largest pressure, within 8% below eq. (19)'s maximum
 # (6.121 MPa measured, 4.7% below; 8 MPa gives the same 6.121 MPa).
 # usage: balloon.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -eu
@@ -47,6 +47,9 @@ echo $? > "$tmp/touch.rc"
 "$peridrive" "$src/drivers/scenes/balloon_preload.yaml" --out "$tmp/qs_limit" --quiet --set bodies.balloon.spacing=0.01 \
   --set bodies.balloon.pressure=1.0e7 --set stages.1.duration=1.0e-6 2> "$tmp/limit.err"
 echo $? > "$tmp/limit.rc"
+"$mpiexec" -n 2 "$@" "$peridrive" "$src/drivers/scenes/balloon_preload.yaml" --out "$tmp/qs_limit2" --quiet \
+  --set bodies.balloon.spacing=0.01 --set bodies.balloon.pressure=1.0e7 --set stages.1.duration=1.0e-6 2> "$tmp/limit2.err"
+echo $? > "$tmp/limit2.rc"
 set -e
 /usr/bin/python3 - "$tmp" <<'PY'
 import json, sys, h5py, numpy as np
@@ -124,16 +127,24 @@ check("a tool the inflation reaches stops the run", rc == 3 and "tool 'fragment'
 import os, re
 rc = int(open(f"{tmp}/limit.rc").read())
 err = next((l for l in open(f"{tmp}/limit.err").read().splitlines() if "error:" in l), "(no error line)")
-m = re.search(r"cannot pass load factor ([0-9.e+-]+): Newton diverged .* at every load step down to ([0-9.e+-]+) ", err)
+m = re.search(r"cannot pass load factor ([0-9.e+-]+) \(the pressure in body 'balloon' ([0-9.e+-]+) Pa\): "
+              r"Newton diverged .* at every load step down to ([0-9.e+-]+) ", err)
 pmax = 2 * mu * h * (5 ** 0.25 - 5 ** -0.75) / (R * 5 ** 0.5)  # eq. (19)'s maximum, at lambda = 5^(1/4)
 rows = list(csv.DictReader(open(f"{tmp}/qs_limit/quasistatic.csv")))
 plim = float(m.group(1)) * 1.0e7 if m else float("nan")
 check("past the pressure's maximum: the limit point named",
-      rc == 3 and m is not None and 0.92 < plim / pmax < 1.0 and float(m.group(2)) < 1e-5
+      rc == 3 and m is not None and 0.92 < plim / pmax < 1.0 and float(m.group(3)) < 1e-5
+      and abs(float(m.group(2)) / plim - 1) < 1e-6
       and abs(float(rows[-1]["load_factor"]) - float(m.group(1))) < 1e-6
       and os.path.exists(f"{tmp}/qs_limit/FAILED") and not os.path.exists(f"{tmp}/qs_limit/summary.json"),
       f"exit {rc}: held {plim / 1e6:.3f} MPa at most, eq. (19)'s maximum {pmax / 1e6:.3f} MPa (band 0.92-1); "
       f"last converged load factor {rows[-1]['load_factor']}; {err[:240]}")
+rc2 = int(open(f"{tmp}/limit2.rc").read())
+errs2 = [l for l in open(f"{tmp}/limit2.err").read().splitlines() if "error:" in l]
+m2 = re.search(r"cannot pass load factor ([0-9.e+-]+) ", errs2[0]) if errs2 else None
+check("the limit point on 2 ranks", rc2 == 3 and len(errs2) == 1 and m is not None and m2 is not None
+      and abs(float(m2.group(1)) - float(m.group(1))) < 1e-6,
+      f"exit {rc2}, {len(errs2)} error line(s), load factor {m2.group(1) if m2 else None} against {m.group(1) if m else None}")
 print(f"{sum(checks)} passed, {len(checks) - sum(checks)} failed")
 sys.exit(0 if all(checks) else 1)
 PY

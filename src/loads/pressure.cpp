@@ -1,6 +1,7 @@
 #include "peri/loads/pressure.hpp"
 
 #include <algorithm>
+#include <sstream>
 #include <unordered_map>
 #include <utility>
 
@@ -32,6 +33,7 @@ Pressure::Pressure(const Scene& scene, const std::vector<BodyGeometry>& bodies, 
       }
       if (met) load.corners.push_back({at[0], at[1], at[2]});
     }
+    load.body = body.name;
     load.pressure = body.pressure;
     load.ramp = body.pressure_ramp_time;
     auto bond_to = [&](std::int32_t i, std::int32_t j) -> std::int64_t {
@@ -68,6 +70,16 @@ void Pressure::begin_quasistatic(double t) {
 
 void Pressure::set_quasistatic_level(double level) {
   for (Sphere& load : loads_) load.held = load.held_from + level * (load.pressure - load.held_from);
+}
+
+std::string Pressure::quasistatic_text(double level) const {
+  // (every rank holds every loaded body's entry, with or without owned corners)
+  std::ostringstream s;
+  s.precision(7);
+  for (const Sphere& load : loads_)
+    s << (s.tellp() > 0 ? ", " : "") << "the pressure in body '" << load.body << "' "
+      << load.held_from + level * (load.pressure - load.held_from) << " Pa";
+  return s.str();
 }
 
 void Pressure::add_stiffness(const LoadTarget& target, const StiffnessSink& sink) const {

@@ -510,8 +510,9 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
       // 231 s to a floor of 1e-9 without the stagnation test, 37 in 85 s to this one with it.
       if (step < 1e-6) {
         std::ostringstream msg;
+        const std::string loads = model.load_text(load);
         msg << stage_.where.str() << ": quasi-static stage '" << stage_.name << "' cannot pass load factor "
-            << fmt(load, 7) << ": Newton diverged (" << reason_text(reason) << ") at every load step down to "
+            << fmt(load, 7) << (loads.empty() ? "" : " (" + loads + ")") << ": Newton diverged (" << reason_text(reason) << ") at every load step down to "
             << fmt(step * 2) << " of the stage's load; likely cause: a limit point (the largest load the "
             << "body holds on this path, e.g. an inflated membrane's pressure maximum: past it there is no "
             << "equilibrium; a dynamic stage shows what follows) or a loss of stiffness (e.g. all bonds of "

@@ -55,6 +55,14 @@ void ProblemEquilibrium::set_load_level(double level) {
     if (load->quasistatic()) load->set_quasistatic_level(level);
 }
 
+std::string ProblemEquilibrium::load_text(double level) const {
+  std::string text;
+  for (const auto& load : p_.loads)
+    if (load->quasistatic())
+      if (const std::string t = load->quasistatic_text(level); !t.empty()) text += (text.empty() ? "" : ", ") + t;
+  return text;
+}
+
 void ProblemEquilibrium::add_tangent(Mat J, const DofLayout& layout) {
   if (!ghosts_current_) {
     p_.state->halo_begin();

@@ -559,6 +559,7 @@ void Simulation::get_displacement(double* u_owned) { equilibrium_.get_displaceme
 void Simulation::internal_force(double* f_owned) { equilibrium_.internal_force(f_owned); }
 bool Simulation::load_force(double* f_owned) { return equilibrium_.load_force(f_owned); }
 void Simulation::set_load_level(double level) { equilibrium_.set_load_level(level); }
+std::string Simulation::load_text(double level) const { return equilibrium_.load_text(level); }
 void Simulation::add_tangent(Mat J, const DofLayout& layout) { equilibrium_.add_tangent(J, layout); }
 std::int64_t Simulation::break_bonds() { return equilibrium_.break_bonds(); }
 

@@ -5,6 +5,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <string>
 
 #include "peri/diagnostics/energies.hpp"
 
@@ -37,6 +38,9 @@ class Load {
   /// Quasi-static load stepping: the load at `level` in [0, 1] of the way from its value at the
   /// stage's start to its full value, whatever the time; once at level 1 it stays full after.
   virtual void set_quasistatic_level(double /*level*/) {}
+  /// The load at quasi-static `level` in words, for messages ("the pressure in body 'balloon'
+  /// 6.120521e+06 Pa"); empty for a load that has none. The same on every rank.
+  virtual std::string quasistatic_text(double /*level*/) const { return {}; }
   /// 3x3 blocks K_ij = -dF_i/dx_j (row-major, F in N) of the load's stiffness at the current
   /// positions, row i an owned node, column j a local node.
   using StiffnessSink = std::function<void(std::int32_t i, std::int32_t j, const double* block)>;

@@ -30,10 +30,12 @@ class Pressure final : public Load {
   bool quasistatic() const override { return true; }
   void begin_quasistatic(double t) override;
   void set_quasistatic_level(double level) override;
+  std::string quasistatic_text(double level) const override;
   void add_stiffness(const LoadTarget& target, const StiffnessSink& sink) const override;
 
  private:
   struct Sphere {
+    std::string body;  // its name
     double pressure = 0, ramp = 0;
     double held = -1, held_from = 0;  // quasi-static: p held at `held` (< 0: p(t)), level 0 at held_from
     std::vector<std::int32_t> node;                   // owned loaded nodes (local)

@@ -62,6 +62,8 @@ class EquilibriumModel {
   virtual bool load_force(double* /*f_owned*/) { return false; }
   /// Make `level` in [0, 1] the loads' quasi-static level (set_quasistatic_level).
   virtual void set_load_level(double /*level*/) {}
+  /// The loads at `level` in words, for messages (Load::quasistatic_text); empty if none.
+  virtual std::string load_text(double /*level*/) const { return {}; }
   /// Add K = -d(F V)/du at the current displacement to `J` (ADD_VALUES): the rows and columns
   /// of the `layout`'s unknowns, in its block indices (the first `layout.components` components of
   /// each 3 x 3 node block).

@@ -21,6 +21,7 @@ class ProblemEquilibrium final : public EquilibriumModel {
   void internal_force(double* f_owned) override;
   bool load_force(double* f_owned) override;
   void set_load_level(double level) override;
+  std::string load_text(double level) const override;
   void add_tangent(Mat J, const DofLayout& layout) override;
   std::int64_t break_bonds() override;
 

@@ -82,6 +82,7 @@ class Simulation : public EquilibriumModel {
   void internal_force(double* f_owned) override;
   bool load_force(double* f_owned) override;
   void set_load_level(double level) override;
+  std::string load_text(double level) const override;
   void add_tangent(Mat J, const DofLayout& layout) override;
   std::int64_t break_bonds() override;
   /// Loader for quasi-static stage `s` (sized for this run's bonds).
