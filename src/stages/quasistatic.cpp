@@ -256,10 +256,10 @@ PetscErrorCode QuasiStaticLoader::converged_or_stagnated(SNES snes, PetscInt it,
   // Newton that takes line-search steps of a few percent without end: past a limit point of the
   // loading (a balloon's pressure beyond its maximum) it creeps towards the least residual, not
   // to zero. Measured on example 7.2's balloon at 6 mm and 6 MPa: |R| from 986.372 to 986.355
-  // over 40 iterations of up to 1000 Krylov products each, 3 minutes per attempt of an
-  // increment that cannot converge. Less than a tenth gained over the last 5 iterations (after
-  // 8), or less than a thousandth over the last 3 (after 4: the same balloon's failed increments
-  // hold |R| to 6 digits from the third), is taken as divergence: the step is halved as for any
+  // over 40 iterations of up to 1000 Krylov products each, in an increment that cannot
+  // converge. Less than a tenth gained over the last 5 iterations (after 8), or less than a
+  // thousandth over the last 3 (after 4: the same balloon's failed increments hold |R| to 6
+  // digits from the third), is taken as divergence: the step is halved as for any
   // other. Not while bonds broke at the load (stagnation_test_): a failure there ends the stage.
   const std::size_t n = self->norms_.size();
   const auto gained_less = [&](std::size_t back, double ratio) {
@@ -512,8 +512,8 @@ QuasiStaticStats QuasiStaticLoader::run(EquilibriumModel& model, const std::vect
         std::ostringstream msg;
         const std::string loads = model.load_text(load);
         msg << stage_.where.str() << ": quasi-static stage '" << stage_.name << "' cannot pass load factor "
-            << fmt(load, 7) << (loads.empty() ? "" : " (" + loads + ")") << ": Newton diverged (" << reason_text(reason) << ") at every load step down to "
-            << fmt(step * 2) << " of the stage's load; likely cause: a limit point (the largest load the "
+            << fmt(load, 7) << (loads.empty() ? "" : " (" + loads + ")") << ": Newton diverged ("
+            << reason_text(reason) << ") at every load step down to " << fmt(step * 2) << " of the stage's load; likely cause: a limit point (the largest load the "
             << "body holds on this path, e.g. an inflated membrane's pressure maximum: past it there is no "
             << "equilibrium; a dynamic stage shows what follows) or a loss of stiffness (e.g. all bonds of "
             << "a region broken); see -qs_snes_monitor";

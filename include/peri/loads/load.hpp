@@ -39,7 +39,7 @@ class Load {
   /// stage's start to its full value, whatever the time; once at level 1 it stays full after.
   virtual void set_quasistatic_level(double /*level*/) {}
   /// The load at quasi-static `level` in words, for messages ("the pressure in body 'balloon'
-  /// 6.120521e+06 Pa"); empty for a load that has none. The same on every rank.
+  /// 6120521 Pa", 7 digits); empty for a load that has none. The same on every rank.
   virtual std::string quasistatic_text(double /*level*/) const { return {}; }
   /// 3x3 blocks K_ij = -dF_i/dx_j (row-major, F in N) of the load's stiffness at the current
   /// positions, row i an owned node, column j a local node.
