@@ -17,8 +17,9 @@
 # radius gives the applied pressure within 6% (4.5% measured: the horizon-3 discretization's
 # stiffness error, amplified in lambda near the maximum). Past the maximum (10 MPa, 10 mm spacing)
 # the stage stops (exit 3, FAILED, no summary.json) naming the load factor it cannot pass, known to
-# 1e-5 of the load, and the pressure there (2 ranks: the same load factor, one message): the discrete sphere's largest pressure, within 8% below eq. (19)'s maximum
-# (6.121 MPa measured, 4.7% below; 8 MPa gives the same 6.121 MPa).
+# 1e-5 of the load, and the pressure there (2 ranks: the same load factor, one message): the
+# discrete sphere's largest pressure, within 8% below eq. (19)'s maximum (6.121 MPa measured,
+# 4.7% below; 8 MPa gives the same 6.121 MPa).
 # usage: balloon.sh PERIDRIVE SOURCE_DIR MPIEXEC [MPI flags...]
 set -eu
 peridrive=$1 src=$2 mpiexec=$3
