@@ -141,6 +141,12 @@ expect cloud_duplicate "$work/data/duplicate.csv:5: bodies.block.points: duplica
 # Within 1e-8 of the points' size (1e-3 m here): one point given twice with round-off.
 f=$(block near_twin 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e-9\n0.002,0,0,1e-9\n0.001,0,1e-15,1e-9\n')
 expect cloud_near_twin "$work/data/near_twin.csv:5: bodies.block.points: point (0.001, 0, 1e-15) within 1e-11 m of line 3 (1e-8 of the points' size, the cube root of their median volume); expected each point once" -- "$f"
+# A volume beyond the horizon's ball (4/3 pi (3 mm)^3 = 1.13e-7 m^3): one stray value (it was
+# named as a twin, with the median volume's tolerance grown to 1e92 m), and every volume in mm^3.
+f=$(block stray_volume 'x,y,z,volume\n0,0,0,1e-9\n0.001,0,0,1e300\n')
+expect cloud_volume_beyond_ball "$work/data/stray_volume.csv:3: bodies.block.points: column volume: 1e300 m^3 is more than the ball of the horizon (4/3 pi delta^3 = 1.13e-07 m^3, delta = 0.003 m); expected a point's own volume, about spacing^3 (1e-9 m^3) for points a spacing apart" -- "$f"
+f=$(block volume_in_mm3 'x,y,z,volume\n0,0,0,1\n0.001,0,0,1\n0.002,0,0,1\n')
+expect cloud_volume_units "$work/data/volume_in_mm3.csv:2: bodies.block.points: column volume: 1 m^3 is more than the ball of the horizon" -- "$f"
 # A body none of whose nodes has a bond (points 10 mm apart, the horizon 3 mm), beside a body
 # with bonds: refused, naming it (it ran before, its nodes loose).
 f=$(block sparse 'x,y,z,volume\n0,0,0,1e-9\n0.01,0,0,1e-9\n0.02,0,0,1e-9\n0.03,0,0,1e-9\n')
@@ -209,6 +215,8 @@ f=$(h5block nan "{'x': P[:, 0], 'y': np.where(np.arange(4) == 2, np.nan, P[:, 1]
 expect h5_not_finite "$work/data/nan.h5: point 2: bodies.block.points: dataset y: expected a finite number" -- "$f"
 f=$(h5block zero "{$xyz, 'volume': np.where(np.arange(4) == 3, 0.0, V)}")
 expect h5_zero_volume "$work/data/zero.h5: point 3: bodies.block.points: dataset volume: expected a positive volume [m^3], got 0" -- "$f"
+f=$(h5block big "{$xyz, 'volume': np.where(np.arange(4) == 2, 1e-6, V)}")
+expect h5_volume_beyond_ball "$work/data/big.h5: point 2: bodies.block.points: dataset volume: 1e-6 m^3 is more than the ball of the horizon" -- "$f"
 f=$(h5block twice "{'x': P[[0, 1, 2, 1], 0], 'y': P[[0, 1, 2, 1], 1], 'z': P[[0, 1, 2, 1], 2], 'volume': V}")
 expect h5_duplicate "$work/data/twice.h5: point 3: bodies.block.points: duplicate point (0.0015, 0.0005, 0.0005), the same as point 1; expected each point once" -- "$f"
 f=$(h5block text_name "{$xyz, 'volume': V, 'material': np.array([b'glass', b'a b', b'glass', b'glass'])}")

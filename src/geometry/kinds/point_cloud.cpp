@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <numeric>
 #include <sstream>
 
@@ -197,8 +198,9 @@ void refuse_near_twins(const std::vector<CloudRow>& rows, Place place, const cha
 }
 
 // What every cloud's rows go through: the materials named (b.cloud_materials, each at the place
-// it first appears), no point twice (the first repeat in file order is named with its twin), and
-// b.cloud: the rows of the body's material (all of them without a material column).
+// it first appears), no point twice (the first repeat in file order is named with its twin), no
+// point of the body's material with a volume beyond the horizon's ball, and b.cloud: the rows of
+// the body's material (all of them without a material column).
 // place(k): a row's place in messages ("file:line", "file: point k"); word: what the twin is
 // called ("line", "point"); column: what holds materials ("column", "dataset").
 template <class Place>
@@ -227,9 +229,25 @@ void keep_cloud_rows(const Value& v, Body& b, const std::vector<CloudRow>& rows,
                      format_number(r.p.x[1]) + ", " + format_number(r.p.x[2]) + "), the same as " + word + " " +
                      std::to_string(rows[twin].place) + "; expected each point once");
   }
+  // A point stands for the material about it: a volume beyond the ball of the horizon is more than
+  // its whole family spans (a volume in other units, or a stray value), and would set the stable
+  // step of its neighbours to nothing (one point of 1e30 m^3 among points of 1e-9 m^3 at a 1 mm
+  // spacing: dt 6.6e-25 s). Before the twins, whose tolerance is the median volume's.
+  const double delta = b.horizon_value(), ball = 4.0 / 3.0 * std::numbers::pi * delta * delta * delta;
+  auto own = [&](const CloudRow& r) { return r.material.empty() || r.material == b.material; };
+  for (const CloudRow& r : rows)
+    if (own(r) && r.p.volume > ball) {
+      std::ostringstream t;
+      t.precision(3);
+      t << ball;
+      throw InputError(place(r.place) + ": " + key + ": " + column + " volume: " + format_number(r.p.volume) +
+                       " m^3 is more than the ball of the horizon (4/3 pi delta^3 = " + t.str() + " m^3, delta = " +
+                       format_number(delta) + " m); expected a point's own volume, about spacing^3 (" +
+                       format_number(b.spacing * b.spacing * b.spacing) + " m^3) for points a spacing apart");
+    }
   refuse_near_twins(rows, place, word, key);
   for (const CloudRow& r : rows)
-    if (r.material.empty() || r.material == b.material) b.cloud.push_back(r.p);
+    if (own(r)) b.cloud.push_back(r.p);
   if (b.cloud.empty()) {
     std::vector<std::string> named;
     for (const auto& m : b.cloud_materials) named.push_back(m.first);

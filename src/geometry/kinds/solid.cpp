@@ -38,6 +38,7 @@ void read(const Map& m, Body& b, const Material&) {
       if (auto x = m.get(key))
         x->fail(std::string("not with points: a point-cloud solid takes its nodes from the file, not from ") + key);
     b.spacing = m.at("spacing").positive("m");
+    read_horizon(m, b);  // before the file: a point's volume is checked against the horizon's ball
     read_point_cloud(*points, b);
   } else {
     if (!m.given("origin")) m.missing("origin", "lower corner [x, y, z], m; or points or mesh");
@@ -60,8 +61,8 @@ void read(const Map& m, Body& b, const Material&) {
       b.grid = x->choice<Grid>({{"square", Grid::Square}, {"hexagonal", Grid::Hexagonal}});
       if (b.grid != Grid::Square) x->fail("a solid body supports only grid square, got " + x->got());
     }
+    read_horizon(m, b);
   }
-  read_horizon(m, b);
   if (auto x = m.get("quadrature"))
     b.quadrature = x->choice<Quadrature>(
         {{"full", Quadrature::Full}, {"partial_area", Quadrature::PartialArea}, {"taper", Quadrature::Taper}});
@@ -147,7 +148,8 @@ BodyKind solid_kind() {
       {.name = "points", .fallback = "- (a box)",
        .doc = "instead of origin and size: a CSV file (relative to the scene file) with the header x,y,z,volume or "
               "x,y,z,volume,material and one point a row [m, m^3]; nodes in file order, volumes > 0, no point twice "
-              "(nor two within 1e-8 of the cube root of the median volume); "
+              "(nor two within 1e-8 of the cube root of the median volume), no volume above the horizon's ball "
+              "(4/3 pi horizon^3); "
               "with a material column the body takes the rows naming its material; `#` lines and blank lines are "
               "skipped. Or an HDF5 file (.h5, .hdf5) with the 1D datasets x, y, z, volume (numbers) and optionally "
               "material (strings), one point an index"},
