@@ -60,5 +60,22 @@ expect quasistatic "$f:$(line_of "$f" 'name: load'): stages.load.kind: a scene w
 f=$(variant breakable_empty 's/breakable: .*/breakable: {min: [-1, 0.9, -1], max: [1, 1, 1]}/')
 expect breakable_empty "bodies.strip.breakable: the box holds no bond of the body (no two lattice neighbours inside it)" -- "$f"
 
+# An initial stretch at which the lattice has lost its stiffness (the homogeneous state unstable;
+# it ran before, with NaN wave speeds where the Mooney-Rivlin c_l^2 < 0). The scene stretches to
+# (1.3, 2.8): the Mooney-Rivlin sheet loses c_l along x below b = -2 / (2.8^2 - 1) = -0.292; the
+# lattice, whose bonds reach into the switch before u_c, already at b = -0.1.
+g="$(line_of "$scene" 'displacement_gradient')"
+expect stretch_mooney_rivlin "$scene:$g: initial.displacement_gradient: stretches lattice body 'strip' to (1.3, 2.8) along (x, y), where its material (a = 1000, b = -0.5) has no longitudinal stiffness along x (waves along x): the stretched lattice is unstable (the Mooney-Rivlin sheet's c_l^2 = a [1 + (b/2)(lambda_across^2 - 1)] <= 0: at lambda_across = 2.8, b must exceed -0.292398)" -- "$scene" --set materials.rubber.mooney_rivlin_b=-0.5
+expect stretch_switch "b = -0.1) has no longitudinal stiffness along y (waves along y): the stretched lattice is unstable (its bonds, up to 0.00125524 m long, near the fracture separation u_c = 0.0015 m" -- "$scene" --set materials.rubber.mooney_rivlin_b=-0.1
+expect stretch_compressed "initial.displacement_gradient: stretches lattice body 'strip' to (0.5, 0.5) along (x, y), where its material (a = 1000, b = 0.4) has no shear stiffness: the stretched lattice is unstable (its bonds, as short as 0.00025 m, are on the cutoff branch below Delta + u_s = 0.000625 m (eq. 31)" -- "$scene" --set 'initial.displacement_gradient=[[-0.5,0,0],[0,-0.5,0],[0,0,0]]'
+expect stretch_beyond_uc "its bonds are stretched up to 0.002 m, beyond the fracture separation u_c = 0.0015 m, where they carry no force" -- "$scene" --set 'initial.displacement_gradient=[[3,0,0],[0,3,0],[0,0,0]]'
+# Just inside: b = 0 at the scene's stretch keeps the lattice stiff (the derived speed is printed).
+if "${mpi[@]}" "$peridrive" "$scene" --dry-run --set materials.rubber.mooney_rivlin_b=0 > "$work/stdout" 2> "$work/stderr" &&
+   grep -q "^strip.lattice_longitudinal_speed_x = 31.62" "$work/stdout"; then
+  echo "ok   stretch_b_zero: $(grep '^strip.lattice_longitudinal_speed_x' "$work/stdout") (sqrt(a) = 31.623)"; pass=$((pass + 1))
+else
+  echo "FAIL stretch_b_zero: expected a run with c_l = sqrt(a)"; cat "$work/stderr"; fail=$((fail + 1))
+fi
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]

@@ -35,6 +35,7 @@ break in their own markers. Needs python3-h5py, numpy, matplotlib.
 import argparse
 import csv
 import json
+import math
 import os
 import re
 import shutil
@@ -109,7 +110,11 @@ def run_case(args, case, scene_text, spacing, material, body):
     uc = case["uc"]
     if uc == "min":
         uc = 1.05 + float(case["us"])
-        while deviation(dry_run(args, case, spacing, uc, stiff=False)) > args.mr_tolerance:
+        # The longest bond of the stretched lattice (along x or at 60 degrees), in spacings: a u_c at
+        # or below it leaves those bonds without force, and peridrive refuses the stretch.
+        lx, ly = float(case["lx"]), float(case["ly"])
+        longest = max(lx, math.hypot(0.5 * lx, 0.5 * math.sqrt(3.0) * ly))
+        while uc <= longest or deviation(dry_run(args, case, spacing, uc, stiff=False)) > args.mr_tolerance:
             uc = round(uc + 0.05, 6)
             if uc > 20:
                 sys.exit(f"lattice_crack_map.py: no u_c below 20 Delta makes {case} Mooney-Rivlin")

@@ -262,8 +262,7 @@ void lattice_derived(const Problem& p, std::size_t b, RunSummary& summary) {
   const MarderLaw& law = *p.forces->marder(b);
   const std::string pre = p.scene.bodies[b].name + ".";
   // Stretches of the initial homogeneous deformation along x and y (F = I + displacement gradient).
-  const std::array<double, 9>& G = p.scene.initial.displacement_gradient;
-  const double lx = std::hypot(1 + G[0], G[3]), ly = std::hypot(G[1], 1 + G[4]);
+  const auto [lx, ly] = lattice_initial_stretches(p.scene.initial.displacement_gradient);
   const WaveSpeeds along_x = mooney_rivlin_wave_speeds(law.a, law.b, lx, ly);
   const WaveSpeeds along_y = mooney_rivlin_wave_speeds(law.a, law.b, ly, lx);
   auto& out = summary.derived;

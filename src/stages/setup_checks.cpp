@@ -14,6 +14,7 @@
 
 #include "peri/io/restart.hpp"
 #include "peri/models/long_range.hpp"
+#include "peri/models/marder.hpp"
 #include "peri/models/model.hpp"
 #include "peri/stages/problem.hpp"
 
@@ -608,6 +609,47 @@ void check_initial_state(const Problem& p) {
           << num(kSmallestStretch);
       throw InputError(msg.str());
     }
+  }
+  // A lattice stretched where it loses stiffness: its homogeneous state is unstable. With b < 0 the
+  // Mooney-Rivlin sheet's c_l^2 = a [1 + (b/2)(lambda_across^2 - 1)] falls to 0 (b = -1 at Marder's
+  // stretch (1.4, 2) gave NaN wave speeds, and the run went on). Tested on the lattice's own
+  // long-wave stiffness, the same on every rank.
+  for (std::size_t b = 0; b < nb; ++b) {
+    const MarderLaw* law = p.forces->marder(b);
+    if (!law) continue;
+    const auto [lx, ly] = lattice_initial_stretches(ic.displacement_gradient);
+    const WaveSpeeds x = marder_lattice_wave_speeds(*law, lx, ly), y = marder_lattice_wave_speeds(*law, ly, lx, true);
+    const char* lost = !(x.longitudinal > 0)   ? "longitudinal stiffness along x (waves along x)"
+                       : !(y.longitudinal > 0) ? "longitudinal stiffness along y (waves along y)"
+                       : !(x.shear > 0 && y.shear > 0) ? "shear stiffness"
+                                                        : nullptr;
+    if (!lost) continue;
+    const SourceLoc& at = scene.initial.gradient_where;
+    std::ostringstream msg;
+    msg << (at.file.empty() ? std::string() : at.str() + ": ") << "initial.displacement_gradient: stretches lattice body '"
+        << scene.bodies[b].name << "' to (" << num(lx) << ", " << num(ly) << ") along (x, y), where its material (a = "
+        << num(law->a) << ", b = " << num(law->b) << ") has no " << lost << ": the stretched lattice is unstable";
+    // The lattice's six bonds at diag(lx, ly): the longest lies along x or at 60 degrees.
+    const double diagonal = std::hypot(0.5 * lx, 0.5 * std::sqrt(3.0) * ly);
+    const double longest = law->delta * std::max(lx, diagonal), shortest = law->delta * std::min(lx, diagonal);
+    const bool along_y = x.longitudinal > 0;
+    const double across = along_y ? lx : ly;
+    const WaveSpeeds mr = mooney_rivlin_wave_speeds(law->a, law->b, along_y ? ly : lx, across);
+    if (longest >= law->uc)
+      msg << " (its bonds are stretched up to " << num(longest) << " m, beyond the fracture separation u_c = "
+          << num(law->uc) << " m, where they carry no force)";
+    else if (!(mr.longitudinal > 0))
+      msg << " (the Mooney-Rivlin sheet's c_l^2 = a [1 + (b/2)(lambda_across^2 - 1)] <= 0: at lambda_across = "
+          << num(across) << ", b must exceed " << num(-2.0 / (across * across - 1)) << ")";
+    else if (shortest < law->delta + law->us)
+      msg << " (its bonds, as short as " << num(shortest) << " m, are on the cutoff branch below Delta + u_s = "
+          << num(law->delta + law->us) << " m (eq. 31), where the lattice departs from the Mooney-Rivlin sheet: "
+          << "the derived constants lattice_*_speed_*)";
+    else
+      msg << " (its bonds, up to " << num(longest) << " m long, near the fracture separation u_c = " << num(law->uc)
+          << " m, where the lattice departs from the Mooney-Rivlin sheet: the derived constants lattice_*_speed_*)";
+    msg << "; expected a stretch and b at which the lattice keeps its stiffness";
+    throw InputError(msg.str());
   }
   // Tools start clear of every node: one inside would be thrown out by a penalty force far
   // beyond what the time step resolves.

@@ -10,6 +10,7 @@
 // bond vectors d_j = x_j - x_i of row i; the loop adds -dU_i/dx to node i and to its neighbours,
 // which may be ghosts: the caller sums ghost contributions back to their owners.
 #pragma once
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -107,6 +108,12 @@ struct WaveSpeeds {
   double longitudinal = 0, shear = 0;
 };
 WaveSpeeds mooney_rivlin_wave_speeds(double a, double b, double lambda_along, double lambda_across);
+
+/// The stretches along x and y of the lattice's initial homogeneous deformation F = I + H (H row
+/// major): |F e_x| and |F e_y| in the sheet's plane.
+inline std::array<double, 2> lattice_initial_stretches(const std::array<double, 9>& H) {
+  return {std::hypot(1 + H[0], H[3]), std::hypot(H[1], 1 + H[4])};
+}
 
 /// Small-amplitude long-wave speeds of the lattice itself about the homogeneous stretch
 /// diag(lambda_along, lambda_across), for propagation along the first axis, in the reference
