@@ -81,6 +81,10 @@ expect segments_on_kind "long_range.pairs.1.segments: only a rule with between: 
 expect segments_negative "long_range.pairs.0.segments.1: expected an integer >= 0, got -1" -- "$fiber" --set 'long_range.pairs=[{between: segments, segments: [1, -1], alpha: 1, beta: 1}]'
 expect pair_cutoff "long_range.pairs.1.cutoff: expected a positive number [m], got 0" -- "$fiber" --set long_range.pairs.1.cutoff=0
 expect segments_one_segment "long_range.pairs.0.segments: expected segment indices 0 to 0 (each of the scene's fibers is one segment" -- "$src/drivers/scenes/fiber_network.yaml" --set 'long_range.pairs=[{between: segments, segments: [0, 1], alpha: 1, beta: 1}]'
+# A section that reaches no pair of nodes: other_fibers with one fiber; the segment kinds on a
+# fiber of one segment (a segment_length longer than the fiber).
+expect long_range_no_pair_one_fiber "long_range: no rule applies to any pair of nodes, so the section never acts: long_range.pairs.0 (between: other_fibers, --set) applies to no pair of the scene's fiber nodes: the scene has one fiber" -- "$fiber" --set 'long_range.pairs=[{between: other_fibers, alpha: 1, beta: 1}]'
+expect long_range_no_pair_one_segment "applies to no pair of the scene's fiber nodes: each fiber is one segment (a fiber body's segment_length is 0, the default, or not shorter than its fiber); expected a rule" -- "$fiber" --set bodies.fiber.segment_length=1e-6
 expect long_range_no_fiber "long_range: long-range forces act between fiber nodes" -- "$scene" --set 'long_range={length: 1e-9, cutoff: 3e-9, pairs: [{between: other_fibers, alpha: 1, beta: 1}]}'
 sed 's/- {name: coil, duration: 4.0e-9/- {name: settle, kind: quasistatic}\n  - {name: coil, duration: 4.0e-9/' "$fiber" > "$work/fiber_qs.yaml"
 expect long_range_quasistatic "a quasistatic stage in a scene with long_range" -- "$work/fiber_qs.yaml"

@@ -534,11 +534,11 @@ TEST(LongRange, ExclusionThatHoldsEveryPairOfARule) {
   LongRange spec = long_range_spec();
   spec.where = {"scene.yaml", 3};
   spec.exclusion = 6.9e-9;  // adjacent segments' nodes lie up to 7 nm apart
-  EXPECT_NO_THROW(check_exclusion(spec, PairLaw(spec), t));
+  EXPECT_NO_THROW(check_pair_rules(spec, PairLaw(spec), t));
   spec.exclusion = 7.1e-9;
   spec.exclusion_where = {"scene.yaml", 5};
   try {
-    check_exclusion(spec, PairLaw(spec), t);
+    check_pair_rules(spec, PairLaw(spec), t);
     ADD_FAILURE() << "an adjacent_segments rule that never acts accepted";
   } catch (const InputError& e) {
     EXPECT_STREQ(e.what(), "scene.yaml:5: long_range.exclusion: every pair of nodes that long_range.pairs.0 "
@@ -554,7 +554,7 @@ TEST(LongRange, ExclusionThatHoldsEveryPairOfARule) {
   spec.pairs.push_back(r);
   spec.exclusion_where = {};
   try {
-    check_exclusion(spec, PairLaw(spec), t);
+    check_pair_rules(spec, PairLaw(spec), t);
     ADD_FAILURE() << "a segments rule that never acts accepted";
   } catch (const InputError& e) {
     const std::string what = e.what();
@@ -563,9 +563,54 @@ TEST(LongRange, ExclusionThatHoldsEveryPairOfARule) {
                          "default: the largest fiber horizon)", 0), 0u) << what;
   }
   spec.pairs.back().segments[1] = 3;  // 1 and 3: up to 11 nm apart, it acts
-  EXPECT_NO_THROW(check_exclusion(spec, PairLaw(spec), t));
+  EXPECT_NO_THROW(check_pair_rules(spec, PairLaw(spec), t));
   spec.exclusion = 1e-6;  // every rule's pairs, the other fibers' included
-  EXPECT_THROW(check_exclusion(spec, PairLaw(spec), t), InputError);
+  EXPECT_THROW(check_pair_rules(spec, PairLaw(spec), t), InputError);
+}
+
+// Rules that reach no pair: a section none of whose rules applies to any pair is refused, naming
+// each rule and why; one that applies to nothing beside others that act, and a rule an earlier
+// one shadows, are warned about, one line each.
+TEST(LongRange, RulesThatReachNoPair) {
+  LongRangeTable t;
+  for (int k = 0; k < 20; ++k) {  // one fiber along x, one segment
+    t.natural.push_back(k);
+    t.fiber.push_back(0);
+    t.segment.push_back(0);
+    t.X.insert(t.X.end(), {k * 1e-9, 0, 0});
+    t.volume.push_back(1e-27);
+  }
+  LongRange spec = long_range_spec();  // adjacent, distant, other fibers (twice)
+  spec.where = {"scene.yaml", 3};
+  try {
+    check_pair_rules(spec, PairLaw(spec), t);
+    ADD_FAILURE() << "a section that reaches no pair accepted";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(),
+                 "scene.yaml:3: long_range: no rule applies to any pair of nodes, so the section never acts: "
+                 "long_range.pairs.0 (between: adjacent_segments) applies to no pair of the scene's fiber nodes: "
+                 "each fiber is one segment (a fiber body's segment_length is 0, the default, or not shorter than "
+                 "its fiber); long_range.pairs.1 (between: distant_segments) applies to no pair of the scene's "
+                 "fiber nodes: each fiber is one segment (a fiber body's segment_length is 0, the default, or not "
+                 "shorter than its fiber); long_range.pairs.2 (between: other_fibers) applies to no pair of the "
+                 "scene's fiber nodes: the scene has one fiber; expected a rule for the scene's pairs "
+                 "(adjacent_segments and distant_segments need fibers cut into segments by segment_length, "
+                 "other_fibers two fibers)");
+  }
+  for (int k = 0; k < 20; ++k) t.segment[static_cast<std::size_t>(k)] = k / 10;  // two segments
+  const std::vector<std::string> w = check_pair_rules(spec, PairLaw(spec), t);
+  ASSERT_EQ(w.size(), 3u);
+  EXPECT_EQ(w[0], "long_range.pairs.1 (between: distant_segments) applies to no pair of the scene's fiber nodes: "
+                  "no fiber has more than two segments (a fiber body's segment_length is 0, the default, or not "
+                  "shorter than its fiber)");
+  EXPECT_EQ(w[1], "long_range.pairs.2 (between: other_fibers) applies to no pair of the scene's fiber nodes: the "
+                  "scene has one fiber");
+  EXPECT_EQ(w[2], "long_range.pairs.3 (between: other_fibers) is never used: long_range.pairs.2 (between: "
+                  "other_fibers) comes first for the same pairs, and the first rule wins");
+  for (int k = 0; k < 20; ++k) t.segment[static_cast<std::size_t>(k)] = k / 4;  // five segments
+  spec.pairs.pop_back();
+  for (int k = 10; k < 20; ++k) t.fiber[static_cast<std::size_t>(k)] = 1;  // and two fibers
+  EXPECT_TRUE(check_pair_rules(spec, PairLaw(spec), t).empty());
 }
 
 }  // namespace

@@ -174,9 +174,8 @@ std::string rule_text(const PairRule& r) {
 
 }  // namespace
 
-void check_exclusion(const LongRange& spec, const PairLaw& law, const LongRangeTable& table) {
-  if (!(law.exclusion > 0)) return;
-  const double excl2 = law.exclusion * law.exclusion;
+std::vector<std::string> check_pair_rules(const LongRange& spec, const PairLaw& law, const LongRangeTable& table) {
+  const double excl2 = law.exclusion > 0 ? law.exclusion * law.exclusion : 0.0;
   std::vector<SegmentRun> runs;
   for (std::int64_t p = 0; p < table.size(); ++p) {
     if (runs.empty() || table.fiber[p] != table.fiber[runs.back().begin] ||
@@ -215,9 +214,8 @@ void check_exclusion(const LongRange& spec, const PairLaw& law, const LongRangeT
         --open;
       }
     }
-  for (int k = 0; k < law.rules(); ++k) {
-    if (seen[static_cast<std::size_t>(k)] != 1) continue;
-    // The scene's rule behind rule k in effect: the first of its kind, or of its pair of segments.
+  // The scene's rule behind rule k in effect: the first of its kind, or of its pair of segments.
+  auto scene_rule = [&](int k) {
     std::int32_t lo = -1, hi = -1;
     for (const PairLaw::SegmentPair& sp : law.segment_pairs)
       if (sp.rule == k) lo = sp.lo, hi = sp.hi;
@@ -229,17 +227,75 @@ void check_exclusion(const LongRange& spec, const PairLaw& law, const LongRangeT
                       std::max(pr.segments[0], pr.segments[1]) == hi)
         break;
     }
+    return r;
+  };
+  auto rule_name = [&](std::size_t r) {
     const PairRule& pr = spec.pairs[r];
+    return "long_range.pairs." + std::to_string(r) + " (between: " + rule_text(pr) +
+           (pr.where.file.empty() ? "" : ", " + pr.where.str()) + ")";
+  };
+  for (int k = 0; k < law.rules(); ++k) {
+    if (seen[static_cast<std::size_t>(k)] != 1) continue;
     const SourceLoc& at = spec.exclusion_where.file.empty() ? spec.where : spec.exclusion_where;
     std::ostringstream msg;
-    msg << at.str() << ": long_range.exclusion: every pair of nodes that long_range.pairs." << r << " (between: "
-        << rule_text(pr) << (pr.where.file.empty() ? "" : ", " + pr.where.str()) << ") applies to lies closer than the exclusion, "
-        << number_text(law.exclusion) << " m"
+    msg << at.str() << ": long_range.exclusion: every pair of nodes that " << rule_name(scene_rule(k))
+        << " applies to lies closer than the exclusion, " << number_text(law.exclusion) << " m"
         << (spec.exclusion_where.file.empty() ? " (the default: the largest fiber horizon)" : "")
         << ", in the reference configuration, so the rule never acts; expected an exclusion shorter than the "
         << "distance between the nodes it should pull or push (about the fibers' horizon)";
     throw InputError(msg.str());
   }
+  // Rules that apply to no pair of the scene's nodes at all: why, from the table's fibers.
+  int fibers = 0;
+  std::int32_t segments = 0;  // of the fiber with the most
+  for (std::int64_t p = 0; p < table.size(); ++p) {
+    if (p == 0 || table.fiber[p] != table.fiber[p - 1]) ++fibers;
+    segments = std::max(segments, table.segment[p] + 1);
+  }
+  auto why_none = [&](int k) -> std::string {
+    const char* one_segment =
+        " (a fiber body's segment_length is 0, the default, or not shorter than its fiber)";
+    if (k == static_cast<int>(PairKind::OtherFibers))
+      return fibers == 1 ? "the scene has one fiber" : "";
+    if (k == static_cast<int>(PairKind::AdjacentSegments) && segments < 2)
+      return std::string("each fiber is one segment") + one_segment;
+    if (k == static_cast<int>(PairKind::DistantSegments) && segments < 3)
+      return std::string(segments < 2 ? "each fiber is one segment" : "no fiber has more than two segments") +
+             one_segment;
+    return "every such pair of segments has its own segments rule, which comes first";
+  };
+  std::vector<std::string> warnings, none;
+  std::size_t in_effect = 0;
+  for (int k = 0; k < law.rules(); ++k) {
+    if (!(k >= 3 || law.acts[k])) continue;
+    ++in_effect;
+    if (seen[static_cast<std::size_t>(k)] != 0) continue;
+    none.push_back(rule_name(scene_rule(k)) + " applies to no pair of the scene's fiber nodes: " + why_none(k));
+  }
+  if (!none.empty() && none.size() == in_effect) {
+    std::string msg = spec.where.str() + ": long_range: no rule applies to any pair of nodes, so the section " +
+                      "never acts: " + none[0];
+    for (std::size_t i = 1; i < none.size(); ++i) msg += "; " + none[i];
+    throw InputError(msg + "; expected a rule for the scene's pairs (adjacent_segments and distant_segments " +
+                     "need fibers cut into segments by segment_length, other_fibers two fibers)");
+  }
+  warnings = none;
+  // A later rule of a kind, or of a pair of segments, that an earlier one shadows.
+  for (std::size_t r = 0; r < spec.pairs.size(); ++r) {
+    const PairRule& pr = spec.pairs[r];
+    for (std::size_t e = 0; e < r; ++e) {
+      const PairRule& pe = spec.pairs[e];
+      const bool same = pe.between == pr.between &&
+                        (pr.between != PairKind::Segments ||
+                         (std::min(pe.segments[0], pe.segments[1]) == std::min(pr.segments[0], pr.segments[1]) &&
+                          std::max(pe.segments[0], pe.segments[1]) == std::max(pr.segments[0], pr.segments[1])));
+      if (!same) continue;
+      warnings.push_back(rule_name(r) + " is never used: " + rule_name(e) +
+                         " comes first for the same pairs, and the first rule wins");
+      break;
+    }
+  }
+  return warnings;
 }
 
 bool LongRangeList::stale(const double* x, std::int64_t count) const {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iomanip>
 #include <limits>
 #include <numeric>
@@ -47,7 +48,10 @@ void LongRangeForces::refresh(const double* X, const double* u) {
 LongRangeForces make_long_range(const Scene& scene, const Nodes& nodes, const Domain& domain, MPI_Comm comm) {
   LongRangeForces lr(PairLaw(*scene.long_range), long_range_table(nodes), comm);
   check_segment_rules(*scene.long_range, lr.table);
-  check_exclusion(*scene.long_range, lr.law, lr.table);
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  for (const std::string& w : check_pair_rules(*scene.long_range, lr.law, lr.table))
+    if (rank == 0) std::fprintf(stderr, "peridrive: warning: %s\n", w.c_str());
   for (std::int32_t i = 0; i < domain.owned; ++i) {
     const std::int64_t p = lr.table.index_of(domain.natural[i]);
     if (p < 0) continue;

@@ -119,12 +119,16 @@ std::vector<PairContactStep> pair_contact_steps(const Scene& scene);
 /// segment of any of the table's fibers.
 void check_segment_rules(const LongRange& spec, const LongRangeTable& table);
 
-/// Refuses (InputError naming long_range.exclusion and the rule) a rule in effect whose every
-/// pair of nodes lies closer than the exclusion in the reference configuration, so that it would
-/// never act (an exclusion as long as the fiber, or as the distance between two named segments).
-/// The rule of a pair depends only on the two nodes' fibers and segments: the table's runs of one
-/// (fiber, segment) are compared two by two, by their bounding boxes first.
-void check_exclusion(const LongRange& spec, const PairLaw& law, const LongRangeTable& table);
+/// Checks that the rules reach the scene's pairs. Refuses (InputError naming long_range.exclusion
+/// and the rule) a rule in effect whose every pair of nodes lies closer than the exclusion in the
+/// reference configuration, so that it would never act (an exclusion as long as the fiber, or as
+/// the distance between two named segments), and (naming long_range) a section none of whose
+/// rules applies to any pair (other_fibers with one fiber, segment kinds on fibers of one
+/// segment). Returns the warnings, one line each: a rule in effect that applies to no pair while
+/// others do, and a later rule that an earlier one of the same pairs shadows. The rule of a pair
+/// depends only on the two nodes' fibers and segments: the table's runs of one (fiber, segment)
+/// are compared two by two, by their bounding boxes first.
+std::vector<std::string> check_pair_rules(const LongRange& spec, const PairLaw& law, const LongRangeTable& table);
 
 /// The nodes a rank's pairs read: its rows and their possible partners, each with its table
 /// index, current position and measure.
