@@ -656,7 +656,7 @@ TEST(SceneOverride, ValidationErrorsOfOverriddenValuesReadSet) {
   EXPECT_THAT(error_of(kBase, {{"materials.rubber.youngs_modulus", "1e9"}}),
               StartsWith("--set: materials.rubber: give exactly one of"));
   EXPECT_THAT(error_of(kBase, {{"stages.0.steps", "2.5"}}),
-              StartsWith("--set: stages.0.steps: expected an integer >= 1, got 2.5"));
+              StartsWith("--set: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 2.5"));
   // A problem in the file is still reported at its line when other keys are overridden.
   EXPECT_THAT(error_of(with("density: 1200", "density: -1"), {{"bodies.sheet.spacing", "1e-4"}}),
               StartsWith("scene.yaml:5: materials.rubber.density: "));
@@ -913,7 +913,7 @@ TEST(SceneErrors, Cracks) {
 
 TEST(SceneErrors, Stages) {
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - steps: 2.5")),
-              StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1, got 2.5"));
+              StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 2.5"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - steps: 0")),
               StartsWith("scene.yaml:15: stages.0.steps: expected an integer >= 1 and <= 1000000000, got 0"));
   EXPECT_THAT(error_of(with("  - duration: 1.0e-5", "  - duration: 1.0e-5\n    safety_factor: 1.5")),

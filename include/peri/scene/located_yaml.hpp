@@ -165,9 +165,11 @@ class Value {
     return number_if("a non-negative number" + unit_suffix(unit), [](double v) { return v >= 0; });
   }
 
-  /// An integer >= lo (and <= hi). Exactly integral float spellings (1e3) are accepted.
+  /// An integer >= lo (and <= hi); the message names the whole range. Exactly integral float
+  /// spellings (1e3) are accepted.
   long integer(long lo, long hi = std::numeric_limits<long>::max()) const {
-    const std::string expected = "an integer >= " + std::to_string(lo);
+    const std::string expected = "an integer >= " + std::to_string(lo) +
+                                 (hi < std::numeric_limits<long>::max() ? " and <= " + std::to_string(hi) : "");
     if (!node_.IsScalar() || quoted()) fail("expected " + expected + ", got " + got());
     std::string_view s = node_.Scalar();
     if (s.size() >= 2 && s[0] == '+' && s[1] != '-') s.remove_prefix(1);
@@ -180,10 +182,7 @@ class Value {
         fail("expected " + expected + ", got " + got());
       v = static_cast<long>(d);
     }
-    if (v < lo || v > hi) {
-      fail("expected " + expected +
-           (hi < std::numeric_limits<long>::max() ? " and <= " + std::to_string(hi) : "") + ", got " + got());
-    }
+    if (v < lo || v > hi) fail("expected " + expected + ", got " + got());
     return v;
   }
 
