@@ -449,5 +449,16 @@ expect exclusion_one_node_segments "$ends:$exclusion_line: long_range.exclusion:
 if [ $? -eq 0 ] && ! grep -q "long_range.pairs" "$work/stderr"; then ok "pair_contact_paper: no warning"
 else bad "pair_contact_paper: a warning for the paper's parameters"; fi
 
+# An initial stretch beyond the critical stretch (the default scene's lambda_0 = 2): every bond of
+# the sheet stretched to 4 is refused (the run turned the sheet to dust in its first step and
+# reported only the bonds broken); a uniaxial 2.2 along x breaks 32% of them, named in one warning.
+expect initial_beyond_critical "--set: initial.displacement_gradient: stretches every one of the 51094 intact bonds of body 'sheet' beyond the critical stretch of materials.rubber (critical_stretch = 2), up to |F xi| / |xi| = 4: they break in the first step, and the body falls apart" -- "${coarse[@]}" --set 'initial.displacement_gradient=[[3, 0, 0], [0, 3, 0], [0, 0, 0]]'
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'initial.displacement_gradient=[[1.2, 0, 0], [0, 0, 0], [0, 0, 0]]' --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="initial.displacement_gradient: stretches 16470 (32.2%) of the 51094 intact bonds of body 'sheet' beyond the critical stretch of materials.rubber (critical_stretch = 2), up to |F xi| / |xi| = 2.2: they break in the first step"
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "initial_partly_beyond_critical: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "initial_partly_beyond_critical: expected one warning '$want'"; fi
+
 echo "$pass passed, $fail failed"
 [ "$fail" -eq 0 ]
