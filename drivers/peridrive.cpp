@@ -7,6 +7,7 @@
 #include <petscsys.h>
 
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -289,7 +290,15 @@ int main(int argc, char** argv) {
       } else if (args.dry_run) {
         const peri::SizeEstimate e = peri::estimate_size(scene);
         if (rank == 0) {
-          std::printf("estimate: %.4g nodes, %.4g bonds, %.4g GB\n", e.nodes, e.bonds / 2, e.bytes / 1e9);
+          // (an estimate that overflowed reads ">1e308", as in the memory check's message)
+          auto amount = [](double v) {
+            char buf[32];
+            if (std::isfinite(v)) std::snprintf(buf, sizeof buf, "%.4g", v);
+            else std::snprintf(buf, sizeof buf, ">1e308");
+            return std::string(buf);
+          };
+          std::printf("estimate: %s nodes, %s bonds, %s GB\n", amount(e.nodes).c_str(), amount(e.bonds / 2).c_str(),
+                      amount(e.bytes / 1e9).c_str());
           std::fflush(stdout);
         }
         peri::Simulation sim(scene, PETSC_COMM_WORLD, {});

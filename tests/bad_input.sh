@@ -50,6 +50,17 @@ expect halo_chunk "-halo_chunk_nodes: expected a positive number of nodes, got 0
 expect unstable_dt "stages.0.dt: time step 1e-05 s exceeds the stable bound" -- --set stages.0.dt=1e-5
 expect absurd_resolution "the scene cannot fit in memory: about 6.25e+08 nodes" -- --set bodies.sheet.spacing=2e-6
 expect huge_number "the scene cannot fit in memory: about >1e308 nodes" -- --set bodies.sheet.size=[1e300,1e300]
+# --dry-run prints its size estimate before setup: an overflowed one reads as the error does
+# (it printed "estimate: inf nodes, inf bonds, inf GB").
+"${mpi[@]}" "$peridrive" --set bodies.sheet.spacing=1e-300 --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+if [ $rc -eq 2 ] && grep -qx "estimate: >1e308 nodes, >1e308 bonds, >1e308 GB" "$work/stdout" &&
+  ! grep -qi "inf" "$work/stdout" && grep -q "cannot fit in memory: about >1e308 nodes" "$work/stderr"; then
+  echo "ok   dry_run_overflowed_estimate: $(head -1 "$work/stdout")"; pass=$((pass + 1))
+else
+  echo "FAIL dry_run_overflowed_estimate: exit $rc, stdout '$(head -1 "$work/stdout")'"; cat "$work/stderr"
+  fail=$((fail + 1))
+fi
 expect bad_checkpoint_cadence "--set: output.checkpoint_every_steps: expected an integer >= 0, got -1" -- --set output.checkpoint_every_steps=-1
 printf 'not a checkpoint\n' > "$work/fake.h5"
 expect foreign_checkpoint "checkpoint '$work/fake.h5': not a peridrive checkpoint" -- --resume "$work/fake.h5"
