@@ -293,6 +293,18 @@ cloud_scene fits 2 "output: {frames: 2}"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "cloud_volumes_fit_spacing: no warning"
 else bad "cloud_volumes_fit_spacing: exit status or warning"; fi
 
+# A sheet's thickness in mm written as m (0.5 for 0.5 mm): 167 horizons thick at the coarse
+# spacing, one warning naming the ratio; 10 horizons or less (the scene's 0.5 mm: 0.17), none.
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.thickness=0.5 --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="<default scene>:$(line_of '^    kind: membrane'): bodies.sheet.thickness: 0.5 m is 166.667 times the horizon (0.003 m)"
+if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "sheet_thickness_in_mm: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "sheet_thickness_in_mm: expected one warning '$want'"; fi
+"${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.thickness=0.03 --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "sheet_thickness_ten_horizons: no warning"
+else bad "sheet_thickness_ten_horizons: exit status or warning"; fi
+
 # A seed of one spacing's wavelength puts every grid node on a zero of the sine (|u_z| 5e-34 m for
 # an amplitude of 1e-5): one warning naming the wavelength and the least that resolves.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'initial.seed.wavelength=[0.001, 0.001]' --dry-run > "$work/stdout" 2> "$work/stderr"

@@ -34,6 +34,9 @@ constexpr double kFarthestNode = 1e9;
 constexpr double kFarNodeWarning = 1e6;
 // A point cloud whose points' median volume^(1/3) is beyond this factor of the spacing (either way).
 constexpr double kCloudSpacingRatio = 1.5;
+// Thickness of a sheet, in horizons (or lattice spacings), beyond which it is not a membrane: a
+// thickness in mm written as m is 1000 times too thick and lands far beyond.
+constexpr double kThickSheet = 10.0;
 
 std::string num(double v) {
   std::ostringstream s;
@@ -177,6 +180,23 @@ void warn_cloud_spacing(const Scene& scene, int rank) {
                  "the ratio of the volumes (%s); give as spacing the points' typical distance\n",
                  b.where.str().c_str(), b.name.c_str(), num(b.spacing).c_str(), b.points.c_str(), num(typical).c_str(),
                  num(ratio).c_str(), num(b.horizon_value()).c_str(), num(ratio * ratio * ratio).c_str());
+  }
+}
+
+void warn_thick_sheets(const Scene& scene, const Nodes& nodes, int rank) {
+  if (rank != 0) return;
+  for (std::size_t k = 0; k < nodes.bodies.size() && k < scene.bodies.size(); ++k) {
+    const BodyGeometry& g = nodes.bodies[k];
+    const Body& b = scene.bodies[k];
+    const double length = std::max(g.horizon, g.spacing);  // (a lattice's reach is its spacing)
+    if (!(g.thickness > kThickSheet * length)) continue;
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: bodies.%s.thickness: %s m is %s times the %s (%s m): the sheet "
+                 "models are for sheets thin against their horizon (no bending, no shear through the "
+                 "thickness), and the thickness scales the sheet's mass, stiffness and pressure stress; "
+                 "a thickness in mm? (0.5 mm is 0.0005)\n",
+                 b.where.str().c_str(), b.name.c_str(), num(g.thickness).c_str(), num(g.thickness / length).c_str(),
+                 g.horizon >= g.spacing ? "horizon" : "spacing", num(length).c_str());
   }
 }
 
