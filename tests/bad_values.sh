@@ -301,6 +301,13 @@ want="<default scene>:$(line_of '^    kind: membrane'): bodies.sheet.thickness: 
 if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "sheet_thickness_in_mm: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "sheet_thickness_in_mm: expected one warning '$want'"; fi
+# A fiber's diameter likewise (2 um on the 1.5 nm horizon of fiber_long_range.yaml).
+"${mpi[@]}" "$peridrive" "$scenes/fiber_long_range.yaml" --set bodies.fiber.diameter=2e-6 --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="bodies.fiber.diameter: 2e-06 m is 1333.33 times the horizon (1.5e-09 m): the fiber model is for bars"
+if [ $rc -eq 0 ] && [ "$(grep -cF "$want" "$work/stderr")" -eq 1 ]; then
+  ok "fiber_diameter_in_other_units: $(grep "diameter" "$work/stderr" | cut -c1-160)"
+else bad "fiber_diameter_in_other_units: expected one warning '$want'"; fi
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.thickness=0.03 --dry-run > "$work/stdout" 2> "$work/stderr"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "sheet_thickness_ten_horizons: no warning"
 else bad "sheet_thickness_ten_horizons: exit status or warning"; fi

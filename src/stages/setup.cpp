@@ -42,7 +42,7 @@ Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, 
   stop_point(comm);
   Nodes nodes = discretize(scene);
   check_node_positions(scene, nodes, rank);
-  warn_thick_sheets(scene, nodes, rank);
+  warn_thick_bodies(scene, nodes, rank);
   check_polygon_cracks(scene, nodes);
   return nodes;
 }

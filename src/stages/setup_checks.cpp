@@ -34,9 +34,9 @@ constexpr double kFarthestNode = 1e9;
 constexpr double kFarNodeWarning = 1e6;
 // A point cloud whose points' median volume^(1/3) is beyond this factor of the spacing (either way).
 constexpr double kCloudSpacingRatio = 1.5;
-// Thickness of a sheet, in horizons (or lattice spacings), beyond which it is not a membrane: a
-// thickness in mm written as m is 1000 times too thick and lands far beyond.
-constexpr double kThickSheet = 10.0;
+// Thickness of a sheet or diameter of a fiber, in horizons (or lattice spacings), beyond which it
+// is not a membrane or a bar: a length in mm written as m is 1000 times too large and lands far beyond.
+constexpr double kThickBody = 10.0;
 
 std::string num(double v) {
   std::ostringstream s;
@@ -183,20 +183,25 @@ void warn_cloud_spacing(const Scene& scene, int rank) {
   }
 }
 
-void warn_thick_sheets(const Scene& scene, const Nodes& nodes, int rank) {
+void warn_thick_bodies(const Scene& scene, const Nodes& nodes, int rank) {
   if (rank != 0) return;
   for (std::size_t k = 0; k < nodes.bodies.size() && k < scene.bodies.size(); ++k) {
     const BodyGeometry& g = nodes.bodies[k];
     const Body& b = scene.bodies[k];
+    const bool fiber = b.diameter > 0;
+    const double across = fiber ? b.diameter : g.thickness;
     const double length = std::max(g.horizon, g.spacing);  // (a lattice's reach is its spacing)
-    if (!(g.thickness > kThickSheet * length)) continue;
-    std::fprintf(stderr,
-                 "peridrive: warning: %s: bodies.%s.thickness: %s m is %s times the %s (%s m): the sheet "
-                 "models are for sheets thin against their horizon (no bending, no shear through the "
-                 "thickness), and the thickness scales the sheet's mass, stiffness and pressure stress; "
-                 "a thickness in mm? (0.5 mm is 0.0005)\n",
-                 b.where.str().c_str(), b.name.c_str(), num(g.thickness).c_str(), num(g.thickness / length).c_str(),
-                 g.horizon >= g.spacing ? "horizon" : "spacing", num(length).c_str());
+    if (!(across > kThickBody * length)) continue;
+    const std::string what = fiber
+        ? "the fiber model is for bars thin against their horizon (no bending, no contact across the width), "
+          "and the diameter scales the fiber's mass and stiffness; a diameter in other units than m?"
+        : "the sheet models are for sheets thin against their horizon (no bending, no shear through the "
+          "thickness), and the thickness scales the sheet's mass, stiffness and pressure stress; a thickness "
+          "in mm? (0.5 mm is 0.0005 m)";
+    std::fprintf(stderr, "peridrive: warning: %s: bodies.%s.%s: %s m is %s times the %s (%s m): %s\n",
+                 b.where.str().c_str(), b.name.c_str(), fiber ? "diameter" : "thickness", num(across).c_str(),
+                 num(across / length).c_str(), g.horizon >= g.spacing ? "horizon" : "spacing", num(length).c_str(),
+                 what.c_str());
   }
 }
 

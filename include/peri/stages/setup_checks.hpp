@@ -41,8 +41,9 @@ void warn_unused_safety_factor(const Scene& scene, int rank);
 /// sample it aliased (at one spacing every grid node lies on a zero).
 void warn_aliased_seed(const Scene& scene, int rank);
 /// Warns (rank 0) of a sheet (membrane, sphere, lattice) thicker than 10 horizons (a lattice: 10
-/// spacings): not a membrane, and most likely a thickness in mm written as m.
-void warn_thick_sheets(const Scene& scene, const Nodes& nodes, int rank);
+/// spacings), or a fiber whose diameter is: not a membrane or a bar, and most likely a length in
+/// mm written as m.
+void warn_thick_bodies(const Scene& scene, const Nodes& nodes, int rank);
 /// Warns (rank 0) of two bodies whose nodes come within a horizon of each other: bodies do not
 /// bond to each other, so a piece made of two bodies comes apart at their seam. Pairs of fibers
 /// that take part in long-range pairs (which act between bodies) are not warned of.
