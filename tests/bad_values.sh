@@ -312,6 +312,20 @@ else bad "fiber_diameter_in_other_units: expected one warning '$want'"; fi
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "sheet_thickness_ten_horizons: no warning"
 else bad "sheet_thickness_ten_horizons: exit status or warning"; fi
 
+# A slit on a curved mesh sheet is taken in the xy plane: across the tube_flaw.yaml tube (axis z)
+# at z = 0.15 m it cuts the wall at x = 0.05 m along the tube's whole length, far from the slit in
+# space: one warning naming the count and the farthest distance; the scene's polygon, none.
+"${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --set 'cracks=[{name: flaw, from: [0.05, -0.01, 0.15], to: [0.05, 0.01, 0.15]}]' \
+  --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="--set: cracks: the slit 'flaw' breaks 3175 bonds of the curved sheet 'tube' farther than its horizon (0.00746622 m) from the slit in space, up to 0.15 m"
+if [ $rc -eq 0 ] && grep -qF -- "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "slit_on_curved_sheet: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "slit_on_curved_sheet: expected one warning '$want'"; fi
+"${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
+if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "polygon_on_curved_sheet: no warning"
+else bad "polygon_on_curved_sheet: exit status or warning"; fi
+
 # A seed of one spacing's wavelength puts every grid node on a zero of the sine (|u_z| 5e-34 m for
 # an amplitude of 1e-5): one warning naming the wavelength and the least that resolves.
 "${mpi[@]}" "$peridrive" "${coarse[@]}" --set 'initial.seed.wavelength=[0.001, 0.001]' --dry-run > "$work/stdout" 2> "$work/stderr"

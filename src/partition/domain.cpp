@@ -1,11 +1,31 @@
 #include "peri/partition/domain.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <unordered_map>
 
 #include "peri/bonds/crack_index.hpp"
+#include "peri/bonds/crossing.hpp"
 
 namespace peri {
+namespace {
+
+// Distance from point m to the segment [a, b] in space.
+double distance_to_segment(const double* m, const Vec3& a, const Vec3& b) {
+  double ab[3], am[3], t = 0, len2 = 0;
+  for (int c = 0; c < 3; ++c) {
+    ab[c] = b[c] - a[c];
+    am[c] = m[c] - a[c];
+    t += am[c] * ab[c];
+    len2 += ab[c] * ab[c];
+  }
+  t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
+  double d2 = 0;
+  for (int c = 0; c < 3; ++c) d2 += (am[c] - t * ab[c]) * (am[c] - t * ab[c]);
+  return std::sqrt(d2);
+}
+
+}  // namespace
 
 Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cells,
                     const Partition& partition, int rank, const std::function<bool()>& stop) {
@@ -85,7 +105,23 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
     if (cut(g.traits.dimension)) longest = std::max(longest, reach(g));
   const bool crack_list_empty = crack_list.empty();
   d.crack_met.assign(crack_list.size(), 0);
+  d.crack_far.assign(crack_list.size() * nodes.bodies.size(), 0);
+  d.crack_far_most.assign(crack_list.size(), 0.0);
+  const bool any_slit = std::any_of(scene.cracks.begin(), scene.cracks.end(), [](const Crack& c) { return !c.is_polygon(); });
   const CrackIndex cracks(std::move(crack_list), longest);
+  // A bond of a curved sheet that slits broke: those whose midpoint is beyond the horizon from the
+  // slit's segment in space are counted (Domain::crack_far).
+  const auto far_walls = [&](const double* a, const double* c, int body, double horizon) {
+    const double mid[3] = {0.5 * (a[0] + c[0]), 0.5 * (a[1] + c[1]), 0.5 * (a[2] + c[2])};
+    for (std::size_t k = 0; k < scene.cracks.size(); ++k) {
+      const Crack& crack = scene.cracks[k];
+      if (crack.is_polygon() || !segments_cross(a, c, crack.from.data(), crack.to.data())) continue;
+      const double far = distance_to_segment(mid, crack.from, crack.to);
+      if (!(far > horizon)) continue;
+      ++d.crack_far[k * nodes.bodies.size() + static_cast<std::size_t>(body)];
+      d.crack_far_most[k] = std::max(d.crack_far_most[k], far);
+    }
+  };
   for (std::int32_t r = 0; r < d.owned; ++r) {
     if (r % kPollRows == 0 && stop && stop()) return d;
     bool touches_ghost = false;
@@ -120,6 +156,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
           d.bonds.broken[b] = 1;
           d.bonds.row_broken[r] = 1;
           ++d.initially_broken;
+          if (any_slit && g.traits.dimension == 2 && !g.traits.flat) far_walls(a, c, nodes.body[i], g.horizon);
         }
       }
     }

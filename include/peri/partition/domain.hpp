@@ -26,6 +26,13 @@ struct Domain {
   std::vector<std::int32_t> boundary_rows;  ///< owned rows with at least one ghost neighbour
   std::int64_t initially_broken = 0;  ///< owned ordered bonds broken by pre-cracks
   std::vector<char> crack_met;        ///< per scene crack broken at the start: it met an owned bond
+  /// Per scene crack (slits) and body [crack * bodies + body]: the owned ordered bonds of a curved
+  /// sheet (a sphere, a curved mesh) it broke at the start whose midpoint lies farther than the
+  /// body's horizon from the slit's segment in space. A slit is taken in the xy plane, so on a
+  /// curved sheet it cuts every wall above and below it; these bonds are the walls it does not
+  /// touch. crack_far_most: per crack, the largest such distance [m] (0: none).
+  std::vector<std::int64_t> crack_far;
+  std::vector<double> crack_far_most;
   std::int32_t local() const { return owned + ghosts; }
 };
 
