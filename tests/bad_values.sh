@@ -322,6 +322,15 @@ want="--set: cracks: the slit 'flaw' breaks 3175 bonds of the curved sheet 'tube
 if [ $rc -eq 0 ] && grep -qF -- "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
   ok "slit_on_curved_sheet: $(grep "warning" "$work/stderr" | cut -c1-160)"
 else bad "slit_on_curved_sheet: expected one warning '$want'"; fi
+# The same slit released by a release stage: the same bonds, one warning naming the stage.
+"${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --set 'cracks=[{name: flaw, from: [0.05, -0.01, 0.15], to: [0.05, 0.01, 0.15]}]' \
+  --set 'stages=[{name: inflate, duration: 1.0e-4}, {name: cut, kind: release, cracks: [flaw]}, {name: open, duration: 1.0e-5}]' \
+  --dry-run > "$work/stdout" 2> "$work/stderr"
+rc=$?
+want="--set: stages.cut.cracks: the slits would break 3175 bonds of the curved sheet 'tube' farther than its horizon (0.00746622 m) from them in space, up to 0.15 m"
+if [ $rc -eq 0 ] && grep -qF -- "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+  ok "released_slit_on_curved_sheet: $(grep "warning" "$work/stderr" | cut -c1-160)"
+else bad "released_slit_on_curved_sheet: expected one warning '$want'"; fi
 "${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "polygon_on_curved_sheet: no warning"
 else bad "polygon_on_curved_sheet: exit status or warning"; fi

@@ -1,32 +1,12 @@
 #include "peri/partition/domain.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <unordered_map>
 
 #include "peri/bonds/crack_index.hpp"
 #include "peri/bonds/crossing.hpp"
 
 namespace peri {
-namespace {
-
-// Distance from point m to the segment [a, b] in space.
-double distance_to_segment(const double* m, const Vec3& a, const Vec3& b) {
-  double ab[3], am[3], t = 0, len2 = 0;
-  for (int c = 0; c < 3; ++c) {
-    ab[c] = b[c] - a[c];
-    am[c] = m[c] - a[c];
-    t += am[c] * ab[c];
-    len2 += ab[c] * ab[c];
-  }
-  t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
-  double d2 = 0;
-  for (int c = 0; c < 3; ++c) d2 += (am[c] - t * ab[c]) * (am[c] - t * ab[c]);
-  return std::sqrt(d2);
-}
-
-}  // namespace
-
 Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cells,
                     const Partition& partition, int rank, const std::function<bool()>& stop) {
   // Rows between polls of `stop`: a stopped build returns at once, unfinished.
@@ -116,7 +96,7 @@ Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cell
     for (std::size_t k = 0; k < scene.cracks.size(); ++k) {
       const Crack& crack = scene.cracks[k];
       if (crack.is_polygon() || !segments_cross(a, c, crack.from.data(), crack.to.data())) continue;
-      const double far = distance_to_segment(mid, crack.from, crack.to);
+      const double far = crack.slit_distance(mid);
       if (!(far > horizon)) continue;
       ++d.crack_far[k * nodes.bodies.size() + static_cast<std::size_t>(body)];
       d.crack_far_most[k] = std::max(d.crack_far_most[k], far);

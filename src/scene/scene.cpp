@@ -3,6 +3,9 @@
 // emit.cpp.
 #include "peri/scene/scene.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 #include "peri/scene/located_yaml.hpp"
 
 namespace peri {
@@ -24,6 +27,20 @@ int Scene::material_index(const std::string& material_name) const {
   for (std::size_t i = 0; i < materials.size(); ++i)
     if (materials[i].name == material_name) return static_cast<int>(i);
   return -1;
+}
+
+double Crack::slit_distance(const double* x) const {
+  double ab[3], ax[3], t = 0, len2 = 0;
+  for (int c = 0; c < 3; ++c) {
+    ab[c] = to[c] - from[c];
+    ax[c] = x[c] - from[c];
+    t += ax[c] * ab[c];
+    len2 += ab[c] * ab[c];
+  }
+  t = len2 > 0 ? std::clamp(t / len2, 0.0, 1.0) : 0.0;
+  double d2 = 0;
+  for (int c = 0; c < 3; ++c) d2 += (ax[c] - t * ab[c]) * (ax[c] - t * ab[c]);
+  return std::sqrt(d2);
 }
 
 bool Scene::released_later(const std::string& crack) const {

@@ -2,11 +2,15 @@
 
 #include <mpi.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "peri/bonds/bonds.hpp"
 #include "peri/bonds/crossing.hpp"
 #include "peri/core/error.hpp"
+#include "peri/core/format.hpp"
 
 namespace peri {
 
@@ -25,6 +29,47 @@ std::vector<const Crack*> stage_cracks(const Scene& scene, const Stage& stage) {
     for (const Crack& c : scene.cracks)
       if (c.name == name) cracks.push_back(&c);
   return cracks;
+}
+
+/// Warns (rank 0) where the stage's slits would break bonds of a curved sheet (a sphere, a curved
+/// mesh) farther than its horizon from every slit in space: the walls above and below that a slit,
+/// taken in the xy plane, cuts too (as for the pre-cracks broken at the start). Collective.
+void warn_far_walls(const Problem& p, const Stage& stage, const std::vector<const Crack*>& cracks) {
+  const Domain& domain = p.domain;
+  const std::size_t nb = p.bodies.size();
+  const auto curved = [&](std::size_t b) { return p.bodies[b].traits.dimension == 2 && !p.bodies[b].traits.flat; };
+  bool any = false;
+  for (std::size_t b = 0; b < nb; ++b) any = any || curved(b);
+  if (!any || std::all_of(cracks.begin(), cracks.end(), [](const Crack* c) { return c->is_polygon(); })) return;
+  std::vector<std::int64_t> far(nb, 0);
+  double most = 0;
+  for (std::int32_t i = 0; i < domain.owned; ++i) {
+    const std::size_t body = static_cast<std::size_t>(domain.body[i]);
+    if (!curved(body)) continue;
+    const double* Xi = &domain.X[3 * static_cast<std::size_t>(i)];
+    for (std::int64_t b = domain.bonds.offsets[i]; b < domain.bonds.offsets[i + 1]; ++b) {
+      const double* Xj = &domain.X[3 * static_cast<std::size_t>(domain.bonds.neighbor[b])];
+      const double mid[3] = {0.5 * (Xi[0] + Xj[0]), 0.5 * (Xi[1] + Xj[1]), 0.5 * (Xi[2] + Xj[2])};
+      double nearest = INFINITY;
+      for (const Crack* c : cracks)
+        if (!c->is_polygon() && crosses(Xi, Xj, *c)) nearest = std::min(nearest, c->slit_distance(mid));
+      if (std::isfinite(nearest) && nearest > p.bodies[body].horizon) {
+        ++far[body];
+        most = std::max(most, nearest);
+      }
+    }
+  }
+  MPI_Allreduce(MPI_IN_PLACE, far.data(), static_cast<int>(nb), MPI_INT64_T, MPI_SUM, p.comm);
+  MPI_Allreduce(MPI_IN_PLACE, &most, 1, MPI_DOUBLE, MPI_MAX, p.comm);
+  for (std::size_t b = 0; b < nb && p.rank == 0; ++b) {
+    if (far[b] == 0) continue;
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: stages.%s.cracks: the slits would break %lld bonds of the curved sheet '%s' "
+                 "farther than its horizon (%s m) from them in space, up to %s m: a slit is taken in the xy plane "
+                 "and cuts every wall above and below it; a polygon crack cuts one wall (docs/user/precracks.md)\n",
+                 stage.where.str().c_str(), stage.name.c_str(), static_cast<long long>(far[b] / 2),
+                 p.scene.bodies[b].name.c_str(), number_text(p.bodies[b].horizon).c_str(), number_text(most).c_str());
+  }
 }
 
 }  // namespace
@@ -46,6 +91,7 @@ void check_release_stages(const Problem& p) {
       throw InputError(stage.where.str() + ": stages." + stage.name + ".cracks: the named cracks cross no bond of " +
                        "a body they cut (a slit: membrane, lattice, fiber or sphere; a polygon: any); expected " +
                        "cracks that meet the bodies");
+    warn_far_walls(p, stage, cracks);
   }
 }
 

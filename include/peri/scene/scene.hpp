@@ -268,6 +268,10 @@ struct Crack {
   bool is_polygon() const { return !polygon.empty(); }
   /// Whether it cuts the bonds of a body of this dimension (1 fibers, 2 sheets, 3 volumes).
   bool cuts_dimension(int dimension) const { return is_polygon() || dimension < 3; }
+  /// A slit's distance in space from point x to its segment from .. to (z included) [m]. A slit
+  /// cuts by its xy projection, so on a curved sheet the bonds it breaks farther than a horizon
+  /// from it are walls above or below it that it does not touch.
+  double slit_distance(const double* x) const;
 };
 
 /// Prescribed-velocity (or clamped: velocity 0) region.
