@@ -7,6 +7,7 @@
 #include "peri/bonds/crossing.hpp"
 
 namespace peri {
+
 Domain build_domain(const Scene& scene, const Nodes& nodes, const CellList& cells,
                     const Partition& partition, int rank, const std::function<bool()>& stop) {
   // Rows between polls of `stop`: a stopped build returns at once, unfinished.
