@@ -293,47 +293,53 @@ cloud_scene fits 2 "output: {frames: 2}"
 if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "cloud_volumes_fit_spacing: no warning"
 else bad "cloud_volumes_fit_spacing: exit status or warning"; fi
 
+# warns_once NAME WANT -- peridrive arguments...: a dry run that succeeds with exactly one
+# warning holding WANT. no_warning NAME -- arguments...: one that succeeds without any.
+warns_once() {
+  local name=$1 want=$2
+  shift 3
+  "${mpi[@]}" "$peridrive" "$@" --dry-run > "$work/stdout" 2> "$work/stderr"
+  local rc=$?
+  if [ $rc -eq 0 ] && grep -qF -- "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
+    ok "$name: $(grep "warning" "$work/stderr" | cut -c1-160)"
+  else bad "$name: exit status $rc, expected one warning '$want'"; fi
+}
+no_warning() {
+  local name=$1
+  shift 2
+  "${mpi[@]}" "$peridrive" "$@" --dry-run > "$work/stdout" 2> "$work/stderr"
+  if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "$name: no warning"
+  else bad "$name: exit status or warning"; fi
+}
+
 # A sheet's thickness in mm written as m (0.5 for 0.5 mm): 167 horizons thick at the coarse
 # spacing, one warning naming the ratio; 10 horizons or less (the scene's 0.5 mm: 0.17), none.
-"${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.thickness=0.5 --dry-run > "$work/stdout" 2> "$work/stderr"
-rc=$?
-want="<default scene>:$(line_of '^    kind: membrane'): bodies.sheet.thickness: 0.5 m is 166.667 times the horizon (0.003 m)"
-if [ $rc -eq 0 ] && grep -qF "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
-  ok "sheet_thickness_in_mm: $(grep "warning" "$work/stderr" | cut -c1-160)"
-else bad "sheet_thickness_in_mm: expected one warning '$want'"; fi
-# A fiber's diameter likewise (2 um on the 1.5 nm horizon of fiber_long_range.yaml).
+warns_once sheet_thickness_in_mm \
+  "<default scene>:$(line_of '^    kind: membrane'): bodies.sheet.thickness: 0.5 m is 166.667 times the horizon (0.003 m)" \
+  -- "${coarse[@]}" --set bodies.sheet.thickness=0.5
+no_warning sheet_thickness_ten_horizons -- "${coarse[@]}" --set bodies.sheet.thickness=0.03
+# A fiber's diameter likewise (2 um on the 1.5 nm horizon of fiber_long_range.yaml; the scene
+# warns of its long-range contact step too).
 "${mpi[@]}" "$peridrive" "$scenes/fiber_long_range.yaml" --set bodies.fiber.diameter=2e-6 --dry-run > "$work/stdout" 2> "$work/stderr"
 rc=$?
 want="bodies.fiber.diameter: 2e-06 m is 1333.33 times the horizon (1.5e-09 m): the fiber model is for bars"
 if [ $rc -eq 0 ] && [ "$(grep -cF "$want" "$work/stderr")" -eq 1 ]; then
   ok "fiber_diameter_in_other_units: $(grep "diameter" "$work/stderr" | cut -c1-160)"
 else bad "fiber_diameter_in_other_units: expected one warning '$want'"; fi
-"${mpi[@]}" "$peridrive" "${coarse[@]}" --set bodies.sheet.thickness=0.03 --dry-run > "$work/stdout" 2> "$work/stderr"
-if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "sheet_thickness_ten_horizons: no warning"
-else bad "sheet_thickness_ten_horizons: exit status or warning"; fi
 
 # A slit on a curved mesh sheet is taken in the xy plane: across the tube_flaw.yaml tube (axis z)
 # at z = 0.15 m it cuts the wall at x = 0.05 m along the tube's whole length, far from the slit in
-# space: one warning naming the count and the farthest distance; the scene's polygon, none.
-"${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --set 'cracks=[{name: flaw, from: [0.05, -0.01, 0.15], to: [0.05, 0.01, 0.15]}]' \
-  --dry-run > "$work/stdout" 2> "$work/stderr"
-rc=$?
-want="--set: cracks: the slit 'flaw' breaks 3175 bonds of the curved sheet 'tube' farther than its horizon (0.00746622 m) from the slit in space, up to 0.15 m"
-if [ $rc -eq 0 ] && grep -qF -- "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
-  ok "slit_on_curved_sheet: $(grep "warning" "$work/stderr" | cut -c1-160)"
-else bad "slit_on_curved_sheet: expected one warning '$want'"; fi
-# The same slit released by a release stage: the same bonds, one warning naming the stage.
-"${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --set 'cracks=[{name: flaw, from: [0.05, -0.01, 0.15], to: [0.05, 0.01, 0.15]}]' \
-  --set 'stages=[{name: inflate, duration: 1.0e-4}, {name: cut, kind: release, cracks: [flaw]}, {name: open, duration: 1.0e-5}]' \
-  --dry-run > "$work/stdout" 2> "$work/stderr"
-rc=$?
-want="--set: stages.cut.cracks: the slits would break 3175 bonds of the curved sheet 'tube' farther than its horizon (0.00746622 m) from them in space, up to 0.15 m"
-if [ $rc -eq 0 ] && grep -qF -- "$want" "$work/stderr" && [ "$(grep -c "peridrive: warning:" "$work/stderr")" -eq 1 ]; then
-  ok "released_slit_on_curved_sheet: $(grep "warning" "$work/stderr" | cut -c1-160)"
-else bad "released_slit_on_curved_sheet: expected one warning '$want'"; fi
-"${mpi[@]}" "$peridrive" "$scenes/tube_flaw.yaml" --dry-run > "$work/stdout" 2> "$work/stderr"
-if [ $? -eq 0 ] && ! grep -q "warning" "$work/stderr"; then ok "polygon_on_curved_sheet: no warning"
-else bad "polygon_on_curved_sheet: exit status or warning"; fi
+# space: one warning naming the count and the farthest distance, broken at the start or by a
+# release stage; the scene's polygon, none.
+slit=(--set 'cracks=[{name: flaw, from: [0.05, -0.01, 0.15], to: [0.05, 0.01, 0.15]}]')
+warns_once slit_on_curved_sheet \
+  "--set: cracks: the slit 'flaw' breaks 3175 bonds of the curved sheet 'tube' farther than its horizon (0.00746622 m) from the slit in space, up to 0.15 m" \
+  -- "$scenes/tube_flaw.yaml" "${slit[@]}"
+warns_once released_slit_on_curved_sheet \
+  "--set: stages.cut.cracks: the slits would break 3175 bonds of the curved sheet 'tube' farther than its horizon (0.00746622 m) from them in space, up to 0.15 m" \
+  -- "$scenes/tube_flaw.yaml" "${slit[@]}" \
+  --set 'stages=[{name: inflate, duration: 1.0e-4}, {name: cut, kind: release, cracks: [flaw]}, {name: open, duration: 1.0e-5}]'
+no_warning polygon_on_curved_sheet -- "$scenes/tube_flaw.yaml"
 
 # A seed of one spacing's wavelength puts every grid node on a zero of the sine (|u_z| 5e-34 m for
 # an amplitude of 1e-5): one warning naming the wavelength and the least that resolves.
