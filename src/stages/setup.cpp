@@ -36,6 +36,7 @@ namespace {
 Nodes discretize_checked(const Scene& scene, const PartitionSettings& settings, MPI_Comm comm, int rank) {
   warn_large_families(scene, estimate_size(scene), rank);
   warn_cloud_spacing(scene, rank);
+  warn_flattened_meshes(scene, rank);
   warn_unused_safety_factor(scene, rank);
   warn_aliased_seed(scene, rank);
   check_fits(scene, comm, settings.method == PartitionMethod::Bonds);

@@ -205,6 +205,19 @@ void warn_thick_bodies(const Scene& scene, const Nodes& nodes, int rank) {
   }
 }
 
+void warn_flattened_meshes(const Scene& scene, int rank) {
+  if (rank != 0) return;
+  for (const Body& b : scene.bodies) {
+    if (!b.mesh_data || !(b.mesh_data->flattened > 0)) continue;
+    std::fprintf(stderr,
+                 "peridrive: warning: %s: bodies.%s.mesh: the nodes of '%s' lie within %s m in z (at most %s of "
+                 "its size): taken as a flat sheet, every z set to %s m (crack tips tracked, in_plane stages hold "
+                 "it in its plane)\n",
+                 b.where.str().c_str(), b.name.c_str(), b.mesh.c_str(), num(b.mesh_data->flattened).c_str(),
+                 num(kFlatMeshTolerance).c_str(), num(b.mesh_data->nodes.empty() ? 0.0 : b.mesh_data->nodes[0][2]).c_str());
+  }
+}
+
 void warn_touching_bodies(const Scene& scene, const Nodes& nodes, const CellList& cells, int rank) {
   const std::size_t nb = nodes.bodies.size();
   if (rank != 0 || nb < 2) return;

@@ -146,6 +146,10 @@ struct MeshGroup {
   std::vector<std::int64_t> nodes;
 };
 
+/// A triangle mesh is a flat sheet when its nodes' z spread no more than this fraction of its
+/// size (the largest of its x and y extents and its coordinates' magnitude).
+inline constexpr double kFlatMeshTolerance = 1e-6;
+
 /// A body's mesh (`mesh: file`), read with the scene through Gmsh's API (kinds/mesh_file.cpp):
 /// the nodes its triangles (membranes) or tetrahedra (solids) use, in ascending order of their
 /// tags in the file (nodes no such element uses are not the body's), positions times `scale`.
@@ -161,6 +165,10 @@ struct MeshData {
   double mean_edge = 0.0;  ///< mean length of the elements' edges, each edge once [m]
   double total = 0.0;      ///< the elements' total area [m^2] or volume [m^3]
   bool planar = false;     ///< every node at the same z (a flat sheet)
+  /// A triangle mesh whose nodes' z spread no more than kFlatMeshTolerance of its size (round-off
+  /// of a flat sheet, e.g. an STL's float32 coordinates) is made planar: every z set to the middle
+  /// of the spread, this spread [m] kept to say so (0: none).
+  double flattened = 0.0;
   const MeshGroup* group(const std::string& name) const {
     for (const MeshGroup& g : groups)
       if (g.name == name) return &g;

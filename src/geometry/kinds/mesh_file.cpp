@@ -87,7 +87,7 @@ const Key kMeshKey2 = {
            "file (right-hand rule: the pressure pushes along (b - a) x (c - a)). Only 3-node triangles, with "
            "points and 2-node lines for physical groups; nodes no triangle uses are not the body's; no degenerate "
            "triangle, no two nodes at one position. Named physical groups are regions "
-           "(`region: {body: <name>, group: <group>}`). A mesh with every node at one z is flat (as a grid sheet)"};
+           "(`region: {body: <name>, group: <group>}`). A mesh whose nodes lie at one z is flat (as a grid sheet), within round-off: a spread in z of at most 1e-6 of its size is set to one z, with a warning"};
 const Key kMeshKey3 = {
     .name = "mesh", .fallback = "- (a box)",
     .doc = "instead of origin and size: a tetrahedral mesh (relative to the scene file; a Gmsh .msh, version 2.2 "
@@ -394,6 +394,26 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
                      " too (within 1e-8 mean edge lengths); expected each point once (merge the duplicate nodes, "
                      "e.g. Gmsh's Coherence Mesh)");
   m.planar = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) { return x[2] == m.nodes[0][2]; });
+  if (dimension == 2 && !m.planar) {
+    // A flat sheet whose z carries round-off (a CAD export, an STL's float32 coordinates) is made
+    // flat: otherwise it is a curved sheet, whose crack tips are not tracked and whose in_plane
+    // quasi-static stages do not hold it in its plane.
+    double low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY}, largest = 0;
+    for (const Vec3& x : m.nodes)
+      for (int c = 0; c < 3; ++c) {
+        low[c] = std::min(low[c], x[c]);
+        high[c] = std::max(high[c], x[c]);
+        largest = std::max(largest, std::fabs(x[c]));
+      }
+    const double spread = high[2] - low[2];
+    const double size = std::max({high[0] - low[0], high[1] - low[1], largest});
+    if (spread <= kFlatMeshTolerance * size) {
+      const double z = 0.5 * (low[2] + high[2]);
+      for (Vec3& x : m.nodes) x[2] = z;
+      m.planar = true;
+      m.flattened = spread;
+    }
+  }
   for (const Group& g : groups) {
     MeshGroup out{g.name, {}};
     for (std::size_t tag : g.tags)
