@@ -7,7 +7,9 @@
 #  - z = 0 +- 1e-18 m on every other node: one warning ("lie within 2e-18 m in z"), the same
 #    tips.csv and the same final positions, bit for bit, as the exact mesh;
 #  - a bump of 1e-4 m (1e-2 of the size, beyond the 1e-6 tolerance): a curved sheet, no warning,
-#    no crack tips tracked (curved sheets have none).
+#    no crack tips tracked (curved sheets have none);
+#  - the square turned 30 degrees about x: a plane whose normal is off z, run as a curved sheet,
+#    with one warning naming the normal.
 # usage: flat_mesh.sh PERIDRIVE GMSH MPIEXEC [MPI flags...]
 set -u
 peridrive=$1 gmsh=$2 mpiexec=$3
@@ -39,8 +41,15 @@ def write(name, dz):
     open(name, "w").write("\n".join(out))
 write("noisy.msh", lambda t, x, y: (1e-18 if t % 2 else -1e-18))
 write("bumpy.msh", lambda t, x, y: 1e-4 * math.exp(-((x - 0.002) ** 2 + (y - 0.002) ** 2) / 1e-6))
+# The exact square turned by 30 degrees about x: a plane sheet whose normal is (0, -1/2, sqrt(3)/2).
+out = list(lines)
+for k in range(at + 2, at + 2 + n):
+    tag, x, y, z = out[k].split()
+    c, s = math.cos(math.pi / 6), math.sin(math.pi / 6)
+    out[k] = " ".join([tag, x, repr(c * float(y)), repr(s * float(y))])
+open("tilted.msh", "w").write("\n".join(out))
 PY
-for m in exact noisy bumpy; do
+for m in exact noisy bumpy tilted; do
   cat > "$m.yaml" <<EOF
 name: flat-mesh-$m
 materials:
@@ -91,5 +100,10 @@ check("z round-off runs as the exact mesh", tips == tips_exact and pos is not No
 rc, err, w, tips, pos = run("bumpy")
 check("a bump is a curved sheet", rc == 0 and not w and tips is None,
       f"exit {rc}, {len(w)} warnings, tips.csv {'absent' if tips is None else 'written'}")
+rc, err, w, tips, pos = run("tilted")
+want = (f"bodies.sheet.mesh: '{os.path.realpath('tilted.msh')}' is a plane sheet with normal (0, -0.5, 0.866025), "
+        "not along z: it runs as a curved sheet")
+check("a tilted plane is warned of", rc == 0 and len(w) == 1 and want in w[0] and tips is None,
+      (w[0][:160] if w else err[:300]) + f"; tips.csv {'absent' if tips is None else 'written'}")
 sys.exit(0 if all(checks) else 1)
 PY

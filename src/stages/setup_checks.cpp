@@ -208,7 +208,19 @@ void warn_thick_bodies(const Scene& scene, const Nodes& nodes, int rank) {
 void warn_flattened_meshes(const Scene& scene, int rank) {
   if (rank != 0) return;
   for (const Body& b : scene.bodies) {
-    if (!b.mesh_data || !(b.mesh_data->flattened > 0)) continue;
+    if (!b.mesh_data) continue;
+    if (const Vec3& n = b.mesh_data->tilted_normal; n[0] != 0 || n[1] != 0 || n[2] != 0) {
+      const auto component = [](double c) { return num(std::fabs(c) < 1e-12 ? 0.0 : c); };  // (no round-off)
+      std::fprintf(stderr,
+                   "peridrive: warning: %s: bodies.%s.mesh: '%s' is a plane sheet with normal (%s, %s, %s), not "
+                   "along z: it runs as a curved sheet (no crack tips tracked, quasi-static in_plane stages do "
+                   "not hold it in its plane, slits cut it along their xy projection); rotate the mesh into a "
+                   "plane z = constant to have it flat\n",
+                   b.where.str().c_str(), b.name.c_str(), b.mesh.c_str(), component(n[0]).c_str(),
+                   component(n[1]).c_str(), component(n[2]).c_str());
+      continue;
+    }
+    if (!(b.mesh_data->flattened > 0)) continue;
     std::fprintf(stderr,
                  "peridrive: warning: %s: bodies.%s.mesh: the nodes of '%s' lie within %s m in z (at most %s of "
                  "its size): taken as a flat sheet, every z set to %s m (crack tips tracked, in_plane stages hold "

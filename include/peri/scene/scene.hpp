@@ -169,6 +169,9 @@ struct MeshData {
   /// of a flat sheet, e.g. an STL's float32 coordinates) is made planar: every z set to the middle
   /// of the spread, this spread [m] kept to say so (0: none).
   double flattened = 0.0;
+  /// A triangle mesh that is a plane sheet whose normal is not along z (within the same
+  /// tolerance): the unit normal; zeros otherwise. It runs as a curved sheet (setup warns).
+  Vec3 tilted_normal{0, 0, 0};
   const MeshGroup* group(const std::string& name) const {
     for (const MeshGroup& g : groups)
       if (g.name == name) return &g;

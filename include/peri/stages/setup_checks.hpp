@@ -45,7 +45,8 @@ void warn_aliased_seed(const Scene& scene, int rank);
 /// mm written as m.
 void warn_thick_bodies(const Scene& scene, const Nodes& nodes, int rank);
 /// Warns (rank 0) of each triangle mesh made flat (MeshData::flattened): its nodes' z spread by
-/// round-off only, now set to one z.
+/// round-off only, now set to one z; and of each plane mesh whose normal is not along z
+/// (MeshData::tilted_normal), which runs as a curved sheet.
 void warn_flattened_meshes(const Scene& scene, int rank);
 /// Warns (rank 0) of two bodies whose nodes come within a horizon of each other: bodies do not
 /// bond to each other, so a piece made of two bodies comes apart at their seam. Pairs of fibers

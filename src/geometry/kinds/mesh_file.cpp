@@ -412,6 +412,31 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
       for (Vec3& x : m.nodes) x[2] = z;
       m.planar = true;
       m.flattened = spread;
+    } else {
+      // A plane sheet at a tilt (its normal off z): the normal of its largest triangle, kept when
+      // every node lies within the tolerance of that triangle's plane.
+      Vec3 normal{0, 0, 0};
+      double largest_area2 = 0;
+      std::size_t corner = 0;
+      for (const auto& t : m.triangles) {
+        const Vec3 &a = m.nodes[t[0]], &b = m.nodes[t[1]], &c = m.nodes[t[2]];
+        const Vec3 n = {(b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]),
+                        (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]),
+                        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])};
+        const double area2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        if (area2 > largest_area2) largest_area2 = area2, normal = n, corner = static_cast<std::size_t>(t[0]);
+      }
+      const double length = std::sqrt(largest_area2);
+      if (length > 0) {
+        for (double& c : normal) c /= length;
+        const double extent = std::max({size, high[2] - low[2]});
+        const Vec3& o = m.nodes[corner];
+        const bool plane = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) {
+          return std::fabs((x[0] - o[0]) * normal[0] + (x[1] - o[1]) * normal[1] + (x[2] - o[2]) * normal[2]) <=
+                 kFlatMeshTolerance * extent;
+        });
+        if (plane) m.tilted_normal = normal;
+      }
     }
   }
   for (const Group& g : groups) {
