@@ -87,7 +87,8 @@ const Key kMeshKey2 = {
            "file (right-hand rule: the pressure pushes along (b - a) x (c - a)). Only 3-node triangles, with "
            "points and 2-node lines for physical groups; nodes no triangle uses are not the body's; no degenerate "
            "triangle, no two nodes at one position. Named physical groups are regions "
-           "(`region: {body: <name>, group: <group>}`). A mesh whose nodes lie at one z is flat (as a grid sheet), within round-off: a spread in z of at most 1e-6 of its size is set to one z, with a warning"};
+           "(`region: {body: <name>, group: <group>}`). A mesh whose nodes lie at one z is flat (as a grid "
+           "sheet), within round-off: a spread in z of at most 1e-6 of its size is set to one z, with a warning"};
 const Key kMeshKey3 = {
     .name = "mesh", .fallback = "- (a box)",
     .doc = "instead of origin and size: a tetrahedral mesh (relative to the scene file; a Gmsh .msh, version 2.2 "
@@ -98,6 +99,58 @@ const Key kMeshKey3 = {
            "position. Named physical groups are regions (`region: {body: <name>, group: <group>}`)"};
 const Key kScaleKey = {.name = "scale", .fallback = "1",
                        .doc = "with mesh: the factor on the file's coordinates (e.g. 0.001 for a mesh in mm), > 0"};
+
+namespace {
+
+// A triangle mesh not exactly at one z: flat within kFlatMeshTolerance (its z set to the middle of
+// the spread, MeshData::flattened), or a plane at a tilt (MeshData::tilted_normal), or curved.
+void settle_plane(MeshData& m) {
+  // A flat sheet whose z carries round-off (a CAD export, an STL's float32 coordinates) is made
+  // flat: otherwise it is a curved sheet, whose crack tips are not tracked and whose in_plane
+  // quasi-static stages do not hold it in its plane.
+  double low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY}, largest = 0;
+  for (const Vec3& x : m.nodes)
+    for (int c = 0; c < 3; ++c) {
+      low[c] = std::min(low[c], x[c]);
+      high[c] = std::max(high[c], x[c]);
+      largest = std::max(largest, std::fabs(x[c]));
+    }
+  const double spread = high[2] - low[2];
+  const double size = std::max({high[0] - low[0], high[1] - low[1], largest});
+  if (spread <= kFlatMeshTolerance * size) {
+    const double z = 0.5 * (low[2] + high[2]);
+    for (Vec3& x : m.nodes) x[2] = z;
+    m.planar = true;
+    m.flattened = spread;
+  } else {
+    // A plane sheet at a tilt (its normal off z): the normal of its largest triangle, kept when
+    // every node lies within the tolerance of that triangle's plane.
+    Vec3 normal{0, 0, 0};
+    double largest_area2 = 0;
+    std::size_t corner = 0;
+    for (const auto& t : m.triangles) {
+      const Vec3 &a = m.nodes[t[0]], &b = m.nodes[t[1]], &c = m.nodes[t[2]];
+      const Vec3 n = {(b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]),
+                      (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]),
+                      (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])};
+      const double area2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+      if (area2 > largest_area2) largest_area2 = area2, normal = n, corner = static_cast<std::size_t>(t[0]);
+    }
+    const double length = std::sqrt(largest_area2);
+    if (length > 0) {
+      for (double& c : normal) c /= length;
+      const double extent = std::max({size, high[2] - low[2]});
+      const Vec3& o = m.nodes[corner];
+      const bool plane = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) {
+        return std::fabs((x[0] - o[0]) * normal[0] + (x[1] - o[1]) * normal[1] + (x[2] - o[2]) * normal[2]) <=
+               kFlatMeshTolerance * extent;
+      });
+      if (plane) m.tilted_normal = normal;
+    }
+  }
+}
+
+}  // namespace
 
 void read_mesh_file(const Value& v, Body& b, int dimension) {
   namespace fs = std::filesystem;
@@ -394,51 +447,7 @@ void read_mesh_file(const Value& v, Body& b, int dimension) {
                      " too (within 1e-8 mean edge lengths); expected each point once (merge the duplicate nodes, "
                      "e.g. Gmsh's Coherence Mesh)");
   m.planar = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) { return x[2] == m.nodes[0][2]; });
-  if (dimension == 2 && !m.planar) {
-    // A flat sheet whose z carries round-off (a CAD export, an STL's float32 coordinates) is made
-    // flat: otherwise it is a curved sheet, whose crack tips are not tracked and whose in_plane
-    // quasi-static stages do not hold it in its plane.
-    double low[3] = {INFINITY, INFINITY, INFINITY}, high[3] = {-INFINITY, -INFINITY, -INFINITY}, largest = 0;
-    for (const Vec3& x : m.nodes)
-      for (int c = 0; c < 3; ++c) {
-        low[c] = std::min(low[c], x[c]);
-        high[c] = std::max(high[c], x[c]);
-        largest = std::max(largest, std::fabs(x[c]));
-      }
-    const double spread = high[2] - low[2];
-    const double size = std::max({high[0] - low[0], high[1] - low[1], largest});
-    if (spread <= kFlatMeshTolerance * size) {
-      const double z = 0.5 * (low[2] + high[2]);
-      for (Vec3& x : m.nodes) x[2] = z;
-      m.planar = true;
-      m.flattened = spread;
-    } else {
-      // A plane sheet at a tilt (its normal off z): the normal of its largest triangle, kept when
-      // every node lies within the tolerance of that triangle's plane.
-      Vec3 normal{0, 0, 0};
-      double largest_area2 = 0;
-      std::size_t corner = 0;
-      for (const auto& t : m.triangles) {
-        const Vec3 &a = m.nodes[t[0]], &b = m.nodes[t[1]], &c = m.nodes[t[2]];
-        const Vec3 n = {(b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]),
-                        (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]),
-                        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])};
-        const double area2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-        if (area2 > largest_area2) largest_area2 = area2, normal = n, corner = static_cast<std::size_t>(t[0]);
-      }
-      const double length = std::sqrt(largest_area2);
-      if (length > 0) {
-        for (double& c : normal) c /= length;
-        const double extent = std::max({size, high[2] - low[2]});
-        const Vec3& o = m.nodes[corner];
-        const bool plane = std::all_of(m.nodes.begin(), m.nodes.end(), [&](const Vec3& x) {
-          return std::fabs((x[0] - o[0]) * normal[0] + (x[1] - o[1]) * normal[1] + (x[2] - o[2]) * normal[2]) <=
-                 kFlatMeshTolerance * extent;
-        });
-        if (plane) m.tilted_normal = normal;
-      }
-    }
-  }
+  if (dimension == 2 && !m.planar) settle_plane(m);
   for (const Group& g : groups) {
     MeshGroup out{g.name, {}};
     for (std::size_t tag : g.tags)
