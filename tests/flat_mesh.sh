@@ -4,8 +4,8 @@
 # runs as the exact mesh does. A 10 mm square (Gmsh, edges about 0.5 mm) with a slit, pulled
 # apart for 60 us on 2 ranks:
 #  - exact z = 0: crack tips tracked (tips.csv has rows), no warning;
-#  - z = 0 +- 1e-18 m on every other node: one warning ("lie within 2e-18 m in z"), the same
-#    tips.csv and the same final positions, bit for bit, as the exact mesh;
+#  - z = +1e-18 m on odd node tags, -1e-18 m on even ones: one warning ("lie within 2e-18 m
+#    in z"), the same tips.csv and the same final positions, bit for bit, as the exact mesh;
 #  - a bump of 1e-4 m (1e-2 of the size, beyond the 1e-6 tolerance): a curved sheet, no warning,
 #    no crack tips tracked (curved sheets have none);
 #  - the square turned 30 degrees about x: a plane whose normal is off z, run as a curved sheet,
