@@ -4,13 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <vector>
 
 #include "peri/bonds/bonds.hpp"
 #include "peri/bonds/crossing.hpp"
 #include "peri/core/error.hpp"
-#include "peri/core/format.hpp"
+#include "peri/stages/geometry_warnings.hpp"
 
 namespace peri {
 
@@ -63,12 +62,8 @@ void warn_far_walls(const Problem& p, const Stage& stage, const std::vector<cons
   MPI_Allreduce(MPI_IN_PLACE, &most, 1, MPI_DOUBLE, MPI_MAX, p.comm);
   for (std::size_t b = 0; b < nb && p.rank == 0; ++b) {
     if (far[b] == 0) continue;
-    std::fprintf(stderr,
-                 "peridrive: warning: %s: stages.%s.cracks: the slits would break %lld bonds of the curved sheet '%s' "
-                 "farther than its horizon (%s m) from them in space, up to %s m: a slit is taken in the xy plane "
-                 "and cuts every wall above and below it; a polygon crack cuts one wall (docs/user/precracks.md)\n",
-                 stage.where.str().c_str(), stage.name.c_str(), static_cast<long long>(far[b] / 2),
-                 p.scene.bodies[b].name.c_str(), number_text(p.bodies[b].horizon).c_str(), number_text(most).c_str());
+    warn_slit_far_walls(stage.where.str() + ": stages." + stage.name + ".cracks: the slits", "would break",
+                        static_cast<long long>(far[b] / 2), p.scene.bodies[b].name, p.bodies[b].horizon, "them", most);
   }
 }
 

@@ -25,6 +25,7 @@
 #include "peri/models/model.hpp"
 #include "peri/partition/partition.hpp"
 #include "peri/stages/events.hpp"
+#include "peri/stages/geometry_warnings.hpp"
 #include "peri/stages/problem.hpp"
 #include "peri/stages/release.hpp"
 #include "peri/stages/setup_checks.hpp"
@@ -209,38 +210,6 @@ void halo_figures(const Problem& p, RunSummary::Halo& halo) {
   halo.mean_ghosts = static_cast<double>(sum[0]) / p.ranks;
   halo.mean_neighbour_ranks = static_cast<double>(sum[1]) / p.ranks;
   halo.mean_boundary_bonds = static_cast<double>(sum[3]) / p.ranks;
-}
-
-/// Warns (rank 0) of each slit broken at the start that breaks bonds of a curved sheet farther
-/// than its horizon from the slit's segment in space (Domain::crack_far): walls above or below
-/// it that it does not touch. Collective.
-void warn_far_slit_walls(const Problem& p) {
-  const Domain& d = p.domain;
-  std::vector<std::int64_t> far(d.crack_far.begin(), d.crack_far.end());
-  std::vector<double> far_most(d.crack_far_most.begin(), d.crack_far_most.end());
-  if (!far.empty()) {
-    MPI_Allreduce(MPI_IN_PLACE, far.data(), static_cast<int>(far.size()), MPI_INT64_T, MPI_SUM, p.comm);
-    MPI_Allreduce(MPI_IN_PLACE, far_most.data(), static_cast<int>(far_most.size()), MPI_DOUBLE, MPI_MAX, p.comm);
-  }
-  const std::size_t nb = p.bodies.size();
-  std::size_t k = 0;
-  for (std::size_t c = 0; c < p.scene.cracks.size() && p.rank == 0; ++c) {
-    const Crack& crack = p.scene.cracks[c];
-    if (p.scene.released_later(crack.name)) continue;
-    const std::size_t at = k++;
-    for (std::size_t b = 0; b < nb && (at + 1) * nb <= far.size(); ++b) {
-      const std::int64_t n = far[at * nb + b] / 2;  // (each bond from both ends)
-      if (n == 0) continue;
-      std::fprintf(stderr,
-                   "peridrive: warning: %s: cracks: the slit '%s' breaks %lld bonds of the curved sheet '%s' "
-                   "farther than its horizon (%s m) from the slit in space, up to %s m: a slit is taken in the xy "
-                   "plane and cuts every wall above and below it; a polygon crack cuts one wall "
-                   "(docs/user/precracks.md)\n",
-                   crack.where.str().c_str(), crack.name.c_str(), static_cast<long long>(n),
-                   p.scene.bodies[b].name.c_str(), number_text(p.bodies[b].horizon).c_str(),
-                   number_text(far_most[at]).c_str());
-    }
-  }
 }
 
 void setup_figures(const Problem& p, const Partition& partition, PartitionMethod method, RunSummary& summary) {

@@ -34,9 +34,6 @@ constexpr double kFarthestNode = 1e9;
 constexpr double kFarNodeWarning = 1e6;
 // A point cloud whose points' median volume^(1/3) is beyond this factor of the spacing (either way).
 constexpr double kCloudSpacingRatio = 1.5;
-// Thickness of a sheet or diameter of a fiber, in horizons (or lattice spacings), beyond which it
-// is not a membrane or a bar: a length in mm written as m is 1000 times too large and lands far beyond.
-constexpr double kThickBody = 10.0;
 
 std::string num(double v) {
   std::ostringstream s;
@@ -180,53 +177,6 @@ void warn_cloud_spacing(const Scene& scene, int rank) {
                  "the ratio of the volumes (%s); give as spacing the points' typical distance\n",
                  b.where.str().c_str(), b.name.c_str(), num(b.spacing).c_str(), b.points.c_str(), num(typical).c_str(),
                  num(ratio).c_str(), num(b.horizon_value()).c_str(), num(ratio * ratio * ratio).c_str());
-  }
-}
-
-void warn_thick_bodies(const Scene& scene, const Nodes& nodes, int rank) {
-  if (rank != 0) return;
-  for (std::size_t k = 0; k < nodes.bodies.size() && k < scene.bodies.size(); ++k) {
-    const BodyGeometry& g = nodes.bodies[k];
-    const Body& b = scene.bodies[k];
-    const bool fiber = b.diameter > 0;
-    const double across = fiber ? b.diameter : g.thickness;
-    const double length = std::max(g.horizon, g.spacing);  // (a lattice's reach is its spacing)
-    if (!(across > kThickBody * length)) continue;
-    const std::string what = fiber
-        ? "the fiber model is for bars thin against their horizon (no bending, no contact across the width), "
-          "and the diameter scales the fiber's mass and stiffness; a diameter in other units than m?"
-        : "the sheet models are for sheets thin against their horizon (no bending, no shear through the "
-          "thickness), and the thickness scales the sheet's mass, stiffness and pressure stress; a thickness "
-          "in mm? (0.5 mm is 0.0005 m)";
-    std::fprintf(stderr, "peridrive: warning: %s: bodies.%s.%s: %s m is %s times the %s (%s m): %s\n",
-                 b.where.str().c_str(), b.name.c_str(), fiber ? "diameter" : "thickness", num(across).c_str(),
-                 num(across / length).c_str(), g.horizon >= g.spacing ? "horizon" : "spacing", num(length).c_str(),
-                 what.c_str());
-  }
-}
-
-void warn_flattened_meshes(const Scene& scene, int rank) {
-  if (rank != 0) return;
-  for (const Body& b : scene.bodies) {
-    if (!b.mesh_data) continue;
-    if (const Vec3& n = b.mesh_data->tilted_normal; n[0] != 0 || n[1] != 0 || n[2] != 0) {
-      const auto component = [](double c) { return num(std::fabs(c) < 1e-12 ? 0.0 : c); };  // (no round-off)
-      std::fprintf(stderr,
-                   "peridrive: warning: %s: bodies.%s.mesh: '%s' is a plane sheet with normal (%s, %s, %s), not "
-                   "along z: it runs as a curved sheet (no crack tips tracked, quasi-static in_plane stages do "
-                   "not hold it in its plane, slits cut it along their xy projection); rotate the mesh into a "
-                   "plane z = constant to have it flat\n",
-                   b.where.str().c_str(), b.name.c_str(), b.mesh.c_str(), component(n[0]).c_str(),
-                   component(n[1]).c_str(), component(n[2]).c_str());
-      continue;
-    }
-    if (!(b.mesh_data->flattened > 0)) continue;
-    std::fprintf(stderr,
-                 "peridrive: warning: %s: bodies.%s.mesh: the nodes of '%s' lie within %s m in z (at most %s of "
-                 "its size): taken as a flat sheet, every z set to %s m (crack tips tracked, in_plane stages hold "
-                 "it in its plane)\n",
-                 b.where.str().c_str(), b.name.c_str(), b.mesh.c_str(), num(b.mesh_data->flattened).c_str(),
-                 num(kFlatMeshTolerance).c_str(), num(b.mesh_data->nodes.empty() ? 0.0 : b.mesh_data->nodes[0][2]).c_str());
   }
 }
 
